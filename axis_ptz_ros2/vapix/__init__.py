@@ -1,0 +1,1 @@
+"""axis_ptz_ros2.vapix."""
