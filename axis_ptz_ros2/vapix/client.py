@@ -1,0 +1,571 @@
+"""Synchronous, typed VAPIX client for Axis PTZ cameras (ROS-free).
+
+Implements reference ``vapix.md``: §2 (base URL, v2/v3 param.cgi paths, line endings), §3
+(authentication via :class:`~axis_ptz_ros2.vapix.auth.NegotiatingAuth`), §4 (``ptz.cgi`` commands
+and queries, ``ptzconfig.cgi`` presets, ``Error:`` bodies), §5 (``mjpg/video.cgi`` stream,
+``jpg/image.cgi`` snapshot, ``imagesize.cgi`` for CIF names), §6 (``param.cgi?action=list``) and
+the robustness checklist of §12.
+
+Threading: one PTZ caller (serialised by a lock) plus any number of :class:`MjpegStream` objects,
+each on its own ``httpx.Client``, so a long-lived video stream never blocks PTZ polling.
+Credentials live only in :class:`CameraConfig` (``repr=False``) and the auth objects; URLs and
+error messages never contain them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import socket
+import threading
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Self
+from urllib.parse import quote
+
+import httpx
+
+from axis_ptz_ros2 import __version__
+from axis_ptz_ros2.vapix.auth import AuthMode, NegotiatingAuth
+from axis_ptz_ros2.vapix.errors import (
+    AxisPtzError,
+    CommandRejected,
+    HttpStatusError,
+    InvalidArgument,
+    ResponseParseError,
+    check_status,
+    describe_request,
+    map_httpx_error,
+    redact,
+)
+from axis_ptz_ros2.vapix.mjpeg import MjpegParser, MjpegStats, boundary_from_content_type
+from axis_ptz_ros2.vapix.models import (
+    CIF_NTSC,
+    CIF_PAL,
+    DeviceInfo,
+    Preset,
+    PtzLimits,
+    PtzPosition,
+    Resolution,
+    VideoParams,
+    parse_bool,
+    parse_int,
+    parse_key_values,
+)
+from axis_ptz_ros2.vapix.requests import PTZ_CGI, PtzQuery, PtzRequest
+
+__all__ = ["USER_AGENT", "CameraConfig", "MjpegStream", "VapixClient", "build_path", "parse_error_body"]
+
+USER_AGENT = f"axis_ptz_ros2/{__version__}"
+PARAM_CGI_PATHS = ("/axis-cgi/param.cgi", "/axis-cgi/view/param.cgi")
+IMAGESIZE_CGI_PATHS = ("/axis-cgi/imagesize.cgi", "/axis-cgi/view/imagesize.cgi")
+VIDEO_CGI = "/axis-cgi/mjpg/video.cgi"
+IMAGE_CGI = "/axis-cgi/jpg/image.cgi"
+_HTML_ERROR = re.compile(r"(?is)Error:\s*(.*?)\s*</body>")
+
+
+def build_path(path: str, args: Mapping[str, str]) -> str:
+    """``path?k=v&…`` with RFC 3986 percent-encoding (spaces as ``%20``; ``,`` kept, §2.1)."""
+    if not args:
+        return path
+    query = "&".join(f"{quote(k, safe='')}={quote(v, safe=',-._~')}" for k, v in args.items())
+    return f"{path}?{query}"
+
+
+def parse_error_body(text: str) -> str | None:
+    """The camera message of an ``Error:`` body (same-line, next-line or old HTML form), else None."""
+    stripped = text.strip()
+    if stripped.startswith("Error"):
+        first, _, rest = stripped.partition("\n")
+        message = first[len("Error") :].lstrip(":").strip()
+        if not message:
+            message = next((line.strip() for line in rest.splitlines() if line.strip()), "")
+        return message or "(no message)"
+    match = _HTML_ERROR.search(text)
+    if match and stripped[:1] == "<":
+        return re.sub(r"<[^>]+>", "", match.group(1)).strip() or "(no message)"
+    return None
+
+
+def _decode(body: bytes) -> str:
+    try:
+        return body.decode("utf-8")
+    except UnicodeDecodeError:
+        return body.decode("latin-1")
+
+
+def _text(response: httpx.Response) -> str:
+    return _decode(response.content)
+
+
+@dataclass(frozen=True, slots=True)
+class CameraConfig:
+    """Where and how to reach the camera. ``password`` is never shown in ``repr``."""
+
+    host: str = "127.0.0.1"
+    port: int | None = None
+    use_https: bool = False
+    verify_tls: bool | str = True
+    username: str | None = None
+    password: str | None = field(default=None, repr=False)
+    camera: int = 1
+    timeout_s: float = 5.0
+    connect_timeout_s: float = 2.0
+    auth: str = "auto"
+
+    def __post_init__(self) -> None:
+        """Refuse configurations that cannot work (the request would never be sent)."""
+        if not self.host or any(c in self.host for c in "/@?# "):
+            raise InvalidArgument(f"host must be a bare host name or address, got {self.host!r}")
+        if self.port is not None and not 0 < self.port < 65536:
+            raise InvalidArgument(f"port must be 1..65535, got {self.port}")
+        if self.camera < 1:
+            raise InvalidArgument(f"camera must be >= 1, got {self.camera}")
+        if self.timeout_s <= 0 or self.connect_timeout_s <= 0:
+            raise InvalidArgument("timeouts must be positive")
+        try:
+            AuthMode(self.auth)
+        except ValueError as err:
+            modes = ", ".join(m.value for m in AuthMode)
+            raise InvalidArgument(f"auth must be one of {modes}, got {self.auth!r}") from err
+        if (self.username is None) != (self.password is None):
+            raise InvalidArgument("username and password must be given together")
+
+    @property
+    def base_url(self) -> str:
+        """``http://host[:port]`` without credentials (IPv6 literals bracketed)."""
+        scheme = "https" if self.use_https else "http"
+        host = f"[{self.host}]" if ":" in self.host and not self.host.startswith("[") else self.host
+        return f"{scheme}://{host}" + (f":{self.port}" if self.port is not None else "")
+
+    def timeout(self, read_timeout_s: float | None = None) -> httpx.Timeout:
+        """httpx timeout: connect from ``connect_timeout_s``, the rest from ``timeout_s``."""
+        read = self.timeout_s if read_timeout_s is None else read_timeout_s
+        return httpx.Timeout(self.timeout_s, connect=self.connect_timeout_s, read=read)
+
+
+class VapixClient:
+    """Typed access to one Axis camera over one kept-alive ``httpx.Client``."""
+
+    def __init__(self, config: CameraConfig, *, transport: httpx.BaseTransport | None = None) -> None:
+        """``transport`` is injected by tests (``httpx.MockTransport``); default: a real HTTP transport."""
+        self._config = config
+        self._transport = transport
+        self._auth = NegotiatingAuth(config.username, config.password, config.auth)
+        self._http = self._new_http(self._auth, config.timeout())
+        self._lock = threading.RLock()
+        self._param_path: str | None = None
+        self._imagesize_path: str | None = None
+        self._limits: PtzLimits | None = None
+        self._resolutions: tuple[Resolution, ...] | None = None
+        self._ntsc: bool | None = None
+
+    def _new_http(self, auth: httpx.Auth, timeout: httpx.Timeout) -> httpx.Client:
+        return httpx.Client(
+            base_url=self._config.base_url,
+            auth=auth,
+            timeout=timeout,
+            verify=self._config.verify_tls,
+            transport=self._transport,
+            headers={"User-Agent": USER_AGENT},
+            follow_redirects=False,
+            trust_env=False,
+        )
+
+    # -- lifecycle ------------------------------------------------------------------------------
+
+    @property
+    def config(self) -> CameraConfig:
+        """The configuration this client was built with."""
+        return self._config
+
+    @property
+    def limits(self) -> PtzLimits | None:
+        """Limits from the last :meth:`query_limits` (used to validate every command)."""
+        return self._limits
+
+    def close(self) -> None:
+        """Close the PTZ connection (streams are closed by their own ``close``)."""
+        self._http.close()
+
+    def __enter__(self) -> Self:
+        """Context manager: closes on exit."""
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        """Close the client."""
+        self.close()
+
+    def __repr__(self) -> str:
+        """No credentials."""
+        return f"VapixClient({self._config!r})"
+
+    # -- transport ------------------------------------------------------------------------------
+
+    def _secrets(self) -> tuple[str | None, ...]:
+        return (self._config.password,)
+
+    def _get(self, path_query: str) -> httpx.Response:
+        """GET, map transport errors and non-2xx statuses; returns a 2xx response."""
+        with self._lock:
+            try:
+                response = self._http.get(path_query)
+            except httpx.HTTPError as err:
+                raise map_httpx_error(err, self._secrets()) from err
+        self._check(response)
+        return response
+
+    def _check(self, response: httpx.Response) -> None:
+        hint = self._auth.failure_hint(response) if response.status_code in (401, 403) else ""
+        check_status(response, auth_hint=redact(hint, self._secrets()))
+
+    def _get_text(self, path_query: str) -> tuple[httpx.Response, str]:
+        response = self._get(path_query)
+        text = _text(response)
+        message = parse_error_body(text)
+        if message is not None:
+            raise CommandRejected(
+                f"{describe_request(response.request)}: camera says {message!r}", camera_message=message
+            )
+        return response, text
+
+    def _camera_args(self) -> dict[str, str]:
+        return {"camera": str(self._config.camera)} if self._config.camera != 1 else {}
+
+    # -- PTZ ------------------------------------------------------------------------------------
+
+    def ptz(self, cmd: PtzRequest) -> None:
+        """Validate ``cmd`` (against :attr:`limits` when known) and send it; expects 204/2xx.
+
+        Raises :class:`InvalidArgument` before sending, :class:`CommandRejected` on an ``Error:``
+        body, or the mapped transport/status error.
+        """
+        cmd.validate(self._limits)
+        self._get_text(build_path(cmd.path, {**self._camera_args(), **cmd.query()}))
+
+    def _query(self, what: PtzQuery) -> str:
+        _, text = self._get_text(build_path(PTZ_CGI, {**self._camera_args(), "query": what.value}))
+        return text
+
+    def query_position(self) -> PtzPosition:
+        """``query=position`` (§4.4)."""
+        return PtzPosition.parse(self._query(PtzQuery.POSITION))
+
+    def query_limits(self) -> PtzLimits:
+        """``query=limits``, falling back to ``param.cgi`` ``PTZ.Limit.L<camera>``; cached for validation."""
+        try:
+            limits = PtzLimits.parse(self._query(PtzQuery.LIMITS))
+        except (CommandRejected, ResponseParseError) as query_err:
+            try:
+                limits = PtzLimits.from_params(self.list_params("PTZ.Limit"), camera=self._config.camera)
+            except AxisPtzError:
+                raise query_err from None
+        self._limits = limits
+        return limits
+
+    def query_presets(self) -> tuple[Preset, ...]:
+        """``query=presetposcam`` → presets sorted by number."""
+        return Preset.parse_list(self._query(PtzQuery.PRESETPOSCAM))
+
+    def query_speed(self) -> int:
+        """``query=speed`` → 1..100."""
+        values = parse_key_values(self._query(PtzQuery.SPEED))
+        if "speed" not in values:
+            raise ResponseParseError(f"query=speed: no 'speed' in reply (keys: {sorted(values)})")
+        return parse_int(values["speed"], key="speed")
+
+    # -- parameters -----------------------------------------------------------------------------
+
+    def _list_at(self, path: str, group: str) -> dict[str, str]:
+        _, text = self._get_text(build_path(path, {"action": "list", "group": group}))
+        errors = [
+            line.strip().lstrip("#").strip() for line in text.splitlines() if line.lstrip().startswith("#")
+        ]
+        errors = [e for e in errors if e.startswith("Error")]
+        if errors:
+            message = errors[0].partition(":")[2].strip() or errors[0]
+            raise CommandRejected(
+                f"{path}?action=list&group={group}: camera says {message!r}", camera_message=message
+            )
+        return parse_key_values(text)
+
+    def list_params(self, group: str) -> dict[str, str]:
+        """``param.cgi?action=list&group=<group>`` → ``{name: value}`` with ``root.`` stripped.
+
+        Tries the v3 path ``/axis-cgi/param.cgi`` then the v2 path ``/axis-cgi/view/param.cgi``
+        (the 214) and remembers which one answered. ``# Error:`` lines raise :class:`CommandRejected`.
+        """
+        if not group or any(c in group for c in "&=?#"):
+            raise InvalidArgument(f"bad parameter group {group!r}")
+        if self._param_path is not None:
+            return self._list_at(self._param_path, group)
+        first_error: HttpStatusError | None = None
+        for path in PARAM_CGI_PATHS:
+            try:
+                values = self._list_at(path, group)
+            except HttpStatusError as err:
+                if err.status_code != 404:
+                    raise
+                first_error = first_error or err
+                continue
+            self._param_path = path
+            return values
+        assert first_error is not None  # noqa: S101 - loop ran at least once
+        raise first_error
+
+    def _imagesize(self, name: str) -> Resolution | None:
+        """Resolve a resolution name with ``imagesize.cgi`` (§5.3); None if the camera cannot."""
+        args = {"resolution": name, "squarepixel": "0", **self._camera_args()}
+        paths = (self._imagesize_path,) if self._imagesize_path else IMAGESIZE_CGI_PATHS
+        for path in paths:
+            assert path is not None  # noqa: S101
+            try:
+                _, text = self._get_text(build_path(path, args))
+            except (HttpStatusError, CommandRejected):
+                continue
+            values = {k.strip().lower(): v for k, v in parse_key_values(text).items()}
+            try:
+                width = parse_int(values["image width"], key="image width")
+                height = parse_int(values["image height"], key="image height")
+            except (KeyError, ResponseParseError):
+                continue
+            self._imagesize_path = path
+            return Resolution(width, height)
+        return None
+
+    def _resolutions_from(self, listing: str) -> tuple[Resolution, ...]:
+        names = [n.strip() for n in listing.split(",") if n.strip()]
+        result: list[Resolution] = []
+        for name in names:
+            upper = name.upper()
+            if upper in CIF_PAL:
+                if self._ntsc is None:  # PAL or NTSC? ask the camera once (the TRADR way, §5.3)
+                    resolved = self._imagesize(upper)
+                    self._ntsc = resolved is not None and resolved == Resolution(*CIF_NTSC[upper])
+                size = (CIF_NTSC if self._ntsc else CIF_PAL)[upper]
+                resolution: Resolution | None = Resolution(*size)
+            else:
+                try:
+                    resolution = Resolution.parse(name)
+                except InvalidArgument:
+                    resolution = self._imagesize(name)
+            if resolution is not None and resolution not in result:
+                result.append(resolution)
+        return tuple(result)
+
+    def supported_resolutions(self) -> tuple[Resolution, ...]:
+        """``Properties.Image.Resolution`` as sizes (CIF names mapped, PAL/NTSC via ``imagesize.cgi``)."""
+        params = self.list_params("Properties.Image.Resolution")
+        listing = params.get("Properties.Image.Resolution")
+        if listing is None:
+            raise ResponseParseError(f"no Properties.Image.Resolution in reply (keys: {sorted(params)})")
+        self._resolutions = self._resolutions_from(listing)
+        return self._resolutions
+
+    def device_info(self) -> DeviceInfo:
+        """Product, firmware, API version, resolutions, PTZ presence and ``PTZ.Support`` capabilities."""
+        brand = self.list_params("Brand")
+        props = self.list_params("Properties")
+        product = brand.get("Brand.ProdFullName") or brand.get("Brand.ProdShortName") or "unknown"
+        version = props.get("Properties.API.HTTP.Version")
+        listing = props.get("Properties.Image.Resolution", "")
+        self._resolutions = self._resolutions_from(listing) if listing else ()
+        ptz_flag = props.get("Properties.PTZ.PTZ")
+        supports: frozenset[str] = frozenset()
+        if ptz_flag is None or parse_bool(ptz_flag, key="Properties.PTZ.PTZ"):
+            prefix = f"PTZ.Support.S{self._config.camera}."
+            try:
+                support = self.list_params("PTZ.Support")
+            except CommandRejected:
+                support = {}
+            supports = frozenset(
+                key[len(prefix) :]
+                for key, value in support.items()
+                if key.startswith(prefix) and value.strip().lower() in ("true", "yes", "on", "1")
+            )
+        return DeviceInfo(
+            product=product,
+            firmware=props.get("Properties.Firmware.Version", "unknown"),
+            api_version=parse_int(version, key="Properties.API.HTTP.Version") if version else None,
+            resolutions=self._resolutions,
+            ptz=parse_bool(ptz_flag, key="Properties.PTZ.PTZ") if ptz_flag is not None else bool(supports),
+            supports=supports,
+        )
+
+    # -- video ----------------------------------------------------------------------------------
+
+    def video_path(self, params: VideoParams) -> str:
+        """Path and query of the MJPEG request, e.g. for logging (no host, no credentials)."""
+        return build_path(VIDEO_CGI, params.query())
+
+    def snapshot(self, params: VideoParams) -> bytes:
+        """One JPEG from ``jpg/image.cgi`` (``fps`` is not sent)."""
+        params.validate(self._resolutions)
+        response = self._get(build_path(IMAGE_CGI, params.query(include_fps=False)))
+        body = response.content
+        if not body.startswith(b"\xff\xd8"):
+            message = parse_error_body(_text(response))
+            if message is not None:
+                raise CommandRejected(f"{IMAGE_CGI}: camera says {message!r}", camera_message=message)
+            ctype = response.headers.get("content-type", "?")
+            raise ResponseParseError(f"{IMAGE_CGI}: expected a JPEG, got {ctype} ({len(body)} bytes)")
+        return body
+
+    def open_mjpeg(self, params: VideoParams, read_timeout_s: float = 5.0) -> MjpegStream:
+        """Open ``mjpg/video.cgi`` on a separate connection; iterate the result for JPEG frames."""
+        params.validate(self._resolutions)
+        if read_timeout_s <= 0:
+            raise InvalidArgument(f"read timeout must be positive, got {read_timeout_s}")
+        auth = NegotiatingAuth(
+            self._config.username, self._config.password, self._config.auth, initial_scheme=self._auth.scheme
+        )
+        http = self._new_http(auth, self._config.timeout(read_timeout_s))
+        stream = MjpegStream(http, self.video_path(params), auth, self._secrets())
+        try:
+            stream._open()
+        except BaseException:
+            stream.close()
+            raise
+        return stream
+
+
+class MjpegStream:
+    """A running MJPEG request: iterate for frames; :meth:`close` may be called from any thread."""
+
+    def __init__(
+        self, http: httpx.Client, path_query: str, auth: NegotiatingAuth, secrets: tuple[str | None, ...]
+    ) -> None:
+        """Use :meth:`VapixClient.open_mjpeg`."""
+        self._http = http
+        self._path = path_query
+        self._auth = auth
+        self._secrets = secrets
+        self._response: httpx.Response | None = None
+        self._parser: MjpegParser | None = None
+        self._closed = threading.Event()
+        self._lock = threading.Lock()
+        self._reading = False
+        self._released = False
+
+    @property
+    def path(self) -> str:
+        """Path and query of the request."""
+        return self._path
+
+    @property
+    def content_type(self) -> str:
+        """The ``Content-Type`` the camera announced."""
+        return self._response.headers.get("content-type", "") if self._response is not None else ""
+
+    @property
+    def stats(self) -> MjpegStats:
+        """Parser counters so far."""
+        return self._parser.stats if self._parser is not None else MjpegStats()
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return self._closed.is_set()
+
+    def _open(self) -> None:
+        request = self._http.build_request("GET", self._path)
+        try:
+            response = self._http.send(request, stream=True)
+        except httpx.HTTPError as err:
+            raise map_httpx_error(err, self._secrets) from err
+        self._response = response
+        if not 200 <= response.status_code < 300:
+            with contextlib.suppress(httpx.HTTPError):
+                response.read()
+            hint = self._auth.failure_hint(response) if response.status_code in (401, 403) else ""
+            check_status(response, auth_hint=redact(hint, self._secrets))
+        ctype = response.headers.get("content-type", "")
+        if not ctype.lower().startswith("multipart/"):
+            text = ""
+            with contextlib.suppress(httpx.HTTPError):
+                text = _decode(response.read()[:4096])
+            message = parse_error_body(text)
+            if message is not None:
+                raise CommandRejected(f"{VIDEO_CGI}: camera says {message!r}", camera_message=message)
+            raise ResponseParseError(f"{VIDEO_CGI}: expected multipart/x-mixed-replace, got {ctype!r}")
+        self._parser = MjpegParser(boundary_from_content_type(ctype))
+
+    def __iter__(self) -> Iterator[bytes]:
+        """Yield each complete JPEG as it arrives; ends quietly after :meth:`close` or end of stream.
+
+        Iterate once: when the iteration ends (end of stream, ``break``, error) the stream is closed.
+        """
+        response, parser = self._response, self._parser
+        if response is None or parser is None:
+            return
+        raw = response.iter_raw()
+        try:
+            while not self._closed.is_set():
+                with self._lock:
+                    if self._closed.is_set():
+                        break
+                    self._reading = True
+                try:
+                    chunk = next(raw, None)
+                except httpx.HTTPError as err:
+                    if self._closed.is_set():
+                        break
+                    raise map_httpx_error(err, self._secrets) from err
+                except (OSError, ValueError):
+                    if self._closed.is_set():  # socket shut down under us by close()
+                        break
+                    raise
+                finally:
+                    with self._lock:
+                        self._reading = False
+                if chunk is None:
+                    parser.close()
+                    break
+                yield from parser.feed(chunk)
+        finally:
+            self._closed.set()
+            self._release()
+
+    def close(self) -> None:
+        """Stop the stream; safe from another thread (wakes a reader blocked on a stalled camera)."""
+        with self._lock:
+            self._closed.set()
+            reading = self._reading
+        if reading:
+            self._shutdown_socket()  # the reader wakes up, sees the flag and releases
+        else:
+            self._release()
+
+    def _shutdown_socket(self) -> None:
+        response = self._response
+        if response is None:
+            return
+        stream = response.extensions.get("network_stream")
+        get_extra = getattr(stream, "get_extra_info", None)
+        sock = get_extra("socket") if get_extra is not None else None
+        if isinstance(sock, socket.socket):
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
+    def _release(self) -> None:
+        with self._lock:
+            if self._released:
+                return
+            self._released = True
+        if self._response is not None:
+            with contextlib.suppress(httpx.HTTPError, OSError):
+                self._response.close()
+        self._http.close()
+
+    def __enter__(self) -> Self:
+        """Context manager: closes on exit."""
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        """Close the stream."""
+        self.close()
