@@ -1,0 +1,251 @@
+"""Shared ROS glue for every node: declarative parameters, the Jazzy-correct runner, credentials, messages.
+
+This is the only place (with the node modules) that knows both the ROS-free layers and ROS messages.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TransformStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo
+
+from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion
+
+# ---------------------------------------------------------------------------------------------------------
+# QoS
+# ---------------------------------------------------------------------------------------------------------
+#: Images and state: reliable (so default subscribers match), keep only the newest sample: a slow link drops
+#: old frames instead of queueing them. Best-effort subscribers match it too.
+STREAM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: Commands: the newest wins; a small queue absorbs bursts.
+COMMAND_QOS = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: Latched values (video/params): late joiners get the value in effect.
+LATCHED_QOS = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Declarative parameters (one spec per node → descriptors, validation, README tables)
+# ---------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ParamSpec:
+    """One ROS parameter: its type comes from ``default``; ranges are enforced by rclpy itself."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    read_only: bool = False
+    int_range: tuple[int, int] | None = None
+    float_range: tuple[float, float] | None = None
+    choices: tuple[str, ...] | None = None
+    dynamic_typing: bool = False
+
+    def descriptor(self) -> ParameterDescriptor:
+        """A full ParameterDescriptor (description with unit, range, read-only flag)."""
+        text = self.description + (f" [{self.unit}]" if self.unit else "")
+        if self.choices:
+            text += " (one of: " + ", ".join(self.choices) + ")"
+        d = ParameterDescriptor(
+            description=text, read_only=self.read_only, dynamic_typing=self.dynamic_typing
+        )
+        if self.int_range is not None:
+            d.integer_range = [IntegerRange(from_value=self.int_range[0], to_value=self.int_range[1], step=1)]
+        if self.float_range is not None:
+            d.floating_point_range = [
+                FloatingPointRange(from_value=self.float_range[0], to_value=self.float_range[1], step=0.0)
+            ]
+        return d
+
+    def check(self, value: Any) -> str | None:
+        """Checks rclpy does not do (choices); returns a reason or None."""
+        if self.choices is not None and value not in self.choices:
+            return f"{self.name}={value!r} is not one of {', '.join(self.choices)}"
+        return None
+
+    def range_text(self) -> str:
+        """Human-readable range for documentation."""
+        if self.int_range:
+            return f"{self.int_range[0]}…{self.int_range[1]}"
+        if self.float_range:
+            return f"{self.float_range[0]:g}…{self.float_range[1]:g}"
+        if self.choices:
+            return " / ".join(self.choices)
+        return ""
+
+
+def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """Declare every spec on ``node`` and return the values in effect (overrides applied)."""
+    values: dict[str, Any] = {}
+    for s in specs:
+        p = node.declare_parameter(s.name, s.default, s.descriptor())
+        values[s.name] = p.value
+        reason = s.check(p.value)
+        if reason:
+            raise ValueError(f"invalid start-up parameter: {reason}")
+    return values
+
+
+def check_params(specs: Mapping[str, ParamSpec], params: Iterable[Parameter]) -> SetParametersResult:
+    """An ``on_set_parameters`` helper: refuse unknown-choice values of the parameters we own."""
+    for p in params:
+        spec = specs.get(p.name)
+        if spec is None:
+            continue
+        reason = spec.check(p.value)
+        if reason:
+            return SetParametersResult(successful=False, reason=reason)
+    return SetParametersResult(successful=True)
+
+
+def params_markdown(specs: Sequence[ParamSpec]) -> str:
+    """A README table of the parameters (name, type, default, unit, range, description)."""
+    rows = ["| parameter | type | default | unit | range | description |", "|---|---|---|---|---|---|"]
+    for s in specs:
+        kind = type(s.default).__name__
+        ro = " (read-only)" if s.read_only else ""
+        rows.append(
+            f"| `{s.name}` | {kind} | `{s.default!r}` | {s.unit} | {s.range_text()} | {s.description}{ro} |"
+        )
+    return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Credentials: from the environment or a file, never from a readable parameter, never logged
+# ---------------------------------------------------------------------------------------------------------
+def load_credentials(password_file: str = "") -> tuple[str | None, str | None]:
+    """Camera credentials: ``AXIS_USERNAME``/``AXIS_PASSWORD`` environment variables, or ``password_file``
+    (a file with ``user:password`` on its first line, or ``AXIS_PASSWORD_FILE``). Returns ``(None, None)``
+    for anonymous access. Nothing here is logged or stored in a parameter."""
+    path = password_file or os.environ.get("AXIS_PASSWORD_FILE", "")
+    if path:
+        text = Path(path).expanduser().read_text(encoding="utf-8").splitlines()
+        first = text[0].strip() if text else ""
+        if ":" not in first:
+            raise ValueError("credentials file must contain 'user:password' on its first line")
+        user, _, pw = first.partition(":")
+        return user, pw
+    user = os.environ.get("AXIS_USERNAME")
+    pw = os.environ.get("AXIS_PASSWORD")
+    if pw is not None and not user:
+        user = "root"
+    return user, pw
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Messages
+# ---------------------------------------------------------------------------------------------------------
+def stamp_from_ns(ns: int) -> Time:
+    """A ROS time from integer nanoseconds (e.g. ``time.time_ns()``)."""
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def camera_info_msg(intr: Intrinsics, frame_id: str, stamp: Time) -> CameraInfo:
+    """``sensor_msgs/CameraInfo`` for a pinhole without distortion (plumb_bob zeros)."""
+    m = CameraInfo()
+    m.header.frame_id = frame_id
+    m.header.stamp = stamp
+    m.width, m.height = int(intr.width), int(intr.height)
+    m.distortion_model = "plumb_bob"
+    m.d = [0.0, 0.0, 0.0, 0.0, 0.0]
+    m.k = [intr.fx, 0.0, intr.cx, 0.0, intr.fy, intr.cy, 0.0, 0.0, 1.0]
+    m.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    m.p = [intr.fx, 0.0, intr.cx, 0.0, 0.0, intr.fy, intr.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return m
+
+
+def transform_msg(T: Transform, parent: str, child: str, stamp: Time) -> TransformStamped:
+    """``geometry_msgs/TransformStamped`` (parent → child) from a :class:`Transform` ``T_parent_child``."""
+    m = TransformStamped()
+    m.header.frame_id = parent
+    m.header.stamp = stamp
+    m.child_frame_id = child
+    m.transform.translation.x, m.transform.translation.y, m.transform.translation.z = (float(v) for v in T.t)
+    qx, qy, qz, qw = matrix_to_quaternion(T.R)
+    m.transform.rotation.x, m.transform.rotation.y = qx, qy
+    m.transform.rotation.z, m.transform.rotation.w = qz, qw
+    return m
+
+
+def diagnostic(
+    node: Node, name: str, level: int, message: str, values: Mapping[str, Any], hardware_id: str = ""
+) -> DiagnosticArray:
+    """A one-status ``DiagnosticArray`` stamped now (level: DiagnosticStatus.OK/WARN/ERROR/STALE)."""
+    arr = DiagnosticArray()
+    arr.header.stamp = node.get_clock().now().to_msg()
+    st = DiagnosticStatus(level=bytes([level]), name=name, message=message, hardware_id=hardware_id)
+    for k, v in values.items():
+        if isinstance(v, float):
+            v = "nan" if math.isnan(v) else f"{v:.3f}"
+        st.values.append(KeyValue(key=str(k), value=str(v)))
+    arr.status = [st]
+    return arr
+
+
+try:  # real Jazzy installs have tf2_ros; the PyPI wheels here do not (plain TransformStamped topic instead)
+    from tf2_ros import StaticTransformBroadcaster as _StaticTfB
+    from tf2_ros import TransformBroadcaster as _TfB
+
+    HAVE_TF2 = True
+except ImportError:  # pragma: no cover - depends on the installation
+    _TfB = None
+    _StaticTfB = None
+    HAVE_TF2 = False
+
+
+def make_tf_broadcasters(node: Node) -> tuple[Any | None, Any | None]:
+    """(TransformBroadcaster, StaticTransformBroadcaster) when tf2_ros is importable, else (None, None)."""
+    if not HAVE_TF2:
+        return None, None
+    return _TfB(node), _StaticTfB(node)  # type: ignore[misc]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Runner
+# ---------------------------------------------------------------------------------------------------------
+def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
+    """Create nodes in one process and spin them on a multi-threaded executor until Ctrl-C / shutdown.
+
+    Jazzy-correct: ``rclpy.init`` returns None; KeyboardInterrupt and ExternalShutdownException end the spin;
+    every node is destroyed (joining its threads) before ``rclpy.try_shutdown``.
+    """
+    rclpy.init(args=list(args) if args is not None else sys.argv)
+    nodes: list[Node] = []
+    executor = MultiThreadedExecutor(num_threads=4)
+    code = 0
+    try:
+        for f in factories:
+            n = f()
+            nodes.append(n)
+            executor.add_node(n)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as err:  # start-up configuration errors: say why, exit non-zero
+        print(f"error: {err}", file=sys.stderr)  # noqa: T201
+        code = 2
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        for n in nodes:
+            n.destroy_node()
+        rclpy.try_shutdown()
+    return code
