@@ -522,7 +522,7 @@ class MjpegStream:
                     with self._lock:
                         self._reading = False
                 if chunk is None:
-                    parser.close()
+                    yield from parser.close()
                     break
                 yield from parser.feed(chunk)
         finally:

@@ -189,13 +189,31 @@ class MjpegParser:
             self._pos = 0
         return frames
 
-    def close(self) -> None:
-        """End of stream: an unfinished part counts as truncated; the buffer is released."""
-        if self._state == _BODY and len(self._buf) > self._body_start:
-            self._stats.dropped_truncated += 1
+    def close(self) -> list[bytes]:
+        """End of stream: return a last part that needs no more data, count an unfinished one.
+
+        A part without ``Content-Length`` ends at the next boundary, or here at end of stream; it is
+        returned if it is a complete JPEG. An incomplete part counts as truncated. The buffer is
+        released and the parser starts over (seeking a boundary).
+        """
+        frames: list[bytes] = []
+        buf = self._buf
+        if self._state == _BODY and len(buf) > self._body_start:
+            start = self._body_start
+            end = len(buf)
+            if self._length is None or self._length > self._max:
+                if buf.endswith(b"\r\n"):
+                    end -= 2
+                elif buf.endswith(b"\n"):
+                    end -= 1
+                self._emit_or_drop(frames, start, end)
+            else:
+                self._stats.dropped_truncated += 1
         self._buf = bytearray()
         self._pos = 0
         self._state = _SEEK
+        self._garbage_run = False
+        return frames
 
     # -- internals ------------------------------------------------------------------------------
 
