@@ -9,7 +9,8 @@ import pytest
 # Before anything imports rclpy: keep discovery on this machine.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
-os.environ.setdefault("ROS_DOMAIN_ID", "42")
+# One DDS domain per test session (several sessions may run at once on a machine; they must not cross-talk).
+os.environ["ROS_DOMAIN_ID"] = os.environ.get("AXIS_TEST_DOMAIN_ID", str(100 + os.getpid() % 100))
 
 
 @pytest.hookimpl(hookwrapper=True)
