@@ -521,10 +521,15 @@ class MjpegStream:
                 finally:
                     with self._lock:
                         self._reading = False
-                if chunk is None:
-                    yield from parser.close()
+                if self._closed.is_set():  # closed while we were blocked: drop what arrived late
                     break
-                yield from parser.feed(chunk)
+                frames = parser.close() if chunk is None else parser.feed(chunk)
+                for frame in frames:
+                    if self._closed.is_set():
+                        break
+                    yield frame
+                if chunk is None:
+                    break
         finally:
             self._closed.set()
             self._release()

@@ -18,6 +18,8 @@ POSITION_RESPONSE_CLEARPATH = (
     "pan=-0.01\r\ntilt=-45.03\r\nzoom=1\r\niris=5748\r\nfocus=4642\r\n"
     "brightness=4999\r\nautofocus=on\r\nautoiris=on\r\n"
 )
+# §4.4 official template [V S1]: no iris/focus/brightness.
+POSITION_RESPONSE_MINIMAL = "pan=10\ntilt=-15\nzoom=3000\nautofocus=on\nautoiris=on\n"
 
 # §4.4 [V S1 template; V-obs S5 values]
 LIMITS_RESPONSE = (
