@@ -15,8 +15,10 @@ error messages never contain them.
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 import socket
+import ssl
 import threading
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -139,6 +141,17 @@ class CameraConfig:
         host = f"[{self.host}]" if ":" in self.host and not self.host.startswith("[") else self.host
         return f"{scheme}://{host}" + (f":{self.port}" if self.port is not None else "")
 
+    def ssl_verify(self) -> ssl.SSLContext | bool:
+        """``verify_tls`` for httpx: a bool, or a CA file/directory turned into an SSL context."""
+        if isinstance(self.verify_tls, bool):
+            return self.verify_tls
+        try:
+            if os.path.isdir(self.verify_tls):
+                return ssl.create_default_context(capath=self.verify_tls)
+            return ssl.create_default_context(cafile=self.verify_tls)
+        except (OSError, ssl.SSLError) as err:
+            raise InvalidArgument(f"verify_tls: cannot load CA bundle {self.verify_tls!r} ({err})") from err
+
     def timeout(self, read_timeout_s: float | None = None) -> httpx.Timeout:
         """httpx timeout: connect from ``connect_timeout_s``, the rest from ``timeout_s``."""
         read = self.timeout_s if read_timeout_s is None else read_timeout_s
@@ -153,6 +166,7 @@ class VapixClient:
         self._config = config
         self._transport = transport
         self._auth = NegotiatingAuth(config.username, config.password, config.auth)
+        self._verify = config.ssl_verify() if config.use_https else True
         self._http = self._new_http(self._auth, config.timeout())
         self._lock = threading.RLock()
         self._param_path: str | None = None
@@ -166,7 +180,7 @@ class VapixClient:
             base_url=self._config.base_url,
             auth=auth,
             timeout=timeout,
-            verify=self._config.verify_tls,
+            verify=self._verify,
             transport=self._transport,
             headers={"User-Agent": USER_AGENT},
             follow_redirects=False,

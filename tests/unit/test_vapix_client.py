@@ -394,3 +394,12 @@ def test_build_path_encoding():
     assert build_path("/x", {"a": "b c", "d": "1,2", "e": "x&y"}) == "/x?a=b%20c&d=1,2&e=x%26y"
     assert CameraConfig(host="::1", port=80).base_url == "http://[::1]:80"
     assert CameraConfig(use_https=True).base_url == "https://127.0.0.1"
+
+
+def test_https_verify_options(tmp_path):
+    with VapixClient(
+        CameraConfig(use_https=True, verify_tls=False), transport=fx.Recorder().transport()
+    ) as v:
+        assert v.config.base_url.startswith("https://")
+    with pytest.raises(InvalidArgument, match="cannot load CA bundle"):
+        VapixClient(CameraConfig(use_https=True, verify_tls=str(tmp_path / "missing.pem")))
