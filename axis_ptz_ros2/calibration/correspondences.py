@@ -93,7 +93,7 @@ class CorrespondenceSet:
         p = Path(self.camera_model).expanduser()
         if not p.is_absolute() and self.source is not None:
             p = self.source.parent / p
-        return p
+        return p.resolve()
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -103,24 +103,30 @@ def _finite(x: float) -> bool:
     return math.isfinite(x)
 
 
-def _validate_view(v: View, where: str) -> None:
-    if not v.name:
-        raise CorrespondenceError(f"{where}: name must be a non-empty string")
-    for key, val in (("pan", v.pan), ("tilt", v.tilt), ("zoom", v.zoom)):
+def _view_problem(
+    name: str, pan: float, tilt: float, zoom: float, width: int, height: int
+) -> tuple[str, str] | None:
+    """The first problem of a view's scalar fields as (field, message), or None."""
+    if not name:
+        return "name", "must be a non-empty string"
+    for key, val in (("pan", pan), ("tilt", tilt), ("zoom", zoom)):
         if not _finite(val):
-            raise CorrespondenceError(f"{where}: {key} must be finite, got {val}")
-    if abs(v.pan) > 2.0 * math.pi + 1e-9:
-        raise CorrespondenceError(
-            f"{where}: pan {v.pan} is outside ±2π rad — degrees given instead of radians?"
-        )
-    if abs(v.tilt) > math.pi / 2.0 + 0.2:
-        raise CorrespondenceError(
-            f"{where}: tilt {v.tilt} is outside ±(π/2 + 0.2) rad — degrees given instead of radians?"
-        )
-    if v.zoom < 0.0:
-        raise CorrespondenceError(f"{where}: zoom must be >= 0 (VAPIX units), got {v.zoom}")
-    if v.image_width <= 0 or v.image_height <= 0:
-        raise CorrespondenceError(f"{where}: image_width and image_height must be positive integers")
+            return key, f"must be finite, got {val}"
+    if abs(pan) > 2.0 * math.pi + 1e-9:
+        return "pan", f"{pan} is outside ±2π rad — degrees given instead of radians?"
+    if abs(tilt) > math.pi / 2.0 + 0.2:
+        return "tilt", f"{tilt} is outside ±(π/2 + 0.2) rad — degrees given instead of radians?"
+    if zoom < 0.0:
+        return "zoom", f"must be >= 0 (VAPIX units), got {zoom}"
+    if width <= 0 or height <= 0:
+        return "image_width", "image_width and image_height must be positive integers"
+    return None
+
+
+def _validate_view(v: View, where: str) -> None:
+    problem = _view_problem(v.name, v.pan, v.tilt, v.zoom, v.image_width, v.image_height)
+    if problem is not None:
+        raise CorrespondenceError(f"{where}: {problem[0]}: {problem[1]}")
     for i, c in enumerate(v.points):
         _validate_point(c, v.image_width, v.image_height, f"{where}: points[{i}]")
 
@@ -254,11 +260,10 @@ def _parse_view(ctx: _Ctx, d: Any, path: list[str | int], names: set[str]) -> Vi
         except CorrespondenceError as err:
             raise ctx.error([*pp, "pixel"], str(err).split(": ", 1)[1]) from err
         points.append(c)
-    comment = d.get("comment", "")
-    try:
-        return View(name, pan, tilt, zoom, width, height, tuple(points), image, str(comment))
-    except CorrespondenceError as err:
-        raise ctx.error(path, str(err).split(": ", 1)[1]) from err
+    problem = _view_problem(name, pan, tilt, zoom, width, height)  # checked here to name the line
+    if problem is not None:
+        raise ctx.error([*path, problem[0]], problem[1])
+    return View(name, pan, tilt, zoom, width, height, tuple(points), image, str(d.get("comment", "")))
 
 
 def parse_correspondences(text: str, source: str = "<string>") -> CorrespondenceSet:
@@ -303,12 +308,12 @@ def load_correspondences(path: str | Path) -> CorrespondenceSet:
 # Writing
 # --------------------------------------------------------------------------------------------------------
 def view_to_dict(v: View) -> dict[str, Any]:
-    """Serialisable mapping of one view."""
+    """Serialisable mapping of one view (pixels rounded to 0.001 px, points to 10 µm, angles to 1e-9 rad)."""
     out: dict[str, Any] = {
         "name": v.name,
-        "pan": float(v.pan),
-        "tilt": float(v.tilt),
-        "zoom": float(v.zoom),
+        "pan": round(float(v.pan), 9),
+        "tilt": round(float(v.tilt), 9),
+        "zoom": round(float(v.zoom), 3),
         "image_width": int(v.image_width),
         "image_height": int(v.image_height),
     }
@@ -319,8 +324,8 @@ def view_to_dict(v: View) -> dict[str, Any]:
     pts: list[dict[str, Any]] = []
     for c in v.points:
         d: dict[str, Any] = {
-            "pixel": [float(c.pixel[0]), float(c.pixel[1])],
-            "point": [float(x) for x in c.point],
+            "pixel": [round(float(c.pixel[0]), 3), round(float(c.pixel[1]), 3)],
+            "point": [round(float(x), 5) for x in c.point],
         }
         if c.label:
             d["label"] = c.label

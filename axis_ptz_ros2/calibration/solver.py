@@ -584,6 +584,7 @@ def calibrate(
         cov_full = np.full((JtJ.shape[0], JtJ.shape[0]), np.inf)
     else:
         cov_full = np.linalg.inv(JtJ) * covariance_inflation**2
+        cov_full = 0.5 * (cov_full + cov_full.T)
     cov = np.asarray(cov_full[:6, :6], dtype=np.float64)
     tilt_sigma = float(math.sqrt(cov_full[6, 6])) if estimate_encoder_offsets else 0.0
 
@@ -649,7 +650,8 @@ def calibrate(
     if mask.sum() < min_inlier_fraction * prob.n:
         return refuse(
             f"inconsistent data: only {int(mask.sum())} of {prob.n} correspondences agree with one mount "
-            f"(< {min_inlier_fraction:.0%}); check the pairing of pixels and laser points",
+            f"(< {min_inlier_fraction:.0%}); check the pairing of pixels and laser points, the pan/tilt "
+            + ("readings" if estimate_encoder_offsets else "readings (or estimate encoder offsets)"),
             result,
         )
     if float(st.max()) > max_sigma_translation_m or float(sr.max()) > max_sigma_rotation_deg:
