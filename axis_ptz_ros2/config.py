@@ -32,6 +32,7 @@ from axis_ptz_ros2.geometry import (
 
 CAMERA_MODEL_FORMAT = "axis_ptz_ros2/camera_model/v1"
 MOUNT_FORMAT = "axis_ptz_ros2/mount/v1"
+ROBOT_FORMAT = "axis_ptz_ros2/robot/v1"
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
 
@@ -180,3 +181,60 @@ def covariance_matrix(mount: MountConfig) -> np.ndarray[Any, np.dtype[np.float64
     if mount.covariance is None:
         return None
     return np.array(mount.covariance, dtype=np.float64).reshape(6, 6)
+
+
+@dataclass(frozen=True, slots=True)
+class SensorPose:
+    """A sensor's frame name and its pose ``T_base_sensor``."""
+
+    frame: str
+    pose: Transform
+
+
+@dataclass(frozen=True, slots=True)
+class RobotConfig:
+    """Frames of the robot used by the operator tools and simulated sensors (``robot/v1``)."""
+
+    base_frame: str = "base_link"
+    panorama: SensorPose = field(
+        default_factory=lambda: SensorPose(
+            "panorama_link", Transform.from_xyz_rpy(0.216, -0.044, 0.75, 0, 0, 0)
+        )
+    )
+    laser: SensorPose = field(
+        default_factory=lambda: SensorPose("laser_link", Transform.from_xyz_rpy(0.25, 0.0, 0.40, 0, 0, 0))
+    )
+    ground_z: float = 0.0
+    default_range: float = 10.0
+    depth_cone_deg: float = 1.0
+
+
+def _sensor(d: dict[str, Any], default: SensorPose) -> SensorPose:
+    if not d:
+        return default
+    xyz = [float(v) for v in d.get("xyz", (0.0, 0.0, 0.0))]
+    rpy = [float(v) for v in d.get("rpy", (0.0, 0.0, 0.0))]
+    return SensorPose(str(d.get("frame", default.frame)), Transform.from_xyz_rpy(*xyz, *rpy))
+
+
+def robot_from_dict(d: dict[str, Any]) -> RobotConfig:
+    """Parse a ``robot/v1`` mapping."""
+    fmt = d.get("format", ROBOT_FORMAT)
+    if fmt != ROBOT_FORMAT:
+        raise ValueError(f"unsupported robot format {fmt!r}, expected {ROBOT_FORMAT!r}")
+    base = RobotConfig()
+    return RobotConfig(
+        base_frame=str(d.get("base_frame", base.base_frame)),
+        panorama=_sensor(d.get("panorama", {}), base.panorama),
+        laser=_sensor(d.get("laser", {}), base.laser),
+        ground_z=float(d.get("ground_z", base.ground_z)),
+        default_range=float(d.get("default_range", base.default_range)),
+        depth_cone_deg=float(d.get("depth_cone_deg", base.depth_cone_deg)),
+    )
+
+
+def load_robot(path: str | Path | None = None) -> RobotConfig:
+    """Load ``config/robot.yaml`` (default) or another robot file."""
+    p = Path(path) if path else default_config_path("robot.yaml")
+    with open(p, encoding="utf-8") as f:
+        return robot_from_dict(yaml.safe_load(f) or {})
