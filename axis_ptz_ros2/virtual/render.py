@@ -155,7 +155,10 @@ def equirect_maps(
 
 def _to_fixed(x: F32, y: F32) -> Maps:
     m1, m2 = cv2.convertMaps(x, y, cv2.CV_16SC2)
-    return np.asarray(m1, dtype=np.int16), np.asarray(m2, dtype=np.uint16)
+    map1, map2 = np.asarray(m1, dtype=np.int16), np.asarray(m2, dtype=np.uint16)
+    map1.flags.writeable = False  # shared through the cache
+    map2.flags.writeable = False
+    return map1, map2
 
 
 @dataclass(frozen=True, slots=True)
@@ -210,7 +213,10 @@ class VirtualCameraRenderer:
         return self._yaw is not None
 
     def maps(self, view: ViewSpec) -> Maps:
-        """Fixed-point (``CV_16SC2`` + interpolation table) remap maps of ``view``, cached (LRU)."""
+        """Fixed-point remap maps of ``view`` (``CV_16SC2`` + interpolation table), cached (LRU), read-only.
+
+        ``cv2.remap(pano, *maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)`` renders the view.
+        """
         cached = self._maps.get(view)
         if cached is not None:
             self._maps.move_to_end(view)

@@ -156,6 +156,8 @@ def test_cached_and_rebuilt_maps_give_identical_images():
     first = r.render(pano, v1)
     maps = r.maps(v1)
     assert r.maps(v1) is maps  # served from the cache
+    assert not maps[0].flags.writeable  # shared: callers cannot corrupt the cache
+    assert not maps[1].flags.writeable
     for k in range(4):  # evict v1 (and its pan-0 maps)
         r.render(pano, ViewSpec(704, 576, 0.1 * k, -0.3 * k, math.radians(30.0 + k)))
     assert r.maps(v1) is not maps
