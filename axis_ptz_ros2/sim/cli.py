@@ -1,0 +1,88 @@
+"""``axis_camera_sim``: run the simulated Axis 214 PTZ camera from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import os
+import signal
+import sys
+import threading
+
+from axis_ptz_ros2.sim.faults import FaultConfig
+from axis_ptz_ros2.sim.ptz import Speeds
+from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.server import AUTH_MODES, SimulatedCamera
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The CLI definition."""
+    p = argparse.ArgumentParser(
+        prog="axis_camera_sim", description="Simulated Axis 214 PTZ network camera (VAPIX v2)."
+    )
+    p.add_argument("--host", default="127.0.0.1", help="bind address (loopback only unless --allow-remote)")
+    p.add_argument("--port", type=int, default=8080, help="TCP port (0 = pick a free one)")
+    p.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
+    p.add_argument("--auth", choices=AUTH_MODES, default="none", help="HTTP authentication policy")
+    p.add_argument("--user", default="root", help="user name for basic/digest auth")
+    p.add_argument("--password", default=None, help="password (default: $AXIS_SIM_PASSWORD, else 'pass')")
+    p.add_argument("--world", default=None, help="world YAML (default: config/sim_world.yaml)")
+    p.add_argument("--pan-speed", type=float, default=100.0, help="max pan speed (deg/s)")
+    p.add_argument("--tilt-speed", type=float, default=90.0, help="max tilt speed (deg/s)")
+    p.add_argument("--zoom-time", type=float, default=3.5, help="full zoom travel time (s)")
+    p.add_argument("--default-fps", type=int, default=30, help="frame rate when a client gives no fps=")
+    g = p.add_argument_group("faults")
+    for name in FaultConfig.field_names():
+        default = getattr(FaultConfig(), name)
+        flag = "--fault-" + name.replace("_", "-")
+        if isinstance(default, bool):
+            g.add_argument(flag, action="store_true", dest=f"fault_{name}")
+        else:
+            g.add_argument(flag, type=type(default), default=default, dest=f"fault_{name}")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``axis_camera_sim`` console script."""
+    args = build_parser().parse_args(argv)
+    if not _is_loopback(args.host) and not args.allow_remote:
+        print(f"refusing to bind non-loopback address {args.host!r} without --allow-remote", file=sys.stderr)
+        return 2
+    password = args.password if args.password is not None else os.environ.get("AXIS_SIM_PASSWORD", "pass")
+    faults = FaultConfig(**{n: getattr(args, f"fault_{n}") for n in FaultConfig.field_names()})
+    cam = SimulatedCamera(
+        world=load_world(args.world),
+        host=args.host,
+        port=args.port,
+        auth=args.auth,
+        user=args.user,
+        password=password,
+        faults=faults,
+        speeds=Speeds(args.pan_speed, args.tilt_speed, args.zoom_time),
+        default_fps=args.default_fps,
+    )
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    cam.start()
+    print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (auth={args.auth}); Ctrl-C to stop", flush=True)
+    try:
+        while not done.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        cam.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

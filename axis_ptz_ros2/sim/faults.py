@@ -1,0 +1,74 @@
+"""Fault injection for the simulated camera (ROS-free).
+
+Every field defaults to "off". Set them at construction (``SimulatedCamera(faults=FaultConfig(...))``), at run
+time (``camera.set_faults(stall_after_frames=10)``), from the CLI (``--fault-stall-after-frames 10``) or over
+HTTP from another process (``GET /sim/control?stall_after_frames=10&stall_seconds=2``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+HTTP_ERROR_CODES = (401, 500, 503)
+HTTP_ERROR_SCOPES = ("all", "video")
+
+
+@dataclass(frozen=True, slots=True)
+class FaultConfig:
+    """Faults of the simulated camera. Frame counts are per MJPEG connection (0 = never)."""
+
+    drop_after_frames: int = 0  #: close the stream (mid-part) after this many frames
+    stall_after_frames: int = 0  #: stop sending (socket stays open) after this many frames …
+    stall_seconds: float = 0.0  #: … for this long, then continue
+    garbage_between_parts: bool = False  #: random bytes between a part's trailing CRLF and the next boundary
+    truncate_every: int = 0  #: every Nth frame is a truncated JPEG (Content-Length matches the cut length)
+    wrong_length_every: int = 0  #: every Nth part announces a wrong Content-Length …
+    wrong_length_delta: int = 100  #: … off by this many bytes
+    http_error: int = 0  #: answer with this status (401, 500 or 503) …
+    http_error_scope: str = "all"  #: … on "all" camera endpoints or only on "video" (video.cgi, image.cgi)
+    latency_ms: float = 0.0  #: added delay before every reply; video frames are delivered this late
+    bandwidth_kbps: float = 0.0  #: cap on the bytes sent per connection (kbit/s), 0 = unlimited
+
+    def __post_init__(self) -> None:
+        """Validate."""
+        for name in ("drop_after_frames", "stall_after_frames", "truncate_every", "wrong_length_every"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0")
+        if self.stall_seconds < 0 or self.latency_ms < 0 or self.bandwidth_kbps < 0:
+            raise ValueError("stall_seconds, latency_ms and bandwidth_kbps must be >= 0")
+        if self.http_error not in (0, *HTTP_ERROR_CODES):
+            raise ValueError(f"http_error must be 0 or one of {HTTP_ERROR_CODES}")
+        if self.http_error_scope not in HTTP_ERROR_SCOPES:
+            raise ValueError(f"http_error_scope must be one of {HTTP_ERROR_SCOPES}")
+
+    def replace(self, **changes: Any) -> FaultConfig:
+        """A copy with ``changes`` applied (values may be strings, as from a query string)."""
+        types = {f.name: f.type for f in dataclasses.fields(self)}
+        conv: dict[str, Any] = {}
+        for k, v in changes.items():
+            if k not in types:
+                raise ValueError(f"unknown fault {k!r}")
+            t = types[k]
+            if isinstance(v, str):
+                if t in ("bool", bool):
+                    conv[k] = v.lower() in ("1", "true", "yes", "on")
+                elif t in ("int", int):
+                    conv[k] = int(v)
+                elif t in ("float", float):
+                    conv[k] = float(v)
+                else:
+                    conv[k] = v
+            else:
+                conv[k] = v
+        return dataclasses.replace(self, **conv)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain mapping (for ``/sim/state``)."""
+        return dataclasses.asdict(self)
+
+    @staticmethod
+    def field_names() -> list[str]:
+        """Names of all faults."""
+        return [f.name for f in dataclasses.fields(FaultConfig)]
