@@ -415,8 +415,10 @@ class PtzState:
                 new_pan, new_tilt, new_zoom = p.pan, p.tilt, p.zoom
             else:
                 dx, dy = _MOVES[mv]
-                new_pan = pan + dx * MOVE_STEP_DEG
-                new_tilt = tilt + dy * MOVE_STEP_DEG
+                if dx:
+                    new_pan = pan + dx * MOVE_STEP_DEG
+                if dy:
+                    new_tilt = tilt + dy * MOVE_STEP_DEG
         for key in ("gotoserverpresetname", "gotoserverpresetno"):
             if key in plan:
                 pre = (
