@@ -1,0 +1,154 @@
+"""``axis_laser_sim``: a simulated 3-D laser scanner of the simulated scene.
+
+Rays on a regular elevation × azimuth grid from the scanner's true pose (``SimWorld.T_base_laser``) are traced
+through ``Scene.raycast`` (targets, ground, skyline); returns within ``[min_range, max_range]`` become points
+(x, y, z in ``laser_link``, metres; intensity = luminance of the hit surface, 0…1), optionally with Gaussian
+range noise drawn anew for every scan. Published as ``sensor_msgs/PointCloud2`` on ``laser/points`` (latched:
+a late subscriber gets the newest scan) plus the scanner pose as latched ``laser/transform``.
+
+The scene is static, so the geometry is traced once; each scan gets its own stamp and (with noise) its own
+noise draw, like a real scanner looking at a static scene.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import TransformStamped
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2, PointField
+
+from axis_ptz_ros2.geometry import FloatArray, Transform
+from axis_ptz_ros2.nodes.common import (
+    LATCHED_QOS,
+    ParamSpec,
+    declare_params,
+    make_tf_broadcasters,
+    run_nodes,
+    transform_msg,
+)
+from axis_ptz_ros2.sim.scene import Scene, load_world, shared_scene
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("rate", 1.0, "scan rate", "Hz", read_only=True, float_range=(0.05, 20.0)),
+    ParamSpec("min_elevation", -math.radians(30.0), "lowest ray elevation", "rad", read_only=True,
+              float_range=(-math.pi / 2, math.pi / 2)),
+    ParamSpec("max_elevation", math.radians(30.0), "highest ray elevation", "rad", read_only=True,
+              float_range=(-math.pi / 2, math.pi / 2)),
+    ParamSpec("elevation_step", math.radians(0.5), "elevation spacing of the rays", "rad", read_only=True,
+              float_range=(1e-3, 0.5)),
+    ParamSpec("azimuth_step", math.radians(0.5), "azimuth spacing of the rays (full 360 deg)", "rad",
+              read_only=True, float_range=(1e-3, 0.5)),
+    ParamSpec("min_range", 0.3, "returns nearer than this are dropped", "m", read_only=True,
+              float_range=(0.0, 10.0)),
+    ParamSpec("max_range", 30.0, "returns farther than this are dropped", "m", read_only=True,
+              float_range=(0.5, 500.0)),
+    ParamSpec("range_noise", 0.0, "standard deviation of Gaussian range noise (0 = exact)", "m",
+              float_range=(0.0, 1.0)),
+    ParamSpec("seed", 0, "random seed of the range noise", "", read_only=True),
+    ParamSpec("frame_id", "laser_link", "frame of the points", read_only=True),
+    ParamSpec("parent_frame", "base_link", "parent frame of laser/transform", read_only=True),
+    ParamSpec("world_file", "", "simulated world YAML ('' = config/sim_world.yaml)", read_only=True),
+)  # fmt: skip
+
+FIELDS = [
+    PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+    for i, n in enumerate(("x", "y", "z", "intensity"))
+]
+
+
+def scan_directions(min_el: float, max_el: float, el_step: float, az_step: float) -> FloatArray:
+    """Unit ray directions (N, 3) in the scanner frame, elevation-major (rings), azimuth −π…π."""
+    n_el = int(math.floor((max_el - min_el) / el_step + 1e-9)) + 1
+    el = min_el + el_step * np.arange(n_el)
+    n_az = max(1, int(round(2 * math.pi / az_step)))
+    az = -math.pi + (2 * math.pi / n_az) * np.arange(n_az)
+    E, A = np.meshgrid(el, az, indexing="ij")
+    d = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], -1)
+    return np.asarray(d.reshape(-1, 3), dtype=np.float64)
+
+
+def trace_scan(
+    scene: Scene, T_base_laser: Transform, dirs_laser: FloatArray, min_range: float, max_range: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Exact returns: (unit directions in the laser frame (M, 3), ranges (M,), intensities (M,))."""
+    d_base = dirs_laser @ T_base_laser.R.T
+    bgr, depth, _ = scene.raycast(T_base_laser.t, d_base)
+    ok = np.isfinite(depth) & (depth >= min_range) & (depth <= max_range)
+    lum = bgr[ok].astype(np.float64) @ np.array([0.114, 0.587, 0.299]) / 255.0
+    return dirs_laser[ok], depth[ok], lum
+
+
+def cloud_msg(points: FloatArray, intensity: FloatArray, frame_id: str, stamp: Any) -> PointCloud2:
+    """An unordered PointCloud2 (height 1) with float32 x, y, z, intensity."""
+    arr = np.empty((points.shape[0], 4), dtype="<f4")
+    arr[:, :3] = points
+    arr[:, 3] = intensity
+    m = PointCloud2()
+    m.header.frame_id = frame_id
+    m.header.stamp = stamp
+    m.height, m.width = 1, int(points.shape[0])
+    m.fields = FIELDS
+    m.is_bigendian = False
+    m.point_step = 16
+    m.row_step = 16 * m.width
+    m.is_dense = True
+    m.data = arr.tobytes()
+    return m
+
+
+def cloud_points(msg: PointCloud2) -> np.ndarray[Any, np.dtype[np.float32]]:
+    """(N, 4) float32 array x, y, z, intensity of a cloud published by this node (for consumers/tests)."""
+    return np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 4)
+
+
+class LaserSim(Node):
+    """Publishes scans of the simulated scene."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("axis_laser_sim", **kwargs)
+        p = declare_params(self, PARAMS)
+        if p["max_elevation"] < p["min_elevation"]:
+            raise ValueError("max_elevation must not be below min_elevation")
+        if p["max_range"] <= p["min_range"]:
+            raise ValueError("max_range must exceed min_range")
+        self._frame_id: str = p["frame_id"]
+        world = load_world(p["world_file"] or None)
+        self.T_base_laser = world.T_base_laser
+        dirs = scan_directions(p["min_elevation"], p["max_elevation"], p["elevation_step"], p["azimuth_step"])
+        self._dirs, self._ranges, self._intensity = trace_scan(
+            shared_scene(world), world.T_base_laser, dirs, p["min_range"], p["max_range"]
+        )
+        self._max_range = float(p["max_range"])
+        self._min_range = float(p["min_range"])
+        self._rng = np.random.default_rng(int(p["seed"]))
+        self.get_logger().info(f"{dirs.shape[0]} rays, {self._ranges.size} returns per scan")
+        self._pub = self.create_publisher(PointCloud2, "laser/points", LATCHED_QOS)
+        self._tf_pub = self.create_publisher(TransformStamped, "laser/transform", LATCHED_QOS)
+        tf_msg = transform_msg(self.T_base_laser, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
+        self._tf_pub.publish(tf_msg)
+        _, static_tf = make_tf_broadcasters(self)
+        if static_tf is not None:  # pragma: no cover - only with tf2_ros installed
+            static_tf.sendTransform(tf_msg)
+        self._scan()
+        self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)
+
+    def _scan(self) -> None:
+        r = self._ranges
+        sigma = float(self.get_parameter("range_noise").value)
+        if sigma > 0.0:
+            r = np.clip(r + self._rng.normal(0.0, sigma, r.shape), self._min_range, self._max_range)
+        pts = self._dirs * r[:, None]
+        self._pub.publish(cloud_msg(pts, self._intensity, self._frame_id, self.get_clock().now().to_msg()))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``axis_laser_sim``."""
+    return run_nodes([LaserSim], args if args is not None else sys.argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
