@@ -790,6 +790,8 @@ class _Handler(BaseHTTPRequestHandler):
             if pending:
                 wake.append(pending[0][0] - now)
             delay = min(wake)
+            if fps == 0 and not pending:
+                continue  # as fast as possible
             if delay > 0:
                 stop.wait(delay)
 

@@ -72,7 +72,8 @@ def test_raycast_hits_targets_ground_and_sky(scene, world):
     assert tuple(bgr[0]) == pytest.approx((0, 0, 255), abs=3)  # the red dot
     assert idx[1] == HIT_GROUND
     assert depth[1] == pytest.approx(o[2] * math.sqrt(1.25) / 0.5, rel=1e-6)
-    assert idx[2] == HIT_SKY and math.isinf(depth[2])
+    assert idx[2] == HIT_SKY
+    assert math.isinf(depth[2])
 
 
 def test_render_equirect_sees_the_high_target(scene, world):
@@ -81,7 +82,9 @@ def test_render_equirect_sees_the_high_target(scene, world):
     hi = scene.target("high_marker").center - world.T_base_pano.t
     x, y = g.direction_to_equirect(hi, 256, 128)
     b, gg, r = (int(v) for v in img[int(round(y)), int(round(x))])
-    assert b > 150 and r > 150 and gg < 100  # magenta
+    assert b > 150
+    assert r > 150
+    assert gg < 100
 
 
 def _blob(img, lo, hi):
@@ -126,9 +129,11 @@ def test_render_cache_and_jpeg_comment(renderer):
     n0 = renderer.renders
     a = renderer.render(3.0, 1.0, 1, 352, 288)
     b = renderer.render(3.0, 1.0, 1, 352, 288)
-    assert a is b and renderer.renders == n0 + 1
+    assert a is b
+    assert renderer.renders == n0 + 1
     jpeg = insert_comment(encode_jpeg(a, 30), b"axsim seq=1 t=2")
-    assert jpeg[:4] == b"\xff\xd8\xff\xfe" and jpeg[-2:] == b"\xff\xd9"
+    assert jpeg[:4] == b"\xff\xd8\xff\xfe"
+    assert jpeg[-2:] == b"\xff\xd9"
     assert len(encode_jpeg(a, 90)) < len(encode_jpeg(a, 10))
 
 
@@ -174,7 +179,8 @@ def test_clamped_to_limits_and_finite_speed(head):
     st.handle([("pan", "180"), ("tilt", "-60")])  # in protocol range, beyond PTZ.Limit
     clock.t = 0.5
     pan, tilt, _ = st.position()
-    assert pan == pytest.approx(50.0) and tilt == pytest.approx(-30.0)  # 100 deg/s; tilt arrived
+    assert pan == pytest.approx(50.0)
+    assert tilt == pytest.approx(-30.0)
     clock.t = 5.0
     assert st.position()[:2] == pytest.approx((170.0, -30.0))
     st.handle([("speed", "50"), ("pan", "120")])
@@ -190,7 +196,8 @@ def test_continuous_move_until_stop_or_limit_and_cancelled_by_absolute(head):
     st.handle([("continuouspantiltmove", "50,-100")])
     clock.t = 1.0
     pan, tilt, _ = st.position()
-    assert pan == pytest.approx(50.0) and tilt == pytest.approx(-30.0)  # tilt stopped at the limit
+    assert pan == pytest.approx(50.0)
+    assert tilt == pytest.approx(-30.0)
     st.handle([("continuouspantiltmove", "0,0")])
     clock.t = 2.0
     assert st.position()[0] == pytest.approx(50.0)
@@ -199,7 +206,8 @@ def test_continuous_move_until_stop_or_limit_and_cancelled_by_absolute(head):
     st.handle([("rpan", "-10")])  # any relative command cancels continuous motion
     z = st.position()[2]
     clock.t = 4.0
-    assert st.position()[2] == pytest.approx(z) and st.position()[0] == pytest.approx(40.0)
+    assert st.position()[2] == pytest.approx(z)
+    assert st.position()[0] == pytest.approx(40.0)
 
 
 def test_move_presets_and_home(head):
@@ -235,7 +243,8 @@ def test_center_and_areazoom_are_exact_at_high_tilt(head):
     pan, tilt, _ = st.position()
     d2 = g.pan_tilt_to_direction(*sp.vapix_to_ros(pan, tilt))
     assert float(d @ d2) == pytest.approx(1.0, abs=1e-12)
-    assert pan > 20 and tilt > 40  # right and up in the image = +pan, +tilt
+    assert pan > 20
+    assert tilt > 40
     st.handle([("areazoom", "352,288,300"), ("imagewidth", "704"), ("imageheight", "576")])
     clock.t = 10.0
     assert g.AXIS_214_ZOOM.magnification(st.position()[2]) == pytest.approx(3.0, rel=1e-3)

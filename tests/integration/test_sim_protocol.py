@@ -1,0 +1,178 @@
+"""VAPIX conformance of the simulated Axis 214 over loopback HTTP, with raw httpx (no project client)."""
+
+import re
+import time
+
+import httpx
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.sim import SimulatedCamera
+from tests.integration.sim_helpers import blob, decode
+
+pytestmark = pytest.mark.integration
+PTZ = "/axis-cgi/com/ptz.cgi"
+
+
+@pytest.fixture(scope="module")
+def cam():
+    with SimulatedCamera() as c:
+        yield c
+
+
+@pytest.fixture
+def client(cam):
+    with httpx.Client(base_url=cam.base_url, timeout=5.0) as c:
+        yield c
+
+
+def wait_still(cam, timeout=6.0):
+    t_end = time.monotonic() + timeout
+    while cam.state.moving() and time.monotonic() < t_end:
+        time.sleep(0.02)
+
+
+def query_position(client):
+    r = client.get(PTZ, params={"query": "position"})
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/plain")
+    return dict(line.split("=", 1) for line in r.text.splitlines())
+
+
+def test_commands_are_204_empty_and_position_has_sub_degree_precision(cam, client):
+    r = client.get(PTZ, params={"pan": "12.3456", "tilt": "-7.25", "zoom": "2500"})
+    assert r.status_code == 204
+    assert r.content == b""
+    wait_still(cam)
+    pos = query_position(client)
+    assert pos["pan"] == "12.3456"
+    assert pos["tilt"] == "-7.25"
+    assert pos["zoom"] == "2500"
+    assert re.fullmatch(r"-?\d+(\.\d{1,4})?", pos["pan"])
+    assert cam.position() == pytest.approx((12.3456, -7.25, 2500.0))
+    assert {"iris", "focus", "autofocus", "autoiris"} <= set(pos)
+
+
+def test_post_form_body_is_accepted(cam, client):
+    r = client.post(PTZ, data={"pan": "-3", "tilt": "2"})
+    assert r.status_code == 204
+    wait_still(cam)
+    assert cam.position()[:2] == pytest.approx((-3.0, 2.0))
+
+
+@pytest.mark.parametrize(
+    ("query", "message"),
+    [
+        ({"pan": "500"}, "pan: value out of range: 500"),
+        ({"zoom": "0"}, "zoom: value out of range: 0"),
+        ({"tilt": "abc"}, "tilt: invalid value: abc"),
+        ({"query": "foo"}, "query: unknown value: foo"),
+        ({"bogus": "1"}, "Unknown argument: bogus"),
+        ({"pan": "10", "compression": "5"}, "Unknown argument: compression"),
+    ],
+)
+def test_errors_are_200_error_text_and_change_nothing(cam, client, query, message):
+    wait_still(cam)
+    before = cam.position()
+    r = client.get(PTZ, params=query)
+    assert r.status_code == 200
+    assert r.text == f"Error:\n{message}\n"
+    time.sleep(0.05)
+    assert cam.position() == pytest.approx(before)
+
+
+def test_in_range_beyond_limits_is_clamped(cam, client):
+    assert client.get(PTZ, params={"tilt": "-60", "pan": "175"}).status_code == 204
+    wait_still(cam)
+    pos = query_position(client)
+    assert float(pos["tilt"]) == -30.0
+    assert float(pos["pan"]) == 170.0
+
+
+def test_dynamics_report_intermediate_positions(cam, client):
+    cam.teleport(-170, 0, 1)
+    t0 = time.monotonic()
+    client.get(PTZ, params={"pan": "170"})  # 340 deg at 100 deg/s = 3.4 s
+    time.sleep(0.5)
+    pan = float(query_position(client)["pan"])
+    elapsed = time.monotonic() - t0
+    assert -170 < pan < 170
+    assert pan == pytest.approx(-170 + 100 * elapsed, abs=12)
+    client.get(PTZ, params={"continuouspantiltmove": "-50,0"})  # cancels the absolute move
+    time.sleep(0.3)
+    p1 = cam.position()[0]
+    time.sleep(0.3)
+    assert cam.position()[0] == pytest.approx(p1 - 15, abs=4)
+    client.get(PTZ, params={"continuouspantiltmove": "0,0"})
+    p2 = cam.position()[0]
+    time.sleep(0.2)
+    assert cam.position()[0] == pytest.approx(p2, abs=0.01)
+
+
+def test_queries_info_presets_and_counts(cam, client):
+    cam.reset_counts()
+    lim = dict(line.split("=") for line in client.get(PTZ, params={"query": "limits"}).text.splitlines())
+    assert lim["MinPan"] == "-170"
+    assert lim["MaxTilt"] == "90"
+    assert lim["MaxZoom"] == "9999"
+    assert lim["MinFieldAngle"] == "27"
+    assert lim["MaxFieldAngle"] == "480"
+    assert client.get(PTZ, params={"query": "speed"}).text == "speed=100\n"
+    assert client.get(PTZ, params={"info": "1"}).text.startswith("Available commands\n")
+    assert client.get("/axis-cgi/com/ptzconfig.cgi", params={"setserverpresetname": "Gate"}).status_code == 204
+    presets = client.get(PTZ, params={"query": "presetposall"}).text
+    assert presets.startswith("Preset Positions for camera 1\npresetposno1=Home\n")
+    assert "=Gate" in presets
+    counts = cam.request_counts
+    assert counts.endpoints["ptz"] == 4
+    assert counts.endpoints["ptzconfig"] == 1
+    assert counts.ptz["query=limits"] == 1
+    assert [e.query for e in counts.ptz_log][:2] == ["query=limits", "query=speed"]
+
+
+def test_param_cgi_persona_and_paths(client):
+    r = client.get("/axis-cgi/view/param.cgi", params={"action": "list", "group": "root.Properties.API.HTTP.Version"})
+    assert r.text == "root.Properties.API.HTTP.Version=2\n"
+    body = client.get("/axis-cgi/admin/param.cgi", params={"action": "list", "group": "Brand,Properties"}).text
+    assert "Brand.ProdShortName=AXIS 214 PTZ\n" in body
+    assert "Properties.Image.Resolution=4CIF,2CIFEXP,2CIF,CIF,QCIF\n" in body
+    assert "Properties.Firmware.Version=4.49\n" in body
+    ptz = client.get("/axis-cgi/param.cgi", params={"action": "list", "group": "root.PTZ"}).text
+    assert "root.PTZ.Limit.L1.MinTilt=-30\n" in ptz
+    assert "root.PTZ.Support.S1.AbsolutePan=true\n" in ptz
+    err = client.get("/axis-cgi/param.cgi", params={"action": "list", "group": "Nope"}).text
+    assert err == "# Error: Error -1 getting param in group 'Nope'\n"
+    assert client.get(
+        "/axis-cgi/operator/param.cgi", params={"action": "update", "Brand.ProdNbr": "1"}
+    ).text.startswith("# Error: Error setting")
+
+
+def test_imagesize_videostatus_and_404(client):
+    assert client.get("/axis-cgi/view/imagesize.cgi", params={"resolution": "QCIF", "squarepixel": "1"}).text == (
+        "image width = 192\nimage height = 144\n"
+    )
+    assert client.get("/axis-cgi/imagesize.cgi").text == "image width = 704\nimage height = 576\n"
+    assert client.get("/axis-cgi/view/videostatus.cgi", params={"status": "1"}).text == "Video 1 = video\n"
+    r = client.get("/axis-cgi/apidiscovery.cgi")
+    assert r.status_code == 404
+    assert "The requested URL /axis-cgi/apidiscovery.cgi was not found on this server." in r.text
+
+
+# Target colours (BGR ranges) of the high (tilt ~ +39 deg) and the ground (tilt ~ -24 deg) markers.
+MAGENTA = ((200, 0, 200), (255, 90, 255))
+ORANGE = ((0, 100, 200), (80, 180, 255))
+
+
+@pytest.mark.parametrize(("name", "rng", "start"), [("high", MAGENTA, (8.0, 34.0)), ("ground", ORANGE, (22.5, -21.0))])
+def test_center_on_rendered_target_at_steep_tilt(cam, client, name, rng, start):
+    cam.teleport(start[0], start[1], 1)
+    img = decode(client.get("/axis-cgi/jpg/image.cgi", params={"compression": "0"}).content)
+    c0 = blob(img, *rng)
+    assert c0 is not None
+    assert np.hypot(c0[0] - 351.5, c0[1] - 287.5) > 40  # clearly off-centre before
+    r = client.get(PTZ, params={"center": f"{c0[0]:.0f},{c0[1]:.0f}", "imagewidth": "704", "imageheight": "576"})
+    assert r.status_code == 204
+    wait_still(cam)
+    img = decode(client.get("/axis-cgi/jpg/image.cgi", params={"compression": "0"}).content)
+    c1 = blob(img, *rng)
+    assert np.hypot(c1[0] - 351.5, c1[1] - 287.5) <= 3.0
