@@ -58,9 +58,7 @@ def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
     ]
     lines += [f"note                  : {n}" for n in result.notes]
     lines.append("")
-    lines.append(
-        f"{'view':<12} {'#':>3} {'label':<16} {'u':>8} {'v':>8} {'du':>7} {'dv':>7} {'|e| px':>7} {'e/σ':>5}"
-    )
+    lines.append(f"{'view':<12} {'#':>3} {'label':<16} {'u':>8} {'v':>8} {'du':>7} {'dv':>7} {'|e| px':>7} {'e/σ':>5}")
     for row in result.residuals[:max_rows]:
         du = row.predicted[0] - row.pixel[0]
         dv = row.predicted[1] - row.pixel[1]
@@ -132,25 +130,15 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
-    ap = argparse.ArgumentParser(
-        prog="axis_calibrate", description=__doc__.split("\n")[0] if __doc__ else None
-    )
+    ap = argparse.ArgumentParser(prog="axis_calibrate", description=__doc__.split("\n")[0] if __doc__ else None)
     sub = ap.add_subparsers(dest="command", required=True)
     s = sub.add_parser("solve", help="calibrate base_link -> ptz_base from a correspondence file")
-    s.add_argument(
-        "correspondences", type=Path, help="correspondence YAML (axis_ptz_ros2/correspondences/v1)"
-    )
-    s.add_argument(
-        "--camera-model", type=Path, default=None, help="camera model YAML (default: file's or built-in)"
-    )
-    s.add_argument(
-        "--out", type=Path, default=None, help="write the mount file (axis_ptz_ros2/mount/v1) here"
-    )
+    s.add_argument("correspondences", type=Path, help="correspondence YAML (axis_ptz_ros2/correspondences/v1)")
+    s.add_argument("--camera-model", type=Path, default=None, help="camera model YAML (default: file's or built-in)")
+    s.add_argument("--out", type=Path, default=None, help="write the mount file (axis_ptz_ros2/mount/v1) here")
     s.add_argument("--encoder-offsets", action="store_true", help="also estimate the tilt encoder offset")
     s.add_argument("--sigma-px", type=float, default=1.0, help="pixel picking noise σ per axis [px] (1.0)")
-    s.add_argument(
-        "--sigma-3d", type=float, default=0.02, help="3-D point picking noise σ per axis [m] (0.02)"
-    )
+    s.add_argument("--sigma-3d", type=float, default=0.02, help="3-D point picking noise σ per axis [m] (0.02)")
     s.add_argument("--no-robust", action="store_true", help="plain least squares, no outlier rejection")
     s.add_argument("--holdout", choices=["auto", "views", "points", "none"], default="auto")
     s.add_argument("--parent-frame", default="base_link")

@@ -103,9 +103,7 @@ def _finite(x: float) -> bool:
     return math.isfinite(x)
 
 
-def _view_problem(
-    name: str, pan: float, tilt: float, zoom: float, width: int, height: int
-) -> tuple[str, str] | None:
+def _view_problem(name: str, pan: float, tilt: float, zoom: float, width: int, height: int) -> tuple[str, str] | None:
     """The first problem of a view's scalar fields as (field, message), or None."""
     if not name:
         return "name", "must be a non-empty string"
@@ -135,9 +133,7 @@ def _validate_point(c: Correspondence, width: int, height: int, where: str) -> N
     if len(c.pixel) != 2 or not all(_finite(x) for x in c.pixel):
         raise CorrespondenceError(f"{where}.pixel: expected two finite numbers [u, v], got {list(c.pixel)}")
     if len(c.point) != 3 or not all(_finite(x) for x in c.point):
-        raise CorrespondenceError(
-            f"{where}.point: expected three finite numbers [x, y, z], got {list(c.point)}"
-        )
+        raise CorrespondenceError(f"{where}.point: expected three finite numbers [x, y, z], got {list(c.point)}")
     u, v = c.pixel
     if not (-0.5 <= u <= width - 0.5 and -0.5 <= v <= height - 0.5):
         raise CorrespondenceError(f"{where}.pixel: [{u}, {v}] is outside the {width}x{height} image")
@@ -359,9 +355,7 @@ _FlowListDumper.add_representer(list, _represent_list)
 
 def dump_correspondences(cs: CorrespondenceSet) -> str:
     """YAML text of a correspondence set."""
-    header = (
-        f"# 2-D/3-D correspondences for axis_calibrate ({CORRESPONDENCES_FORMAT}): pan/tilt rad (REP-103),\n"
-    )
+    header = f"# 2-D/3-D correspondences for axis_calibrate ({CORRESPONDENCES_FORMAT}): pan/tilt rad (REP-103),\n"
     header += "# zoom in VAPIX units, pixel [u, v] px, point [x, y, z] m in base_link.\n"
     body = str(
         yaml.dump(

@@ -144,7 +144,8 @@ class FocalCheck:
     sigma: float  # 1σ of s
     rms_px_model: float  # inlier RMS (px) with the camera model's focal length
     rms_px_fitted: float  # inlier RMS (px) with the fitted scale
-    flagged: bool  # |s − 1| is significant (> 3σ) and larger than the tolerance
+    delta_chi2: float  # χ² drop from freeing the scale, same points (likelihood-ratio statistic, 1 dof)
+    flagged: bool  # |s − 1| > tolerance, > 4σ, and Δχ² > 16: a significantly better fit with another focal
     message: str
 
 
@@ -343,9 +344,7 @@ def _solve(
 
     x0 = par.pack(T0, tilt0, focal0)
     if robust:
-        res = least_squares(
-            fun, x0, method="trf", loss="soft_l1", f_scale=f_scale, x_scale="jac", max_nfev=200
-        )
+        res = least_squares(fun, x0, method="trf", loss="soft_l1", f_scale=f_scale, x_scale="jac", max_nfev=200)
     elif 2 * int(mask.sum()) >= par.size():
         res = least_squares(fun, x0, method="lm", x_scale="jac", max_nfev=400)
     else:
@@ -354,9 +353,7 @@ def _solve(
     return _Fit(T, dt, s, float(res.cost))
 
 
-def _jacobian(
-    prob: _Problem, fit: _Fit, mask: BoolArray, sig: FloatArray, tilt: bool, focal: bool
-) -> FloatArray:
+def _jacobian(prob: _Problem, fit: _Fit, mask: BoolArray, sig: FloatArray, tilt: bool, focal: bool) -> FloatArray:
     """Central-difference Jacobian of the whitened residuals at ``fit`` (rotation about the parent axes)."""
     par = _Params(fit.T.R.copy(), tilt, focal)
     x0 = par.pack(fit.T, fit.tilt_offset, fit.focal_scale)
@@ -377,9 +374,7 @@ def _jacobian(
 
 def _whitened(prob: _Problem, fit: _Fit, sig: FloatArray) -> FloatArray:
     """Whitened residual components (N, 2) of every observation."""
-    return np.asarray(
-        (prob.project(fit.T, fit.tilt_offset, fit.focal_scale) - prob.uv) / sig, dtype=np.float64
-    )
+    return np.asarray((prob.project(fit.T, fit.tilt_offset, fit.focal_scale) - prob.uv) / sig, dtype=np.float64)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -502,9 +497,7 @@ def calibrate(
     if initial is None and not np.any(per_view >= 4):
         refuse("too few points per view: no view has the 4 correspondences PnP initialisation needs")
     n_views = len(prob.views)
-    distinct_poses = {
-        (round(float(p), 4), round(float(t), 4)) for p, t in zip(prob.pans, prob.tilts, strict=True)
-    }
+    distinct_poses = {(round(float(p), 4), round(float(t), 4)) for p, t in zip(prob.pans, prob.tilts, strict=True)}
     pr = planarity_ratio(prob.X)
     if len(distinct_poses) == 1 and pr < min_planarity_ratio:
         refuse(
@@ -563,9 +556,7 @@ def calibrate(
             new_mask = r <= np.sort(r)[min(min_points, prob.n) - 1]
         changed = not np.array_equal(new_mask, mask)
         mask = new_mask
-        fit = _solve(
-            prob, fit.T, fit.tilt_offset, mask, sig, estimate_tilt=estimate_encoder_offsets, robust=False
-        )
+        fit = _solve(prob, fit.T, fit.tilt_offset, mask, sig, estimate_tilt=estimate_encoder_offsets, robust=False)
         if not changed:
             break
     sig = prob.sigmas(fit.T, fit.tilt_offset, sigma_px, sigma_3d_m)
@@ -589,9 +580,7 @@ def calibrate(
     tilt_sigma = float(math.sqrt(cov_full[6, 6])) if estimate_encoder_offsets else 0.0
 
     # ---- focal check --------------------------------------------------------------------------------
-    focal = _focal_check(
-        prob, fit, mask, sig, estimate_encoder_offsets, rms_px, focal_tolerance, robust, outlier_k
-    )
+    focal = _focal_check(prob, fit, mask, sig, estimate_encoder_offsets, rms_px, focal_tolerance, robust, outlier_k)
 
     # ---- held-out reprojection ----------------------------------------------------------------------
     h_rms, h_p95, h_mode = _holdout(
@@ -642,9 +631,7 @@ def calibrate(
     st = result.sigma_translation_m
     sr = np.degrees(result.sigma_rotation_rad)
     if not np.all(np.isfinite(cov)):
-        return refuse(
-            "degenerate geometry: the normal equations are singular (unobservable parameters)", result
-        )
+        return refuse("degenerate geometry: the normal equations are singular (unobservable parameters)", result)
     if focal.flagged and refuse_on_focal_mismatch:
         return refuse(f"inconsistent intrinsics: {focal.message}", result)
     if mask.sum() < min_inlier_fraction * prob.n:
@@ -705,9 +692,7 @@ def _focal_check(
     """
     if robust:
         all_mask = np.ones(prob.n, dtype=bool)
-        rfit = _solve(
-            prob, fit.T, fit.tilt_offset, all_mask, sig, estimate_tilt=tilt, estimate_focal=True, robust=True
-        )
+        rfit = _solve(prob, fit.T, fit.tilt_offset, all_mask, sig, estimate_tilt=tilt, estimate_focal=True, robust=True)
         r = np.linalg.norm(_whitened(prob, rfit, sig), axis=1)
         fmask = r <= outlier_k
         if fmask.sum() < 6:
@@ -735,19 +720,22 @@ def _focal_check(
     sigma = s * sigma_log
     pred = prob.project(ffit.T, ffit.tilt_offset, s)
     rms_fit = float(np.sqrt(np.mean(np.sum((pred - prob.uv)[fmask] ** 2, axis=1))))
+    # likelihood-ratio check on the *same* points: does freeing the focal length really fit better?
+    fixed = _solve(prob, ffit.T, ffit.tilt_offset, fmask, sig, estimate_tilt=tilt, robust=False)
+    delta_chi2 = 2.0 * (fixed.cost - ffit.cost)
     dev = s - 1.0
-    flagged = bool(abs(dev) > 3.0 * sigma and abs(dev) > tolerance)
+    flagged = bool(abs(dev) > tolerance and abs(dev) > 4.0 * sigma and delta_chi2 > 16.0)
     msg = (
         f"best-fit focal scale {s:.4f} ± {sigma:.4f} "
         f"(inlier RMS {rms_px:.2f} px over {int(mask.sum())} points; "
-        f"{rms_fit:.2f} px over {int(fmask.sum())} points with it)"
+        f"{rms_fit:.2f} px over {int(fmask.sum())} points with it, Δχ² {delta_chi2:.1f})"
     ) + (
         f": the camera model's focal length looks {abs(dev) * 100:.1f} % too "
         f"{'long' if dev < 0 else 'short'} (check zoom/HFOV and resolution)"
         if flagged
         else ""
     )
-    return FocalCheck(s, sigma, rms_px, rms_fit, flagged, msg)
+    return FocalCheck(s, sigma, rms_px, rms_fit, delta_chi2, flagged, msg)
 
 
 def _holdout(

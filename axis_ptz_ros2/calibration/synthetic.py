@@ -96,9 +96,7 @@ def make_view(
     K = cm.zoom.intrinsics(zoom, width, height)
     T = _true_camera(cm, truth, pan, tilt, pan_offset, tilt_offset)
     mu, mv = 0.1 * width, 0.1 * height
-    uv = np.column_stack(
-        [rng.uniform(mu, width - 1 - mu, n_points), rng.uniform(mv, height - 1 - mv, n_points)]
-    )
+    uv = np.column_stack([rng.uniform(mu, width - 1 - mu, n_points), rng.uniform(mv, height - 1 - mv, n_points)])
     rays = K.ray(uv[:, 0], uv[:, 1])
     if planar_relief_m is not None:
         depth0 = rng.uniform(*depth_range)
@@ -133,9 +131,7 @@ def make_view(
     pix[:, 0] = np.clip(pix[:, 0], 0.0, width - 1.0)
     pix[:, 1] = np.clip(pix[:, 1], 0.0, height - 1.0)
     pts = tuple(
-        Correspondence(
-            (float(pix[i, 0]), float(pix[i, 1])), (float(X[i, 0]), float(X[i, 1]), float(X[i, 2])), f"p{i}"
-        )
+        Correspondence((float(pix[i, 0]), float(pix[i, 1])), (float(X[i, 0]), float(X[i, 1]), float(X[i, 2])), f"p{i}")
         for i in range(n_points)
     )
     return View(name, pan, tilt, float(zoom), width, height, pts), out, X_true
@@ -233,6 +229,8 @@ def prediction_errors(
     *,
     n_views: int = 5,
     points_per_view: int = 20,
+    zoom_range: tuple[float, float] = (1.0, 1200.0),
+    depth_range: tuple[float, float] = (2.0, 15.0),
     camera_model: CameraModel | None = None,
 ) -> FloatArray:
     """Ground-truth held-out error (px): fresh noise-free points in fresh views, reprojected with the estimate
@@ -243,7 +241,7 @@ def prediction_errors(
     for k in range(n_views):
         pan = float(rng.uniform(-math.pi, math.pi))
         tilt = math.radians(float(rng.uniform(-20.0, 20.0)))
-        zoom = float(rng.uniform(1.0, 1200.0))
+        zoom = float(rng.uniform(*zoom_range))
         v, _, X = make_view(
             rng,
             cm,
@@ -254,6 +252,7 @@ def prediction_errors(
             zoom,
             points_per_view,
             pixel_noise_px=0.0,
+            depth_range=depth_range,
             pan_offset=scene.pan_offset,
             tilt_offset=scene.tilt_offset,
         )

@@ -43,9 +43,7 @@ GOOD = textwrap.dedent(
 
 
 def _view(name: str = "v", n: int = 3) -> View:
-    pts = tuple(
-        Correspondence((10.125 + i, 20.5 + 2 * i), (1.0 + i, -0.5 * i, 0.25), f"pt{i}") for i in range(n)
-    )
+    pts = tuple(Correspondence((10.125 + i, 20.5 + 2 * i), (1.0 + i, -0.5 * i, 0.25), f"pt{i}") for i in range(n))
     return View(name, 0.25, -0.125, 1234.5, 704, 576, pts, image="img/v.jpg")
 
 

@@ -76,9 +76,7 @@ def test_encoder_tilt_offset_estimated_and_pan_offset_folded_into_yaw():
     scene = syn.make_scene(
         5, pixel_noise_px=0.5, point_noise_m=0.0, pan_offset=math.radians(2.0), tilt_offset=math.radians(-1.5)
     )
-    r = calibrate(
-        scene.views, scene.camera_model, sigma_px=0.5, sigma_3d_m=0.0, estimate_encoder_offsets=True
-    )
+    r = calibrate(scene.views, scene.camera_model, sigma_px=0.5, sigma_3d_m=0.0, estimate_encoder_offsets=True)
     assert math.degrees(r.tilt_offset) == pytest.approx(-1.5, abs=0.05)
     assert r.pan_offset == 0.0
     t_err, r_err = _errors(scene, r)
@@ -129,9 +127,7 @@ def test_narrow_angular_spread_refused():
 
 
 def test_outliers_rejected():
-    scene = syn.make_scene(
-        8, pixel_noise_px=1.0, point_noise_m=0.0, outlier_fraction=0.125, points_per_view=8
-    )
+    scene = syn.make_scene(8, pixel_noise_px=1.0, point_noise_m=0.0, outlier_fraction=0.125, points_per_view=8)
     truth = scene.outlier_mask
     assert truth.sum() == 5
     r = calibrate(scene.views, scene.camera_model, sigma_3d_m=0.0)
