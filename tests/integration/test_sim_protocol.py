@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2.sim import SimulatedCamera
-from tests.integration.sim_helpers import blob, decode
+from axis_ptz_ros2.sim.testing import blob, decode
 
 pytestmark = pytest.mark.integration
 PTZ = "/axis-cgi/com/ptz.cgi"

@@ -6,7 +6,7 @@ import httpx
 import pytest
 
 from axis_ptz_ros2.sim import SimulatedCamera
-from tests.integration.sim_helpers import COM, decode, parts, read_stream
+from axis_ptz_ros2.sim.testing import COM, decode, parts, read_stream
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi"

@@ -1,0 +1,145 @@
+"""Every injectable fault of the simulated camera is observable on the wire (raw httpx)."""
+
+import contextlib
+import json
+import time
+
+import httpx
+import pytest
+
+from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera
+from axis_ptz_ros2.sim.testing import COM, PART_HEADER, parts, read_stream
+
+pytestmark = pytest.mark.integration
+VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=CIF&fps=30"
+
+
+@pytest.fixture(scope="module")
+def cam():
+    with SimulatedCamera() as c:
+        yield c
+
+
+@pytest.fixture
+def client(cam):
+    cam.set_faults(FaultConfig())
+    with httpx.Client(base_url=cam.base_url, timeout=5.0) as c:
+        yield c
+    cam.set_faults(FaultConfig())
+
+
+def test_drop_after_frames_closes_mid_part(cam, client):
+    cam.set_faults(drop_after_frames=3)
+    _, _, body, _ = read_stream(client, VIDEO, max_seconds=3)
+    ps = parts(body)
+    assert len(ps) == 4  # three complete parts, then the headers of a fourth
+    length, start = ps[-1]
+    assert len(body) - start < length  # cut mid-JPEG, then EOF
+
+
+def test_stall_keeps_socket_open_then_resumes(cam, client):
+    cam.set_faults(stall_after_frames=2, stall_seconds=0.8)
+    _, _, body, marks = read_stream(client, VIDEO + "&nbrofframes=4", max_seconds=4)
+    ps = parts(body)
+    assert len(ps) == 4
+    # arrival time of each part's first byte
+    arrivals = [next(t for t, n in marks if n > start) for _, start in ps]
+    assert arrivals[2] - arrivals[1] >= 0.7
+    assert arrivals[1] - arrivals[0] < 0.3
+
+
+def test_garbage_between_parts(cam, client):
+    cam.set_faults(garbage_between_parts=True)
+    _, _, body, _ = read_stream(client, VIDEO + "&nbrofframes=3", max_seconds=3)
+    ps = parts(body)
+    length, start = ps[0]
+    nxt = PART_HEADER.search(body, start + length).start()
+    assert nxt - (start + length) > 2  # more than the CRLF
+
+
+def test_truncated_jpeg_every_nth(cam, client):
+    cam.set_faults(truncate_every=2)
+    _, _, body, _ = read_stream(client, VIDEO + "&nbrofframes=4", max_seconds=3)
+    ends = [body[s + n - 2 : s + n] for n, s in parts(body)]
+    assert ends[0] == b"\xff\xd9"
+    assert ends[1] != b"\xff\xd9"
+    assert ends[2] == b"\xff\xd9"
+    assert ends[3] != b"\xff\xd9"
+
+
+def test_wrong_content_length(cam, client):
+    cam.set_faults(wrong_length_every=2, wrong_length_delta=100)
+    _, _, body, _ = read_stream(client, VIDEO + "&nbrofframes=3", max_seconds=3)
+    ps = parts(body)
+    actual = [ps[i + 1][1] - len(PART_HEADER.search(body, ps[i][1]).group(0)) - 2 - ps[i][1] for i in range(2)]
+    assert actual[0] == ps[0][0]
+    assert ps[1][0] == actual[1] + 100
+
+
+@pytest.mark.parametrize("code", [401, 500, 503])
+def test_http_error_on_video_only(cam, client, code):
+    cam.set_faults(http_error=code, http_error_scope="video")
+    assert client.get(VIDEO).status_code == code
+    assert client.get("/axis-cgi/jpg/image.cgi").status_code == code
+    assert client.get("/axis-cgi/com/ptz.cgi", params={"query": "speed"}).status_code == 200
+
+
+def test_http_error_on_all(cam, client):
+    cam.set_faults(http_error=500)
+    assert client.get("/axis-cgi/com/ptz.cgi", params={"query": "speed"}).status_code == 500
+    assert client.get("/sim/state").status_code == 200  # control endpoints are never faulted
+
+
+def test_added_latency(cam, client):
+    cam.set_faults(latency_ms=300)
+    t0 = time.monotonic()
+    assert client.get("/axis-cgi/com/ptz.cgi", params={"query": "speed"}).status_code == 200
+    assert time.monotonic() - t0 >= 0.3
+
+
+def test_bandwidth_cap(cam, client):
+    cam.set_faults(bandwidth_kbps=800)  # 100 kB/s
+    _, _, body, marks = read_stream(
+        client, "/axis-cgi/mjpg/video.cgi?resolution=4CIF&compression=0&fps=0", max_seconds=1.5
+    )
+    rate = (marks[-1][1] - marks[0][1]) / (marks[-1][0] - marks[0][0])
+    assert 50_000 < rate < 130_000
+
+
+def test_control_endpoint_sets_faults_and_reports_state(cam, client):
+    r = client.get("/sim/control", params={"latency_ms": "5", "garbage_between_parts": "1", "teleport": "10,5,1000"})
+    state = json.loads(r.text)
+    assert state["faults"]["latency_ms"] == 5
+    assert state["faults"]["garbage_between_parts"] is True
+    assert (state["pan"], state["tilt"], state["zoom"]) == pytest.approx((10, 5, 1000))
+    assert cam.faults.latency_ms == 5
+    assert client.get("/sim/control", params={"nonsense": "1"}).status_code == 400
+    client.get("/sim/control", params={"reset_faults": "1"})
+    assert cam.faults == FaultConfig()
+
+
+def test_reboot_refuses_then_recovers_on_same_port():
+    with SimulatedCamera() as cam, httpx.Client(base_url=cam.base_url, timeout=3.0) as c:
+        port = cam.port
+        c.get("/axis-cgi/com/ptz.cgi", params={"pan": "30"})
+        with c.stream("GET", VIDEO) as stream:
+            it = stream.iter_raw()
+            next(it)
+            c.get("/sim/control", params={"reboot": "1.0"})
+            t0 = time.monotonic()
+            with contextlib.suppress(httpx.HTTPError):  # the open stream ends (EOF or reset)
+                for _ in it:
+                    if time.monotonic() - t0 > 3:
+                        break
+            assert time.monotonic() - t0 < 1.0
+        time.sleep(0.2)
+        with pytest.raises(httpx.ConnectError):
+            httpx.get(cam.base_url + "/axis-cgi/com/ptz.cgi?query=speed", timeout=1.0)
+        t_end = time.monotonic() + 5
+        while cam.rebooting and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert not cam.rebooting
+        assert cam.port == port
+        r = httpx.get(cam.base_url + "/axis-cgi/com/ptz.cgi?query=position", timeout=2.0)
+        assert r.text.startswith("pan=0\ntilt=0\nzoom=1\n")  # came back at home
+        assert COM.match(httpx.get(cam.base_url + "/axis-cgi/jpg/image.cgi", timeout=2.0).content)
