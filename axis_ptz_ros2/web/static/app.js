@@ -1,0 +1,269 @@
+// Axis PTZ console: mouse teleop (thesis §3.4.5), keyboard shortcuts of the keyboard teleop, quality
+// controls and live readouts. Plain JavaScript, no build step, no external resources.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const state = { mouse: { shift_zoom_delta: 2000, ctrl_zoom_delta: -5000 }, keys: new Map(), formDirty: false };
+
+// ------------------------------------------------------------------------------------------------------
+// message line and HTTP helpers
+// ------------------------------------------------------------------------------------------------------
+function say(text, ok) {
+  const m = $("message");
+  m.textContent = text;
+  m.className = "message " + (ok ? "ok" : "bad");
+}
+
+async function post(path, body) {
+  let res;
+  try {
+    res = await fetch(path, {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify(body),
+      credentials: "same-origin",
+    });
+  } catch (err) {
+    say(`console not reachable: ${err}`, false);
+    return null;
+  }
+  let answer;
+  try {
+    answer = await res.json();
+  } catch (_err) {
+    answer = { ok: false, message: `HTTP ${res.status}` };
+  }
+  say(answer.message || (answer.ok ? "ok" : `HTTP ${res.status}`), answer.ok);
+  return answer;
+}
+
+// Pixel of a mouse event in the image's own (natural) pixels: the displayed size may differ.
+function naturalPixel(img, ev) {
+  const r = img.getBoundingClientRect();
+  const w = img.naturalWidth;
+  const h = img.naturalHeight;
+  if (!w || !h || r.width <= 0 || r.height <= 0) return null;
+  const x = ((ev.clientX - r.left) * w) / r.width;
+  const y = ((ev.clientY - r.top) * h) / r.height;
+  return { x: Math.min(Math.max(x, 0), w), y: Math.min(Math.max(y, 0), h), w, h };
+}
+
+// ------------------------------------------------------------------------------------------------------
+// video: reconnect a stream that broke (node restarted, network hiccup)
+// ------------------------------------------------------------------------------------------------------
+function keepAlive(img, urlFn) {
+  img.addEventListener("error", () => {
+    setTimeout(() => {
+      img.src = `${urlFn()}?t=${Date.now()}`;
+    }, 1000);
+  });
+}
+
+function panoramaUrl() {
+  return $("overlay").checked && state.overlayAvailable ? "/video/overlay.mjpg" : "/video/panorama.mjpg";
+}
+
+function updatePanoramaSource() {
+  const want = panoramaUrl();
+  const img = $("pano");
+  if (new URL(img.src, location.href).pathname !== want) img.src = want;
+}
+
+// ------------------------------------------------------------------------------------------------------
+// mouse teleop
+// ------------------------------------------------------------------------------------------------------
+function onPtzClick(ev) {
+  ev.preventDefault();
+  const p = naturalPixel(ev.currentTarget, ev);
+  if (!p) {
+    say("no PTZ image yet", false);
+    return;
+  }
+  let zoomDelta = 0;
+  if (ev.shiftKey) zoomDelta = state.mouse.shift_zoom_delta;
+  else if (ev.ctrlKey || ev.metaKey) zoomDelta = state.mouse.ctrl_zoom_delta;
+  post("/api/center", { u: p.x, v: p.y, width: p.w, height: p.h, zoom_delta: zoomDelta });
+}
+
+function onPanoramaDblClick(ev) {
+  ev.preventDefault();
+  const p = naturalPixel(ev.currentTarget, ev);
+  if (!p) {
+    say("no panorama image yet", false);
+    return;
+  }
+  post("/api/look_panorama", { x: p.x, y: p.y, width: p.w, height: p.h });
+}
+
+// ------------------------------------------------------------------------------------------------------
+// keyboard shortcuts: the keyboard teleop's own table, served by the console
+// ------------------------------------------------------------------------------------------------
+async function loadKeymap() {
+  try {
+    const res = await fetch("/api/keymap", { credentials: "same-origin" });
+    const km = await res.json();
+    const tbody = $("keys").querySelector("tbody");
+    tbody.textContent = "";
+    for (const k of km.keys) {
+      state.keys.set(k.browser, k);
+      const tr = document.createElement("tr");
+      const th = document.createElement("th");
+      th.scope = "row";
+      const kbd = document.createElement("kbd");
+      kbd.textContent = k.label;
+      th.appendChild(kbd);
+      const td = document.createElement("td");
+      td.textContent = k.description;
+      tr.append(th, td);
+      tbody.appendChild(tr);
+    }
+  } catch (err) {
+    say(`could not load the key map: ${err}`, false);
+  }
+}
+
+function onKeyDown(ev) {
+  const t = ev.target;
+  if (t && (t.tagName === "INPUT" || t.tagName === "SELECT" || t.tagName === "TEXTAREA")) return;
+  if (ev.ctrlKey || ev.altKey || ev.metaKey) return;
+  const entry = state.keys.get(ev.key);
+  if (!entry) return;
+  ev.preventDefault();
+  if (entry.kind === "help") {
+    const d = $("keys-details");
+    d.open = !d.open;
+    return;
+  }
+  if (ev.repeat && entry.kind !== "pan" && entry.kind !== "tilt" && entry.kind !== "zoom") return;
+  post("/api/key", { key: entry.key });
+}
+
+// ------------------------------------------------------------------------------------------------------
+// quality controls
+// ------------------------------------------------------------------------------------------------------
+function fillQuality(video, resolutions) {
+  if (!video || state.formDirty) return;
+  $("q-fps").value = video.fps;
+  const sel = $("q-res");
+  const list = resolutions && resolutions.length ? resolutions.slice() : [];
+  if (video.resolution && !list.includes(video.resolution)) list.push(video.resolution);
+  const current = Array.from(sel.options).map((o) => o.value).join(",");
+  if (current !== list.join(",")) {
+    sel.textContent = "";
+    for (const r of list) {
+      const o = document.createElement("option");
+      o.value = r;
+      o.textContent = r;
+      sel.appendChild(o);
+    }
+  }
+  sel.value = video.resolution;
+  $("q-comp").value = video.compression;
+  $("q-comp-out").textContent = video.compression;
+  $("q-budget").value = video.max_bitrate_kbps;
+}
+
+async function onQualitySubmit(ev) {
+  ev.preventDefault();
+  const fps = parseInt($("q-fps").value, 10);
+  const budget = parseInt($("q-budget").value, 10);
+  if (!(fps >= 1 && fps <= 30)) {
+    say("frame rate must be 1..30", false);
+    return;
+  }
+  const body = {
+    fps,
+    resolution: $("q-res").value,
+    compression: parseInt($("q-comp").value, 10),
+  };
+  if (budget >= 0) body.max_bitrate_kbps = budget;
+  const answer = await post("/api/video", body);
+  if (answer && answer.ok) state.formDirty = false;
+}
+
+// ------------------------------------------------------------------------------------------------------
+// live readouts
+// ------------------------------------------------------------------------------------------------------
+const fmt = (v, digits, unit) => (v === null || v === undefined ? "–" : `${Number(v).toFixed(digits)}${unit}`);
+
+function render(s) {
+  state.mouse = s.mouse || state.mouse;
+  $("shift-delta").textContent = `${state.mouse.shift_zoom_delta >= 0 ? "+" : ""}${state.mouse.shift_zoom_delta}`;
+  $("ctrl-delta").textContent = `${state.mouse.ctrl_zoom_delta >= 0 ? "+" : ""}${state.mouse.ctrl_zoom_delta}`;
+  const p = s.ptz;
+  if (p) {
+    $("r-pan").textContent = `${fmt(p.pan_deg, 2, "°")} (${fmt(p.pan_rad, 4, " rad")})`;
+    $("r-tilt").textContent = `${fmt(p.tilt_deg, 2, "°")} (${fmt(p.tilt_rad, 4, " rad")})`;
+    $("r-zoom").textContent = `${fmt(p.zoom, 0, "")} (${fmt(p.magnification, 2, "×")})${p.moving ? " moving" : ""}`;
+    $("r-fov").textContent = `${fmt(p.hfov_deg, 1, "°")} × ${fmt(p.vfov_deg, 1, "°")}`;
+  }
+  const st = s.stream || {};
+  const drv = s.driver || {};
+  const fps = st.measured_at === "console" ? st.fps : parseFloat(drv.fps);
+  const kbps = st.measured_at === "console" ? st.kbps : parseFloat(drv["kbit/s"] ?? drv.kbps);
+  $("r-fps").textContent = fmt(Number.isFinite(fps) ? fps : null, 1, " fps");
+  $("r-kbps").textContent = fmt(Number.isFinite(kbps) ? kbps : null, 0, " kbit/s");
+  $("r-latency").textContent = fmt(st.latency_ms, 0, " ms");
+  const v = s.video;
+  if (v) {
+    $("r-video").textContent = `${v.resolution} @ ${v.fps} fps, compression ${v.compression}`;
+    $("r-budget").textContent = v.max_bitrate_kbps ? `${v.max_bitrate_kbps} kbit/s` : "off";
+  }
+  fillQuality(v, s.resolutions);
+  const c = s.last_click;
+  $("r-depth").textContent = c ? `${c.depth_source}, ${fmt(c.range_m, 1, " m")}` : "–";
+  $("r-step").textContent = s.step ?? "–";
+  state.overlayAvailable = Boolean(s.panorama && s.panorama.overlay);
+  $("overlay-note").textContent = state.overlayAvailable ? "" : "(visualizer not running)";
+  updatePanoramaSource();
+  const ul = $("errors");
+  const errs = (s.errors || []).slice(-5).reverse();
+  const text = errs.map((e) => `${new Date(e.time * 1000).toLocaleTimeString()} ${e.message}`);
+  if (Array.from(ul.children).map((li) => li.textContent).join("\n") !== text.join("\n")) {
+    ul.textContent = "";
+    for (const t of text) {
+      const li = document.createElement("li");
+      li.textContent = t;
+      ul.appendChild(li);
+    }
+  }
+}
+
+async function poll() {
+  const link = $("link");
+  try {
+    const res = await fetch("/api/state", { credentials: "same-origin", cache: "no-store" });
+    if (!res.ok) throw new Error(`HTTP ${res.status}`);
+    render(await res.json());
+    link.textContent = "connected";
+    link.className = "badge ok";
+  } catch (err) {
+    link.textContent = `disconnected (${err.message || err})`;
+    link.className = "badge bad";
+  }
+  setTimeout(poll, 500);
+}
+
+// ------------------------------------------------------------------------------------------------------
+function main() {
+  const ptz = $("ptz");
+  const pano = $("pano");
+  ptz.addEventListener("click", onPtzClick);
+  ptz.addEventListener("contextmenu", (ev) => ev.ctrlKey && ev.preventDefault());
+  pano.addEventListener("dblclick", onPanoramaDblClick);
+  keepAlive(ptz, () => "/video/ptz.mjpg");
+  keepAlive(pano, panoramaUrl);
+  $("overlay").addEventListener("change", updatePanoramaSource);
+  $("home").addEventListener("click", () => post("/api/home", {}));
+  const form = $("quality");
+  form.addEventListener("submit", onQualitySubmit);
+  form.addEventListener("input", () => {
+    state.formDirty = true;
+    $("q-comp-out").textContent = $("q-comp").value;
+  });
+  document.addEventListener("keydown", onKeyDown);
+  loadKeymap();
+  poll();
+}
+
+document.addEventListener("DOMContentLoaded", main);
