@@ -1,0 +1,506 @@
+"""The stream node: the camera's Motion-JPEG stream as ``image_raw/compressed`` + ``camera_info``.
+
+A thin ROS layer over :class:`axis_ptz_ros2.streaming.StreamReader` (the one reader thread) and the VAPIX
+client (reference ``vapix.md`` §5.1). Frames are published *from the reader thread*, byte-for-byte as the
+camera sent them, stamped at arrival; ``camera_info`` goes with every frame (size from the JPEG's SOF header,
+K from the camera model at the zoom reported on ``ptz/state`` or the ``zoom`` parameter), built once per
+(size, zoom) and only restamped.
+
+Video parameters (``fps``, ``resolution``, ``compression``, ``max_bitrate_kbps``) are live: validated in
+the on-set callback (never sent to the camera when invalid), applied in the post-set callback by
+reconnecting with the new request. ``video/set_params`` sets several atomically. ``video/params``
+(latched) carries what is in effect after every change, including those of the bandwidth budget.
+
+Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/compressed`` or
+``camera_info``.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, CompressedImage
+
+from axis_ptz_interfaces.msg import PtzState
+from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
+from axis_ptz_interfaces.srv import SetVideoParams
+from axis_ptz_ros2.config import default_config_path, load_camera_model
+from axis_ptz_ros2.nodes.common import (
+    LATCHED_QOS,
+    STREAM_QOS,
+    ParamSpec,
+    camera_info_msg,
+    check_params,
+    declare_params,
+    diagnostic,
+    load_credentials,
+    run_nodes,
+    stamp_from_ns,
+)
+from axis_ptz_ros2.streaming import (
+    AXIS214_PAL_RESOLUTIONS,
+    BandwidthController,
+    BudgetConfig,
+    FrameSource,
+    ReaderConfig,
+    StreamReader,
+    StreamState,
+    jpeg_size,
+)
+from axis_ptz_ros2.vapix import (
+    AuthError,
+    AxisPtzError,
+    CameraConfig,
+    InvalidArgument,
+    Resolution,
+    VapixClient,
+    VideoParams,
+)
+
+PARAMS: tuple[ParamSpec, ...] = (
+    # -- video (live) --
+    ParamSpec("fps", 15, "frames per second requested from the camera", "1/s", int_range=(1, 30)),
+    ParamSpec(
+        "resolution",
+        "704x576",
+        "image size 'WIDTHxHEIGHT' (or a CIF name), from the camera's list (Properties.Image.Resolution)",
+        "px",
+    ),
+    ParamSpec("compression", 30, "JPEG compression (0 = best quality, 100 = smallest)", int_range=(0, 100)),
+    ParamSpec(
+        "max_bitrate_kbps",
+        0,
+        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off)",
+        "kbit/s",
+        int_range=(0, 1_000_000),
+    ),
+    ParamSpec(
+        "budget_max_compression",
+        60,
+        "highest compression the budget may choose before lowering fps",
+        int_range=(0, 100),
+    ),
+    ParamSpec(
+        "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
+    ),
+    ParamSpec("lazy", True, "stream only while someone subscribes to image_raw/compressed or camera_info"),
+    # -- frames and model (read-only) --
+    ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
+    ParamSpec("camera_model", "", "camera-model YAML ('' = config/axis214.yaml)", read_only=True),
+    # -- connection (read-only) --
+    ParamSpec("hostname", "127.0.0.1", "camera host name or address", read_only=True),
+    ParamSpec("port", 80, "camera HTTP(S) port", int_range=(1, 65535), read_only=True),
+    ParamSpec("use_https", False, "talk HTTPS to the camera", read_only=True),
+    ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
+    ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
+    ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
+    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
+    ParamSpec(
+        "password_file",
+        "",
+        "file with 'user:password' (else AXIS_USERNAME/AXIS_PASSWORD env; never a parameter)",
+        read_only=True,
+    ),
+    ParamSpec("connect_timeout", 2.0, "TCP connect timeout", "s", float_range=(0.05, 60.0), read_only=True),
+    ParamSpec("read_timeout", 5.0, "socket read timeout of the stream", "s", float_range=(0.05, 60.0), read_only=True),
+    # -- self-healing (read-only) --
+    ParamSpec(
+        "stall_timeout",
+        1.0,
+        "reconnect when the newest frame is older than this (at least 3 frame periods)",
+        "s",
+        float_range=(0.05, 60.0),
+        read_only=True,
+    ),
+    ParamSpec("backoff_initial", 0.1, "first reconnect delay", "s", float_range=(0.001, 60.0), read_only=True),
+    ParamSpec("backoff_max", 2.0, "reconnect delay cap", "s", float_range=(0.001, 600.0), read_only=True),
+    ParamSpec(
+        "auth_retry",
+        10.0,
+        "retry delay after a refused login (401/403)",
+        "s",
+        float_range=(0.01, 3600.0),
+        read_only=True,
+    ),
+)
+_SPECS = {s.name: s for s in PARAMS}
+_VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression")
+# DiagnosticStatus.OK etc. are 1-byte ``bytes`` in rclpy; common.diagnostic wants the integer
+_OK, _WARN, _ERROR, _STALE = (
+    ord(x) for x in (DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE)
+)
+_STATE_LEVEL = {
+    StreamState.STREAMING: _OK,
+    StreamState.IDLE_LAZY: _OK,
+    StreamState.CONNECTING: _OK,
+    StreamState.STOPPED: _STALE,
+    StreamState.RECONNECTING: _WARN,
+    StreamState.AUTH_FAILED: _ERROR,
+    StreamState.INVALID_PARAMS: _ERROR,
+}
+
+
+def _camera_model_path(value: str) -> str | None:
+    if not value:
+        return None
+    p = Path(value).expanduser()
+    if p.exists():
+        return str(p)
+    packaged = default_config_path(p.name)  # e.g. "config/axis214.yaml" from another working directory
+    return str(packaged) if packaged.exists() else str(p)
+
+
+class StreamNode(Node):
+    """``axis_stream``: MJPEG → ``image_raw/compressed`` + ``camera_info``, live video parameters, diagnostics."""
+
+    def __init__(self, name: str = "axis_stream", **kwargs: Any) -> None:
+        """``kwargs`` go to :class:`rclpy.node.Node` (``context=``, ``parameter_overrides=``, ``namespace=``)."""
+        super().__init__(name, **kwargs)
+        p = declare_params(self, PARAMS)
+        self._lock = threading.Lock()
+        self._frame_id = str(p["frame_id"])
+        self._model = load_camera_model(_camera_model_path(str(p["camera_model"])))
+        self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
+        self._resolutions_pending = False
+        requested = self._requested_from(p)  # raises ValueError (start-up error) if invalid
+
+        user, password = load_credentials(str(p["password_file"]))
+        verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
+        self._client = VapixClient(
+            CameraConfig(
+                host=str(p["hostname"]),
+                port=int(p["port"]),
+                use_https=bool(p["use_https"]),
+                verify_tls=verify,
+                username=user,
+                password=password,
+                camera=int(p["camera"]),
+                timeout_s=max(float(p["read_timeout"]), float(p["connect_timeout"])),
+                connect_timeout_s=float(p["connect_timeout"]),
+                auth=str(p["auth"]),
+            )
+        )
+        del user, password
+
+        # zoom for K: ptz/state when a PTZ node runs, else the parameter
+        self._zoom_param = float(p["zoom"])
+        self._zoom_ptz: float | None = None
+        self._info_cache: dict[tuple[int, int, float], CameraInfo] = {}
+
+        # publishers (the hot path reuses one message of each kind: only the reader thread publishes them)
+        events = PublisherEventCallbacks(matched=lambda _info: self._update_activity())
+        self._image_pub = self.create_publisher(
+            CompressedImage, "image_raw/compressed", STREAM_QOS, event_callbacks=events
+        )
+        self._info_pub = self.create_publisher(CameraInfo, "camera_info", STREAM_QOS, event_callbacks=events)
+        self._params_pub = self.create_publisher(VideoParamsMsg, "video/params", LATCHED_QOS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._image_msg = CompressedImage()
+        self._image_msg.format = "jpeg"
+        self._image_msg.header.frame_id = self._frame_id
+
+        self.create_subscription(PtzState, "ptz/state", self._on_ptz_state, STREAM_QOS)
+        self.create_service(SetVideoParams, "video/set_params", self._on_set_video_params)
+
+        self._budget = BandwidthController(
+            requested,
+            float(p["max_bitrate_kbps"]),
+            AXIS214_PAL_RESOLUTIONS,
+            BudgetConfig(max_compression=int(p["budget_max_compression"])),
+        )
+        self._lazy = bool(p["lazy"])
+        self._pending_source = "parameter"
+        self._log_throttle: dict[str, float] = {}
+
+        self._reader = StreamReader(
+            self._open,
+            self._on_frame,
+            self._budget.current,
+            ReaderConfig(
+                backoff_initial_s=float(p["backoff_initial"]),
+                backoff_max_s=max(float(p["backoff_max"]), float(p["backoff_initial"])),
+                auth_retry_s=float(p["auth_retry"]),
+                stall_timeout_s=float(p["stall_timeout"]),
+                read_timeout_s=float(p["read_timeout"]),
+            ),
+            on_event=self._on_reader_event,
+            active=self._want_active(),
+        )
+        self.add_on_set_parameters_callback(self._validate_params)
+        self.add_post_set_parameters_callback(self._apply_params)
+        self._publish_params("startup")
+        self._reader.start()
+        self._tick_timer = self.create_timer(0.1, self._tick)
+        self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
+
+    # -- parameters ------------------------------------------------------------------------------------------
+    def _known_resolutions(self) -> tuple[Resolution, ...]:
+        return self._resolutions if self._resolutions else AXIS214_PAL_RESOLUTIONS
+
+    def _requested_from(self, values: dict[str, Any]) -> VideoParams:
+        """Validated VideoParams from parameter values; ValueError with the reason otherwise."""
+        try:
+            res = Resolution.parse(str(values["resolution"]))
+            vp = VideoParams(res, int(values["fps"]), int(values["compression"]), camera=self._camera_index())
+            vp.validate(self._known_resolutions())
+        except InvalidArgument as err:
+            raise ValueError(str(err)) from err
+        return vp
+
+    def _camera_index(self) -> int:
+        return int(self.get_parameter("camera").value)
+
+    def _current_values(self) -> dict[str, Any]:
+        return {name: self.get_parameter(name).value for name in _VIDEO}
+
+    def _validate_params(self, params: list[Parameter]) -> SetParametersResult:
+        """on-set: check what rclpy's descriptors cannot (resolution against the camera's list)."""
+        result = check_params(_SPECS, params)
+        if not result.successful:
+            return result
+        values = self._current_values()
+        touched = False
+        for prm in params:
+            if prm.name in _VIDEO:
+                values[prm.name] = prm.value
+                touched = True
+        if touched:
+            try:
+                self._requested_from(values)
+            except ValueError as err:
+                return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _apply_params(self, params: list[Parameter]) -> None:
+        """post-set: reconnect with the new request (and budget), publish what is in effect."""
+        names = {prm.name for prm in params}
+        if "lazy" in names:
+            self._lazy = bool(self.get_parameter("lazy").value)
+            self._update_activity()
+        if "zoom" in names:
+            self._zoom_param = float(self.get_parameter("zoom").value)
+        if names & set(_VIDEO):
+            values = self._current_values()
+            requested = self._requested_from(values)
+            with self._lock:
+                if "budget_max_compression" in names:
+                    self._budget = BandwidthController(
+                        requested,
+                        float(values["max_bitrate_kbps"]),
+                        self._known_resolutions(),
+                        BudgetConfig(max_compression=int(values["budget_max_compression"])),
+                    )
+                    current = self._budget.current
+                else:
+                    current = self._budget.configure(
+                        requested=requested,
+                        budget_kbps=float(values["max_bitrate_kbps"]),
+                        now=time.monotonic(),
+                    )
+            self._reader.set_params(current)
+            self._publish_params(self._pending_source)
+
+    def _on_set_video_params(
+        self, request: SetVideoParams.Request, response: SetVideoParams.Response
+    ) -> SetVideoParams.Response:
+        """Set several video parameters at once: all or nothing (the parameter callbacks validate)."""
+        changes: list[Parameter] = []
+        if request.fps != 0:
+            changes.append(Parameter("fps", Parameter.Type.INTEGER, int(request.fps)))
+        if request.resolution:
+            changes.append(Parameter("resolution", Parameter.Type.STRING, str(request.resolution)))
+        if request.compression != -1:
+            changes.append(Parameter("compression", Parameter.Type.INTEGER, int(request.compression)))
+        if changes:
+            self._pending_source = "service"
+            try:
+                result = self.set_parameters_atomically(changes)
+            finally:
+                self._pending_source = "parameter"
+            response.success = bool(result.successful)
+            response.message = "" if result.successful else result.reason
+        else:
+            response.success = True
+            response.message = "nothing to change"
+        response.params = self._params_msg("service")
+        return response
+
+    def _params_msg(self, source: str) -> VideoParamsMsg:
+        """The parameters in effect (after the bandwidth budget), as a message."""
+        vp = self._budget.current
+        msg = VideoParamsMsg()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = self._frame_id
+        msg.fps = vp.fps
+        msg.resolution = str(vp.resolution)
+        msg.width, msg.height = vp.resolution.width, vp.resolution.height
+        msg.compression = vp.compression
+        msg.max_bitrate_kbps = int(self._budget.budget_kbps)
+        msg.source = source
+        return msg
+
+    def _publish_params(self, source: str) -> None:
+        self._params_pub.publish(self._params_msg(source))
+
+    # -- camera access (reader thread) -----------------------------------------------------------------------
+    def _open(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
+        """Opener for the reader: learn the camera's resolution list once, then open the stream."""
+        if self._resolutions is None:
+            try:
+                listed = self._client.supported_resolutions()
+            except AuthError:
+                raise
+            except AxisPtzError as err:
+                if not isinstance(err, InvalidArgument):
+                    self._throttled_log("warn", "resolutions", f"cannot read the resolution list: {err}", 30.0)
+                listed = ()
+            if listed:
+                self._resolutions = listed
+                self._resolutions_pending = True
+        return self._client.open_mjpeg(params, read_timeout_s)
+
+    def _on_frame(self, jpeg: bytes, arrival_ns: int) -> None:
+        """Hot path (reader thread): publish the camera's bytes and a restamped CameraInfo."""
+        stamp = stamp_from_ns(arrival_ns)
+        msg = self._image_msg
+        msg.header.stamp = stamp
+        # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
+        # it the immutable bytes as they are (the only copy is rclpy's serialisation).
+        msg._data = jpeg  # noqa: SLF001
+        self._image_pub.publish(msg)
+        size = jpeg_size(jpeg)
+        if size is None:
+            res = self._reader.params.resolution
+            size = (res.width, res.height)
+        zoom = self._zoom_ptz if self._zoom_ptz is not None else self._zoom_param
+        key = (size[0], size[1], zoom)
+        info = self._info_cache.get(key)
+        if info is None:
+            if len(self._info_cache) > 64:
+                self._info_cache.clear()
+            intr = self._model.zoom.intrinsics(zoom, size[0], size[1])
+            info = camera_info_msg(intr, self._frame_id, stamp)
+            self._info_cache[key] = info
+        info.header.stamp = stamp
+        self._info_pub.publish(info)
+
+    def _on_ptz_state(self, msg: PtzState) -> None:
+        self._zoom_ptz = float(msg.zoom)
+
+    # -- activity, watchdog, budget (10 Hz) ------------------------------------------------------------------
+    def _want_active(self) -> bool:
+        if not self._lazy:
+            return True
+        return self._image_pub.get_subscription_count() > 0 or self._info_pub.get_subscription_count() > 0
+
+    def _update_activity(self) -> None:
+        reader = getattr(self, "_reader", None)
+        if reader is not None:
+            reader.set_active(self._want_active())
+
+    def _tick(self) -> None:
+        self._update_activity()
+        reader = self._reader
+        reader.check_watchdog()
+        with self._lock:
+            if self._resolutions_pending and self._resolutions:
+                self._resolutions_pending = False
+                self._budget.configure(resolutions=self._resolutions, now=time.monotonic())
+            if self._budget.budget_kbps <= 0 or reader.state is not StreamState.STREAMING:
+                return
+            now = time.monotonic()
+            rate = reader.meter.rate(now)
+            choice = self._budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
+        if choice is not None:
+            reader.set_params(choice)
+            self._publish_params("bandwidth_budget")
+
+    # -- events and diagnostics ------------------------------------------------------------------------------
+    def _throttled_log(self, level: str, key: str, text: str, period: float) -> None:
+        now = time.monotonic()
+        if now - self._log_throttle.get(key, -1e9) < period:
+            return
+        self._log_throttle[key] = now
+        logger = self.get_logger()
+        {"info": logger.info, "warn": logger.warning, "error": logger.error}[level](text)
+
+    def _on_reader_event(self, state: StreamState, message: str) -> None:
+        """Reader state changes and errors (reader thread); throttled so an absent camera is not spammed."""
+        if state is StreamState.AUTH_FAILED:
+            self._throttled_log(
+                "error",
+                "auth",
+                f"camera refused the login: {message} (check password_file / AXIS_USERNAME / AXIS_PASSWORD; "
+                f"retrying every {self._reader.config.auth_retry_s:g} s)",
+                30.0,
+            )
+        elif state is StreamState.INVALID_PARAMS:
+            self._throttled_log("error", "invalid", f"camera cannot stream these parameters: {message}", 10.0)
+        elif state is StreamState.RECONNECTING:
+            self._throttled_log("warn", "reconnect", f"stream lost, reconnecting: {message}", 5.0)
+        elif state is StreamState.STREAMING:
+            self._log_throttle.pop("reconnect", None)
+            self.get_logger().info(f"streaming {self._reader.params.resolution} @ {self._reader.params.fps} fps")
+
+    def _publish_diagnostics(self) -> None:
+        s = self._reader.stats()
+        rate = self._reader.meter.rate(time.monotonic())
+        vp = s.params
+        values = {
+            "state": s.state.value,
+            "fps": rate.fps,
+            "kbit/s": rate.kbps,
+            "frame age [s]": s.frame_age_s if s.frame_age_s is not None else float("nan"),
+            "frames": s.frames,
+            "drops": s.drops,
+            "truncated": s.parser.dropped_truncated,
+            "corrupt": s.parser.dropped_corrupt,
+            "garbage bytes": s.parser.garbage_bytes,
+            "resyncs": s.parser.resyncs,
+            "reconnects": s.reconnects,
+            "stalls": s.stalls,
+            "auth failures": s.auth_failures,
+            "requested": f"{vp.resolution} @ {vp.fps} fps, compression {vp.compression}",
+            "max_bitrate_kbps": int(self._budget.budget_kbps),
+            "budget level": self._budget.level,
+            "last error": s.last_error,
+        }
+        level = _STATE_LEVEL[s.state]
+        message = s.state.value
+        if s.state is StreamState.AUTH_FAILED:
+            message = "authentication failed: " + s.last_error
+        elif s.state is StreamState.RECONNECTING and s.last_error:
+            message = "reconnecting: " + s.last_error
+        elif s.state is StreamState.INVALID_PARAMS:
+            message = "invalid parameters: " + s.last_error
+        name = f"{self.get_fully_qualified_name()}: MJPEG stream"
+        self._diag_pub.publish(diagnostic(self, name, level, message, values, hardware_id=self._client.config.base_url))
+
+    def destroy_node(self) -> None:
+        """Stop and join the reader thread (closing the stream from outside), then the node."""
+        reader = getattr(self, "_reader", None)
+        if reader is not None:
+            reader.stop(1.5)
+        client = getattr(self, "_client", None)
+        if client is not None:
+            client.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """``axis_stream``: the stream node on its own."""
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    return run_nodes([StreamNode], args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
