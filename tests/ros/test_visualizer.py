@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import cv2
 import numpy as np
@@ -93,7 +94,7 @@ def test_red_mark_lands_on_the_ptz_look_point_seen_from_the_panorama(ros):
     rig.state_pub.publish(_state(0.6, 0.2))
     rig.ros.wait_for(lambda: rig.node._state is not None and rig.node._pano_msg is not None)
     # Nobody subscribed yet: nothing is encoded.
-    rig.ros.wait_for(lambda: True)
+    time.sleep(0.6)  # three timer periods at 5 Hz
     assert rig.node.frames_published == 0
     rig.subscribe()
     for pan, tilt, depth in ((0.6, 0.2, 5.0), (-1.2, -0.3, 5.0), (0.6, 0.2, 1.0)):
@@ -173,3 +174,18 @@ def test_latched_panorama_transform_is_used(ros):
     ex, _ = _expected_pixel(0.0, 0.0, 5.0)
     shifted = ex + W / 4  # azimuth -90 deg in the yawed panorama = a quarter width to the right
     assert abs(xs.mean() - shifted) < 1.5
+
+
+def test_auto_depth_uses_the_ground_when_there_is_no_laser(ros):
+    rig = _Rig(ros, [Parameter("depth", value=50.0), Parameter("auto_depth", value=True)])
+    pano = _grey_panorama()
+    rig.subscribe()
+    pan, tilt = 0.4, -0.3
+    img = rig.frame_after(lambda: (rig.pano_pub.publish(pano), rig.state_pub.publish(_state(pan, tilt))))
+    ys, xs = np.nonzero(_mask(img, "red"))
+    ground = (PTZ_BASE[2] + H_TILT) / math.sin(-tilt)  # range along the axis to z = 0
+    ex, ey = _expected_pixel(pan, tilt, ground)
+    assert abs(xs.mean() - ex) < 1.5
+    assert abs(ys.mean() - ey) < 1.5
+    far_x, far_y = _expected_pixel(pan, tilt, 50.0)
+    assert math.hypot(far_x - ex, far_y - ey) > 10  # the fixed depth would be visibly elsewhere
