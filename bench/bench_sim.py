@@ -81,9 +81,7 @@ def main() -> int:
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "0,0"})
         report("panning camera,  704x576 requested 30 fps", fps, ms, pct)
         fps, ms, pct = measure(base, proc.pid, "resolution=704x576&fps=0", min(args.seconds, 5.0))
-        print(
-            f"fps=0 (as fast as possible), 704x576:    {fps:.1f} fps received, {ms:.2f} ms CPU/frame, {pct:.1f} % of a core"
-        )
+        report("fps=0 (as fast as possible), 704x576", fps, ms, pct)
     finally:
         proc.terminate()
         proc.wait(timeout=10)
