@@ -1,1 +1,50 @@
-"""axis_ptz_ros2.calibration."""
+"""Extrinsic calibration of the PTZ base against the laser frame (ROS-free; thesis §6.4, geometry §6).
+
+* :mod:`~axis_ptz_ros2.calibration.correspondences` — the ``axis_ptz_ros2/correspondences/v1`` file format
+  (:func:`load_correspondences`, :func:`save_correspondences`, :func:`append_view`).
+* :mod:`~axis_ptz_ros2.calibration.solver` — :func:`calibrate` → :class:`CalibrationResult` or
+  :class:`CalibrationRefused` (imported lazily: it pulls in OpenCV and SciPy).
+* :mod:`~axis_ptz_ros2.calibration.synthetic` — seeded scenes with ground truth.
+* :mod:`~axis_ptz_ros2.calibration.cli` — the ``axis_calibrate`` console script.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from axis_ptz_ros2.calibration.correspondences import (
+    CORRESPONDENCES_FORMAT,
+    Correspondence,
+    CorrespondenceError,
+    CorrespondenceSet,
+    View,
+    append_view,
+    load_correspondences,
+    save_correspondences,
+)
+
+_LAZY = {"calibrate", "CalibrationResult", "CalibrationRefused", "FocalCheck", "PointResidual"}
+
+__all__ = [
+    "CORRESPONDENCES_FORMAT",
+    "CalibrationRefused",
+    "CalibrationResult",
+    "Correspondence",
+    "CorrespondenceError",
+    "CorrespondenceSet",
+    "FocalCheck",
+    "PointResidual",
+    "View",
+    "append_view",
+    "calibrate",
+    "load_correspondences",
+    "save_correspondences",
+]
+
+
+def __getattr__(name: str) -> Any:
+    """Lazy access to the solver's public names."""
+    if name in _LAZY:
+        return getattr(importlib.import_module("axis_ptz_ros2.calibration.solver"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

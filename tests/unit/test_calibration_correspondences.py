@@ -162,3 +162,18 @@ def test_shipped_example_loads():
     model = cs.resolve_camera_model()
     assert model is not None
     assert model.exists()
+
+
+def test_calibration_package_is_ros_free():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import axis_ptz_ros2.calibration as c\n"
+        "import axis_ptz_ros2.calibration.cli, axis_ptz_ros2.calibration.synthetic\n"
+        "assert callable(c.calibrate) and callable(c.append_view)\n"
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'sensor_msgs', 'geometry_msgs')]\n"
+        "assert not bad, bad\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
