@@ -19,10 +19,11 @@ import math
 import re
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import ZoomModel, wrap_angle
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PresetInfo, PtzBackendError, PtzLimitsRos, PtzReading
 
@@ -69,6 +70,23 @@ def virtual_limits(
     """Limits of a virtual head: pan −π…π (full turn), tilt ``tilt_min``…``tilt_max`` (rad), the zoom model's
     zoom range."""
     return PtzLimitsRos(-math.pi, math.pi, tilt_min, tilt_max, float(zoom_model.min_zoom), float(zoom_model.max_zoom))
+
+
+def limits_from_model(model: CameraModel) -> PtzLimitsRos:
+    """The camera model's ``limits`` (VAPIX degrees, converted by its convention) in ROS units."""
+    lim = model.limits
+    p0, p1, t0, t1 = model.convention.limits_to_ros(
+        lim.min_pan_deg, lim.max_pan_deg, lim.min_tilt_deg, lim.max_tilt_deg
+    )
+    return PtzLimitsRos(p0, p1, t0, t1, float(lim.min_zoom), float(lim.max_zoom))
+
+
+def dynamics_from_model(model: CameraModel, dynamics: Mapping[str, Any] | None = None) -> VirtualDynamics:
+    """Slew/velocity rates from the model's ``max_speed``; ``zoom_travel_s`` and ``instant`` from the
+    ``dynamics`` mapping (the ``dynamics`` section of ``config/virtual_camera.yaml``)."""
+    d: dict[str, Any] = {"pan_dps": model.max_pan_speed_dps, "tilt_dps": model.max_tilt_speed_dps}
+    d.update({k: v for k, v in (dynamics or {}).items() if k in ("zoom_travel_s", "instant")})
+    return VirtualDynamics.from_dict(d)
 
 
 @dataclass(frozen=True, slots=True)

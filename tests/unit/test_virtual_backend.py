@@ -230,3 +230,25 @@ def test_read_state_is_thread_safe_while_commands_arrive():
         assert -math.pi <= r.pan <= math.pi
         assert lim.tilt_min <= r.tilt <= lim.tilt_max
         assert lim.zoom_min <= r.zoom <= lim.zoom_max
+
+
+def test_limits_and_dynamics_from_the_virtual_camera_model():
+    import yaml
+
+    from axis_ptz_ros2.config import camera_model_from_dict, default_config_path
+    from axis_ptz_ros2.virtual.backend import dynamics_from_model, limits_from_model
+
+    raw = yaml.safe_load(default_config_path("virtual_camera.yaml").read_text(encoding="utf-8"))
+    model = camera_model_from_dict(raw)
+    lim = limits_from_model(model)
+    assert (lim.pan_min, lim.pan_max) == pytest.approx((-math.pi, math.pi))
+    assert lim.full_turn
+    assert (lim.tilt_min, lim.tilt_max) == pytest.approx((-math.pi / 2, math.pi / 2))
+    assert (lim.zoom_min, lim.zoom_max) == (1.0, 9999.0)
+    dyn = dynamics_from_model(model, raw["dynamics"])
+    assert dyn.max_pan_rate == pytest.approx(math.pi)  # 180°/s
+    assert dyn.max_tilt_rate == pytest.approx(math.pi)
+    assert (dyn.zoom_travel_s, dyn.instant) == (0.5, False)
+    assert model.zoom.hfov(1) == pytest.approx(math.pi / 2)
+    assert model.zoom.magnification(9999) == pytest.approx(8.0)
+    assert (model.head.h_tilt, model.head.d_opt) == (0.0, (0.0, 0.0, 0.0))
