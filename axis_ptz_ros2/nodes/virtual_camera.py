@@ -1,0 +1,363 @@
+"""``axis_virtual_camera``: a virtual PTZ camera — a perspective view cut from the equirectangular panorama,
+driven through exactly the same interface as the real PTZ node.
+
+Two nodes in one process:
+
+* :class:`~axis_ptz_ros2.nodes.ptz_node.PtzNode` (name ``axis_virtual_camera_ptz``) over a
+  :class:`~axis_ptz_ros2.virtual.backend.VirtualPtzBackend`: ``ptz/cmd/*``, ``ptz/state``, ``joint_states``,
+  ``ptz/transform``, ``ptz/move_absolute`` … exactly as for the Axis head, so the keyboard teleop, the web
+  console and the visualizer drive it unchanged.
+* :class:`VirtualCameraNode` (name ``axis_virtual_camera``): subscribes to the panorama (``CompressedImage``
+  or ``Image``), renders the view of the head's current pose with
+  :class:`~axis_ptz_ros2.virtual.render.VirtualCameraRenderer` (cached fixed-point maps) and publishes
+  ``image_raw/compressed`` (JPEG) + ``camera_info`` whose K is exactly the K of the render
+  (:attr:`ViewSpec.intrinsics <axis_ptz_ros2.virtual.render.ViewSpec.intrinsics>`).
+
+The view sits at the panorama's origin; its pan/tilt are REP-103 angles about ``base_link`` axes (the
+``virtual_camera_base`` frame is ``base_link`` translated to the panorama origin), so the renderer gets
+``R_pano_base`` from the panorama pose in ``config/robot.yaml``. A panorama frame is decoded once (when it is
+first needed) and kept; a view is rendered only when the panorama or the pose changed (or ``min_rate`` asks
+for a refresh), at most at ``rate`` Hz, and only while ``image_raw/compressed`` or ``camera_info`` has a
+subscriber. Images are stamped with the render time (the pose they show; ``ptz/transform`` at that stamp).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import yaml
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+
+from axis_ptz_ros2.config import (
+    MountConfig,
+    camera_model_from_dict,
+    default_config_path,
+    load_robot,
+    save_mount,
+)
+from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.nodes.common import (
+    STREAM_QOS,
+    ParamSpec,
+    camera_info_msg,
+    check_params,
+    declare_params,
+    run_nodes,
+    stamp_from_ns,
+)
+from axis_ptz_ros2.nodes.ptz_node import PtzNode
+from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
+from axis_ptz_ros2.virtual.render import ViewSpec, VirtualCameraRenderer
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("camera_model", "", "virtual camera model YAML ('' = config/virtual_camera.yaml)", read_only=True),
+    ParamSpec("robot_file", "", "robot frames YAML: the panorama pose ('' = config/robot.yaml)", read_only=True),
+    ParamSpec("width", 640, "width of the rendered view", "px", int_range=(16, 4096), read_only=True),
+    ParamSpec("height", 480, "height of the rendered view", "px", int_range=(16, 4096), read_only=True),
+    ParamSpec("rate", 15.0, "maximum rendering rate", "Hz", float_range=(0.5, 60.0), read_only=True),
+    ParamSpec(
+        "min_rate",
+        1.0,
+        "re-render a still view at least this often (0 = only on change)",
+        "Hz",
+        float_range=(0.0, 30.0),
+    ),
+    ParamSpec("jpeg_quality", 90, "JPEG quality of image_raw/compressed", "", int_range=(1, 100)),
+    ParamSpec("panorama_topic", "panorama/image_raw", "panorama image topic (base name)", read_only=True),
+    ParamSpec(
+        "panorama_transport",
+        "compressed",
+        "subscribe to <panorama_topic>/compressed (CompressedImage) or <panorama_topic> (Image)",
+        choices=("compressed", "raw"),
+        read_only=True,
+    ),
+    ParamSpec("frame_prefix", "", "prefix of every frame name (e.g. 'robot1/')", read_only=True),
+    ParamSpec("ptz_base_frame", "virtual_camera_base", "pan/tilt base frame at the panorama origin", read_only=True),
+    ParamSpec("optical_frame", "virtual_camera_optical_frame", "optical frame of the view", read_only=True),
+    ParamSpec("pan_joint", "virtual_camera_pan_joint", "JointState name of the pan joint", read_only=True),
+    ParamSpec("tilt_joint", "virtual_camera_tilt_joint", "JointState name of the tilt joint", read_only=True),
+    ParamSpec("ptz_node_name", "axis_virtual_camera_ptz", "name of the PTZ node in this process", read_only=True),
+)
+_SPECS = {s.name: s for s in PARAMS}
+#: PtzNode parameters this process fixes (the view size is the render size; frames from the panorama pose).
+_FIXED_PTZ_PARAMS = ("image_width", "image_height", "follow_video_params")
+
+FloatArray = npt.NDArray[np.float64]
+U8 = npt.NDArray[np.uint8]
+
+
+def decode_compressed(msg: CompressedImage) -> U8 | None:
+    """A JPEG/PNG ``CompressedImage`` as a BGR (or grey) uint8 array; None if it cannot be decoded."""
+    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+    if buf.size == 0:
+        return None
+    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    if img is None or img.dtype != np.uint8:
+        return None
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    return np.asarray(img, dtype=np.uint8)
+
+
+_RAW_CHANNELS = {"mono8": 1, "8UC1": 1, "bgr8": 3, "rgb8": 3, "8UC3": 3, "bgra8": 4, "rgba8": 4, "8UC4": 4}
+
+
+def decode_raw(msg: Image) -> U8 | None:
+    """An 8-bit ``sensor_msgs/Image`` (mono8, bgr8, rgb8, bgra8, rgba8) as BGR or grey; None if unsupported."""
+    ch = _RAW_CHANNELS.get(msg.encoding)
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    if ch is None or h == 0 or w == 0 or step < w * ch or len(msg.data) < step * h:
+        return None
+    rows = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=step * h).reshape(h, step)
+    img = rows[:, : w * ch].reshape(h, w, ch) if ch > 1 else rows[:, :w]
+    if msg.encoding == "rgb8":
+        return np.asarray(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), dtype=np.uint8)
+    if ch == 4:
+        code = cv2.COLOR_RGBA2BGR if msg.encoding == "rgba8" else cv2.COLOR_BGRA2BGR
+        return np.asarray(cv2.cvtColor(img, code), dtype=np.uint8)
+    return np.ascontiguousarray(img)
+
+
+@dataclass
+class RenderStats:
+    """Counters of the render part (monotonic)."""
+
+    panoramas_received: int = 0
+    panoramas_decoded: int = 0
+    decode_failures: int = 0
+    frames_published: int = 0
+    render_s: float = 0.0  # of the last frame: remap
+    encode_s: float = 0.0  # of the last frame: JPEG encoding
+    decode_s: float = 0.0  # of the last decoded panorama
+
+
+class VirtualCameraNode(Node):
+    """Renders and publishes the virtual PTZ view; creates the :class:`PtzNode` that drives it (``.ptz``).
+
+    The PTZ node is created with the same ``kwargs`` (context, parameter overrides …) but is *not* owned for
+    destruction: spin and destroy both nodes (``main`` does; tests add both to their executor).
+    """
+
+    def __init__(self, *, node_name: str = "axis_virtual_camera", **kwargs: Any) -> None:
+        """Declare parameters, build the virtual head and its PTZ node, subscribe to the panorama."""
+        super().__init__(node_name, **kwargs)
+        self._p = p = declare_params(self, PARAMS)
+        self.add_on_set_parameters_callback(self._on_set_params)
+        self.width, self.height = int(p["width"]), int(p["height"])
+
+        model_path = Path(p["camera_model"]) if p["camera_model"] else default_config_path("virtual_camera.yaml")
+        raw = yaml.safe_load(model_path.read_text(encoding="utf-8")) or {}
+        # Square pixels: the zoom model's intrinsics must equal the render's (fy = fx needs aspect = w/h).
+        raw.setdefault("zoom", {})["image_aspect"] = self.width / self.height
+        raw["head"] = {"h_tilt": 0.0, "d_opt": [0.0, 0.0, 0.0]}  # the optical centre is the panorama origin
+        self.model = camera_model_from_dict(raw)
+        self.zoom_model = self.model.zoom
+        robot = load_robot(p["robot_file"] or None)
+        T_base_pano = robot.panorama.pose
+        self.R_pano_base: FloatArray = np.asarray(T_base_pano.R.T, dtype=np.float64)
+        self.backend = VirtualPtzBackend(
+            limits_from_model(self.model), self.zoom_model, dynamics_from_model(self.model, raw.get("dynamics"))
+        )
+        mount = MountConfig(
+            transform=Transform(np.eye(3), np.asarray(T_base_pano.t, dtype=np.float64).copy()),
+            parent_frame=robot.base_frame,
+            child_frame=str(p["ptz_base_frame"]),
+            comment="virtual camera: base_link axes at the panorama origin",
+        )
+        self.ptz = self._make_ptz_node(raw, mount, kwargs)
+        self.optical_frame = str(p["frame_prefix"]) + str(p["optical_frame"])
+
+        self._group = MutuallyExclusiveCallbackGroup()  # panorama callback and render timer never overlap
+        self._image_pub = self.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
+        self._info_pub = self.create_publisher(CameraInfo, "camera_info", STREAM_QOS)
+        topic = str(p["panorama_topic"])
+        if p["panorama_transport"] == "compressed":
+            self.panorama_topic = topic.rstrip("/") + "/compressed"
+            self.create_subscription(
+                CompressedImage, self.panorama_topic, self._on_panorama, STREAM_QOS, callback_group=self._group
+            )
+        else:
+            self.panorama_topic = topic
+            self.create_subscription(Image, topic, self._on_panorama, STREAM_QOS, callback_group=self._group)
+
+        self.stats = RenderStats()
+        self._pending: CompressedImage | Image | None = None  # newest panorama not decoded yet
+        self._pano: U8 | None = None
+        self._pano_seq = 0
+        self._renderer: VirtualCameraRenderer | None = None
+        self._out: U8 | None = None
+        self._last_key: tuple[int, ViewSpec] | None = None
+        self._last_pub_mono = -math.inf
+        self._last_subs = 0
+        self.last_view: ViewSpec | None = None
+        self._timer = self.create_timer(1.0 / float(p["rate"]), self._on_timer, callback_group=self._group)
+        self.get_logger().info(
+            f"virtual camera {self.width}x{self.height} from {self.panorama_topic}, "
+            f"hfov {math.degrees(self.zoom_model.hfov(self.zoom_model.min_zoom)):.1f}.."
+            f"{math.degrees(self.zoom_model.hfov(self.zoom_model.max_zoom)):.2f} deg, "
+            f"panorama at {np.round(T_base_pano.t, 3).tolist()} in {robot.base_frame}"
+        )
+
+    # ------------------------------------------------------------------------------------------------
+    def _make_ptz_node(self, raw: dict[str, Any], mount: MountConfig, kwargs: dict[str, Any]) -> PtzNode:
+        """The PTZ node over the virtual head, configured through its ordinary parameters.
+
+        Its camera model (square-pixel zoom model, no head offsets) and mount (panorama origin) are handed over
+        as files, which it reads while it is constructed.
+        """
+        p = self._p
+        with tempfile.TemporaryDirectory(prefix="axis_virtual_camera_") as tmp:
+            model_file, mount_file = Path(tmp) / "camera_model.yaml", Path(tmp) / "mount.yaml"
+            model_file.write_text(yaml.safe_dump(raw, sort_keys=False), encoding="utf-8")
+            save_mount(mount, mount_file)
+            forced = {
+                "camera_model": str(model_file),
+                "mount_file": str(mount_file),
+                "image_width": self.width,
+                "image_height": self.height,
+                "follow_video_params": False,  # video/params of another camera must not resize this view
+                "frame_prefix": str(p["frame_prefix"]),
+                "ptz_base_frame": str(p["ptz_base_frame"]),
+                "base_frame": "",  # the mount's parent: the robot base frame
+                "optical_frame": str(p["optical_frame"]),
+                "pan_joint": str(p["pan_joint"]),
+                "tilt_joint": str(p["tilt_joint"]),
+            }
+            overrides = [o for o in (kwargs.get("parameter_overrides") or []) if o.name not in forced]
+            overrides += [Parameter(k, value=v) for k, v in forced.items()]
+            ptz_kwargs = {**kwargs, "parameter_overrides": overrides}
+            ptz = PtzNode(backend=self.backend, node_name=str(p["ptz_node_name"]), **ptz_kwargs)
+        ptz.add_on_set_parameters_callback(self._refuse_ptz_resize)
+        return ptz
+
+    @staticmethod
+    def _refuse_ptz_resize(params: list[Parameter]) -> SetParametersResult:
+        for prm in params:
+            if prm.name in _FIXED_PTZ_PARAMS:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"{prm.name} is fixed by the virtual camera (its width/height parameters)",
+                )
+        return SetParametersResult(successful=True)
+
+    def _on_set_params(self, params: list[Parameter]) -> SetParametersResult:
+        result = check_params(_SPECS, params)
+        if result.successful:
+            for prm in params:
+                if prm.name in ("min_rate", "jpeg_quality"):
+                    self._p[prm.name] = prm.value
+        return result
+
+    # ------------------------------------------------------------------------------------------------
+    @property
+    def subscribers(self) -> int:
+        """Subscribers of the image and camera_info topics together."""
+        return int(self._image_pub.get_subscription_count() + self._info_pub.get_subscription_count())
+
+    def _on_panorama(self, msg: CompressedImage | Image) -> None:
+        self._pending = msg  # decoded by the render timer, only if someone is watching
+        self.stats.panoramas_received += 1
+
+    def _decode_pending(self) -> None:
+        msg, self._pending = self._pending, None
+        if msg is None:
+            return
+        t0 = time.perf_counter()
+        img = decode_compressed(msg) if isinstance(msg, CompressedImage) else decode_raw(msg)
+        if img is None or img.shape[0] < 2 or img.shape[1] < 2:
+            self.stats.decode_failures += 1
+            fmt = msg.format if isinstance(msg, CompressedImage) else msg.encoding
+            self.get_logger().warn(f"cannot decode the panorama ({fmt!r}): dropped", throttle_duration_sec=5.0)
+            return
+        self.stats.decode_s = time.perf_counter() - t0
+        self.stats.panoramas_decoded += 1
+        h, w = img.shape[:2]
+        if self._renderer is None or (self._renderer.pano_height, self._renderer.pano_width) != (h, w):
+            if w != 2 * h:
+                self.get_logger().warn(f"panorama is {w}x{h}, not 2:1: rendering it as equirectangular anyway")
+            self._renderer = VirtualCameraRenderer(w, h, self.R_pano_base)
+        if self._pano is not None and self._pano.ndim != img.ndim:
+            self._out = None
+        self._pano = img
+        self._pano_seq += 1
+
+    def view(self) -> ViewSpec:
+        """The view of the head's current pose."""
+        pan, tilt, zoom, _ = self.backend.pose()
+        return ViewSpec(self.width, self.height, pan, tilt, self.zoom_model.hfov(zoom))
+
+    def _on_timer(self) -> None:
+        subs = self.subscribers
+        new_sub, self._last_subs = subs > self._last_subs, subs
+        if subs == 0:
+            return
+        self._decode_pending()
+        if self._pano is None or self._renderer is None:
+            return
+        view = self.view()
+        key = (self._pano_seq, view)
+        now = time.monotonic()
+        min_rate = float(self._p["min_rate"])
+        stale = min_rate > 0.0 and now - self._last_pub_mono >= 1.0 / min_rate
+        if key == self._last_key and not new_sub and not stale:
+            return
+        self._publish(self._pano, self._renderer, view, now)
+        self._last_key = key
+
+    def _publish(self, pano: U8, renderer: VirtualCameraRenderer, view: ViewSpec, now_mono: float) -> None:
+        shape = (view.height, view.width, *pano.shape[2:])
+        if self._out is None or self._out.shape != shape:
+            self._out = np.empty(shape, np.uint8)
+        t0 = time.perf_counter()
+        img = renderer.render(pano, view, out=self._out)
+        t1 = time.perf_counter()
+        ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(self._p["jpeg_quality"])])
+        t2 = time.perf_counter()
+        if not ok:  # pragma: no cover - cv2 fails only on invalid images
+            self.get_logger().error("JPEG encoding failed", throttle_duration_sec=5.0)
+            return
+        stamp = stamp_from_ns(time.time_ns())
+        msg = CompressedImage()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.optical_frame
+        msg.format = "bgr8; jpeg compressed bgr8" if img.ndim == 3 else "mono8; jpeg compressed mono8"
+        msg.data = buf.tobytes()
+        self._info_pub.publish(camera_info_msg(view.intrinsics, self.optical_frame, stamp))
+        self._image_pub.publish(msg)
+        self.stats.render_s, self.stats.encode_s = t1 - t0, t2 - t1
+        self.stats.frames_published += 1
+        self._last_pub_mono = now_mono
+        self.last_view = view
+
+
+def main(args: list[str] | None = None) -> int:
+    """``axis_virtual_camera``: the render node and its PTZ node in one process."""
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    nodes: list[VirtualCameraNode] = []
+
+    def render_node() -> VirtualCameraNode:
+        nodes.append(VirtualCameraNode())
+        return nodes[0]
+
+    def ptz_node() -> PtzNode:
+        return nodes[0].ptz
+
+    return run_nodes([render_node, ptz_node], args if args is not None else sys.argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
