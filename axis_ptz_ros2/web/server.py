@@ -18,6 +18,7 @@ from __future__ import annotations
 import hmac
 import ipaddress
 import json
+import select
 import socket
 import threading
 import time
@@ -470,6 +471,8 @@ class ConsoleHandler(BaseHTTPRequestHandler):
                 while not stop.is_set():
                     got = slot.wait_newer(seq, 0.5)
                     if got is None:
+                        if self._client_gone():
+                            return
                         continue
                     seq, jpeg = got
                     head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n").encode(
@@ -481,6 +484,16 @@ class ConsoleHandler(BaseHTTPRequestHandler):
                     self.wfile.flush()
             except (OSError, ValueError):  # client went away (BrokenPipe, reset, timeout, closed file)
                 return
+
+    def _client_gone(self) -> bool:
+        """True when the client closed its end (checked while no frame arrives, so idle streams end too)."""
+        try:
+            readable, _, _ = select.select([self.connection], [], [], 0)
+            if not readable:
+                return False
+            return self.connection.recv(1, socket.MSG_PEEK) == b""
+        except (OSError, ValueError):
+            return True
 
     # -- POST ---------------------------------------------------------------------------------------
     def do_POST(self) -> None:

@@ -1,0 +1,505 @@
+"""axis_web_console over real DDS and loopback HTTP: pass-through MJPEG, lazy subscriptions, newest-frame
+delivery to slow clients, the command translation (mouse, panorama depth, keys, video, budget), service
+timeouts, and the token / Host / Origin checks.
+
+The PTZ and stream services here are recording test doubles on a probe node: they check what the console
+asks for. The real chain (simulator → driver → console → browser) is tested in tests/browser and test_demo.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import math
+import socket
+import threading
+import time
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.geometry import direction_to_equirect
+
+pytest.importorskip("rclpy")
+
+from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import CompressedImage, PointCloud2, PointField  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from axis_ptz_interfaces.msg import VideoParams  # noqa: E402
+from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoParams  # noqa: E402
+from axis_ptz_ros2.config import load_robot  # noqa: E402
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
+from axis_ptz_ros2.web.server import ConsoleServer  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+
+# ---------------------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------------------
+def jpeg(i: int, w: int = 320, h: int = 240, noise: bool = False) -> bytes:
+    """A real JPEG whose bytes differ per index (noise makes it big: a slow client cannot buffer many)."""
+    rng = np.random.default_rng(i)
+    img = rng.integers(0, 255, (h, w, 3), dtype=np.uint8) if noise else np.full((h, w, 3), i % 255, np.uint8)
+    cv2.putText(img, str(i), (10, h // 2), cv2.FONT_HERSHEY_SIMPLEX, 1.5, (255, 255, 255), 3)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    assert ok
+    return buf.tobytes()
+
+
+def request(
+    console: WebConsole,
+    method: str,
+    path: str,
+    body: Any = None,
+    headers: dict[str, str] | None = None,
+    raw: bytes | None = None,
+) -> tuple[int, dict[str, str], bytes]:
+    conn = http.client.HTTPConnection("127.0.0.1", console.server.port, timeout=15)
+    try:
+        h = dict(headers or {})
+        data = raw
+        if body is not None:
+            data = json.dumps(body).encode()
+            h.setdefault("Content-Type", "application/json")
+        conn.request(method, path, body=data, headers=h)
+        r = conn.getresponse()
+        return r.status, {k.lower(): v for k, v in r.getheaders()}, r.read()
+    finally:
+        conn.close()
+
+
+def post(console: WebConsole, path: str, body: Any, **kw: Any) -> tuple[int, dict[str, Any]]:
+    status, _, data = request(console, "POST", path, body, **kw)
+    return status, json.loads(data)
+
+
+class MjpegReader:
+    """A raw MJPEG client: parts as bytes, read one at a time (the caller decides how slow it is)."""
+
+    def __init__(self, port: int, path: str, rcvbuf: int = 0) -> None:
+        self.conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        if rcvbuf:  # a slow link buffers little; loopback autotuning would buffer megabytes client-side
+            self.conn.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            self.conn.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+            self.conn.sock.settimeout(10)
+            self.conn.sock.connect(("127.0.0.1", port))
+        self.conn.request("GET", path)
+        self.resp = self.conn.getresponse()
+        assert self.resp.status == 200
+        assert self.resp.getheader("Content-Type", "").startswith("multipart/x-mixed-replace")
+
+    def next(self) -> bytes:
+        fp = self.resp.fp
+        length = None
+        while True:
+            line = fp.readline()
+            assert line, "stream ended"
+            if line.lower().startswith(b"content-length:"):
+                length = int(line.split(b":", 1)[1])
+            elif line in (b"\r\n", b"\n") and length is not None:
+                data = fp.read(length)
+                fp.readline()
+                return data
+
+    def close(self) -> None:
+        self.resp.close()
+        self.conn.close()
+
+
+def make_console(ros: Any, **params: Any) -> WebConsole:
+    overrides = [Parameter("port", value=0), Parameter("service_timeout", value=2.0)]
+    overrides += [Parameter(k, value=v) for k, v in params.items()]
+    return ros.add(WebConsole(context=ros.context, parameter_overrides=overrides))
+
+
+class FakePtz:
+    """Recording PTZ/stream services on a probe node (answers like the real nodes)."""
+
+    def __init__(self, ros: Any, delay: float = 0.0) -> None:
+        self.node = ros.probe("fake_ptz")
+        self.node.declare_parameter("max_bitrate_kbps", 0)
+        self.requests: dict[str, list[Any]] = {}
+        self.delay = delay
+        g = ReentrantCallbackGroup()
+        n = self.node
+        n.create_service(CenterOnPixel, "ptz/center", self._rec("center"), callback_group=g)
+        n.create_service(LookAt, "ptz/look_at", self._rec("look_at"), callback_group=g)
+        n.create_service(MovePtz, "ptz/move_relative", self._rec("move_relative"), callback_group=g)
+        n.create_service(Trigger, "ptz/home", self._rec("home"), callback_group=g)
+        n.create_service(SetVideoParams, "video/set_params", self._video, callback_group=g)
+        self.params_pub = n.create_publisher(VideoParams, "video/params", LATCHED_QOS)
+        self.video = VideoParams(fps=10, resolution="704x576", width=704, height=576, compression=30)
+        self.params_pub.publish(self.video)
+
+    def _rec(self, name: str) -> Any:
+        def cb(req: Any, resp: Any) -> Any:
+            self.requests.setdefault(name, []).append(req)
+            if self.delay:
+                time.sleep(self.delay)
+            resp.success = True
+            resp.message = ""
+            return resp
+
+        return cb
+
+    def _video(self, req: Any, resp: Any) -> Any:
+        self.requests.setdefault("video", []).append(req)
+        if req.resolution and req.resolution not in ("176x144", "352x288", "704x288", "704x576"):
+            resp.success, resp.message = False, f"resolution {req.resolution} not supported by the camera"
+            return resp
+        v = self.video
+        v.fps = req.fps or v.fps
+        v.resolution = req.resolution or v.resolution
+        v.compression = req.compression if req.compression >= 0 else v.compression
+        self.params_pub.publish(v)
+        resp.success, resp.message, resp.params = True, "", v
+        return resp
+
+
+# ---------------------------------------------------------------------------------------------------------
+# video
+# ---------------------------------------------------------------------------------------------------------
+def test_mjpeg_passthrough_and_lazy_subscription(ros: Any) -> None:
+    console = make_console(ros)
+    probe = ros.probe()
+    pub = probe.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
+    time.sleep(0.3)
+    assert not console.subscribed("ptz"), "subscribed to the image topic with nobody watching"
+    assert pub.get_subscription_count() == 0
+
+    reader = MjpegReader(console.server.port, "/video/ptz.mjpg")
+    ros.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
+    frames = [jpeg(i) for i in range(3)]
+    got: list[bytes] = []
+    stop = threading.Event()
+
+    def publish() -> None:
+        i = 0
+        while not stop.is_set():
+            msg = CompressedImage(format="jpeg", data=frames[i % 3])
+            msg.header.stamp = probe.get_clock().now().to_msg()
+            pub.publish(msg)
+            i += 1
+            time.sleep(0.05)
+
+    t = threading.Thread(target=publish, daemon=True)
+    t.start()
+    try:
+        while len(got) < 4:
+            got.append(reader.next())
+    finally:
+        stop.set()
+        t.join()
+    # byte-for-byte what was published (no re-encoding), and new frames keep coming
+    assert all(g in frames for g in got)
+    assert len(set(got)) >= 2
+    state = json.loads(request(console, "GET", "/api/state")[2])
+    assert state["stream"]["measured_at"] == "console"
+    assert state["stream"]["watchers"]["ptz"] == 1
+    assert state["stream"]["fps"] > 5.0
+    assert state["stream"]["latency_ms"] is not None
+    assert 0 <= state["stream"]["latency_ms"] < 1000
+    reader.close()
+    ros.wait_for(lambda: not console.subscribed("ptz"), 5.0)
+    ros.wait_for(lambda: pub.get_subscription_count() == 0, 5.0)
+
+
+def test_slow_client_gets_newest_frame_not_a_queue(ros: Any) -> None:
+    console = make_console(ros)
+    probe = ros.probe()
+    pub = probe.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
+    frames = [jpeg(i, 704, 576, noise=True) for i in range(40)]  # ~ 300 kB each
+    assert min(len(f) for f in frames) > 150_000
+    reader = MjpegReader(console.server.port, "/video/ptz.mjpg", rcvbuf=64 * 1024)
+    ros.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
+    pub.publish(CompressedImage(format="jpeg", data=frames[0]))
+    assert reader.next() == frames[0]
+    # the client stops reading while 39 frames are published
+    for f in frames[1:]:
+        pub.publish(CompressedImage(format="jpeg", data=f))
+        time.sleep(0.02)
+    ros.wait_for(lambda: console.slot("ptz").latest()[1] == frames[-1], 5.0)
+    received = []
+    while True:
+        received.append(reader.next())
+        if received[-1] == frames[-1]:
+            break
+        assert len(received) < 10, "the console queued frames for a slow client"
+    # at most a frame or two were in flight in the socket; the rest were dropped, never queued
+    assert len(received) <= 4, f"{len(received)} frames delivered after the pause"
+    reader.close()
+
+
+def test_snapshot_and_unknown_stream(ros: Any) -> None:
+    console = make_console(ros, overlay_topic="")
+    probe = ros.probe()
+    pub = probe.create_publisher(CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
+    frame = jpeg(7)
+
+    def keep_publishing() -> None:
+        for _ in range(100):
+            pub.publish(CompressedImage(format="jpeg", data=frame))
+            time.sleep(0.05)
+
+    t = threading.Thread(target=keep_publishing, daemon=True)
+    t.start()
+    status, headers, body = request(console, "GET", "/video/panorama.jpg")
+    assert status == 200
+    assert headers["content-type"] == "image/jpeg"
+    assert body == frame
+    assert request(console, "GET", "/video/overlay.mjpg")[0] == 404  # overlay disabled by parameter
+    assert request(console, "GET", "/video/nothing.mjpg")[0] == 404
+    t.join()
+
+
+# ---------------------------------------------------------------------------------------------------------
+# commands
+# ---------------------------------------------------------------------------------------------------------
+def test_click_shift_ctrl_translate_to_center_requests(ros: Any) -> None:
+    fake = FakePtz(ros)
+    console = make_console(ros)
+    status, ans = post(console, "/api/center", {"u": 100.5, "v": 50, "width": 704, "height": 576})
+    assert status == 200, ans
+    assert ans["ok"], ans
+    status, ans = post(console, "/api/center", {"u": 352, "v": 288, "width": 704, "height": 576, "zoom_delta": 2000})
+    assert status == 200
+    assert ans["ok"]
+    status, ans = post(console, "/api/center", {"u": 1, "v": 2, "width": 352, "height": 288, "zoom_delta": -5000})
+    assert status == 200
+    reqs = fake.requests["center"]
+    assert [(r.target.u, r.target.v, r.target.zoom_delta) for r in reqs] == [
+        (100.5, 50.0, 0.0),
+        (352.0, 288.0, 2000.0),
+        (1.0, 2.0, -5000.0),
+    ]
+    assert (reqs[2].target.image_width, reqs[2].target.image_height) == (352, 288)
+    assert not any(r.wait for r in reqs)
+    # malformed requests never reach the PTZ node
+    for bad in (
+        {"u": 1, "v": 2},
+        {"u": "x", "v": 2, "width": 10, "height": 10},
+        {"u": 20, "v": 2, "width": 10, "height": 10},
+    ):
+        status, ans = post(console, "/api/center", bad)
+        assert status == 400
+        assert not ans["ok"]
+        assert ans["message"]
+    assert len(fake.requests["center"]) == 3
+
+
+def _cloud(points_laser: np.ndarray, frame: str) -> PointCloud2:
+    pts = np.asarray(points_laser, dtype=np.float32)
+    msg = PointCloud2()
+    msg.header.frame_id = frame
+    msg.height, msg.width = 1, len(pts)
+    msg.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
+    msg.point_step, msg.row_step = 12, 12 * len(pts)
+    msg.is_dense = True
+    msg.data = pts.tobytes()
+    return msg
+
+
+def test_panorama_double_click_uses_laser_depth_then_ground_then_default(ros: Any) -> None:
+    fake = FakePtz(ros)
+    console = make_console(ros)
+    robot = load_robot()
+    T_pano, T_laser = robot.panorama.pose, robot.laser.pose
+    W, H = 2048, 1024
+    # a wall patch 6 m ahead-left of the panorama, seen by the laser
+    target_base = np.array([4.0, 4.0, 1.2])
+    d_pano = T_pano.inverse().apply(target_base[None, :])[0]
+    x, y = direction_to_equirect(d_pano, W, H).ravel()
+    patch = target_base + np.stack(
+        np.meshgrid(np.linspace(-0.1, 0.1, 5), [0.0], np.linspace(-0.1, 0.1, 5)), -1
+    ).reshape(-1, 3)
+    probe = ros.probe()
+    cloud_pub = probe.create_publisher(PointCloud2, "laser/points", 10)
+    ros.wait_for(lambda: cloud_pub.get_subscription_count() == 1, 5.0)
+    cloud_pub.publish(_cloud(T_laser.inverse().apply(patch), robot.laser.frame))
+    ros.wait_for(lambda: console._cloud is not None, 5.0)  # noqa: SLF001
+
+    status, ans = post(console, "/api/look_panorama", {"x": float(x), "y": float(y), "width": W, "height": H})
+    assert status == 200, ans
+    assert ans["ok"], ans
+    assert ans["depth_source"] == "laser"
+    req = fake.requests["look_at"][-1]
+    got = np.array([req.target.point.x, req.target.point.y, req.target.point.z])
+    assert req.target.header.frame_id == robot.base_frame
+    assert np.linalg.norm(got - target_base) < 0.15, got
+    assert req.zoom == 1.0
+    assert not req.wait
+
+    # below the horizon, no laser point on the ray -> ground plane
+    x2, y2 = direction_to_equirect(np.array([1.0, -1.0, -0.5]), W, H).ravel()
+    status, ans = post(console, "/api/look_panorama", {"x": float(x2), "y": float(y2), "width": W, "height": H})
+    assert ans["depth_source"] == "ground"
+    assert abs(fake.requests["look_at"][-1].target.point.z - robot.ground_z) < 1e-6
+    # above the horizon, nothing -> default range, reported
+    x3, y3 = direction_to_equirect(np.array([-1.0, 0.2, 0.3]), W, H).ravel()
+    status, ans = post(console, "/api/look_panorama", {"x": float(x3), "y": float(y3), "width": W, "height": H})
+    assert ans["depth_source"] == "default"
+    assert abs(ans["range_m"] - robot.default_range) < 1e-9
+    state = json.loads(request(console, "GET", "/api/state")[2])
+    assert state["last_click"]["depth_source"] == "default"
+
+
+def test_keys_follow_the_keyboard_teleop_map(ros: Any) -> None:
+    fake = FakePtz(ros)
+    console = make_console(ros)
+    ros.wait_for(lambda: console.state()["video"] is not None, 5.0)
+    km = json.loads(request(console, "GET", "/api/keymap")[2])["keys"]
+    by_key = {k["key"]: k for k in km}
+    assert by_key["<left>"]["browser"] == "ArrowLeft"
+    assert by_key["A"]["label"] == "SHIFT+A"
+    assert not any(k["kind"] == "quit" for k in km)
+
+    assert post(console, "/api/key", {"key": "a"})[0] == 200
+    assert post(console, "/api/key", {"key": "3"})[1]["step"] == 3
+    assert post(console, "/api/key", {"key": "D"})[0] == 200  # SHIFT+D: 5*x deg right
+    assert post(console, "/api/key", {"key": "ArrowUp"})[0] == 200
+    assert post(console, "/api/key", {"key": "E"})[0] == 200  # SHIFT+E: zoom in 100*x
+    moves = fake.requests["move_relative"]
+    assert math.degrees(moves[0].command.pan) == pytest.approx(1.0)
+    assert math.degrees(moves[1].command.pan) == pytest.approx(-15.0)
+    assert math.degrees(moves[2].command.tilt) == pytest.approx(3.0)
+    assert moves[3].command.zoom == pytest.approx(300.0)
+    assert math.isnan(moves[0].command.tilt)
+    assert math.isnan(moves[0].command.zoom)
+
+    assert post(console, "/api/key", {"key": " "})[0] == 200
+    assert len(fake.requests["home"]) == 1
+    status, ans = post(console, "/api/key", {"key": "r"})  # fps 10 -> 13
+    assert status == 200
+    assert ans["ok"]
+    assert fake.requests["video"][-1].fps == 13
+    ros.wait_for(lambda: console.state()["video"]["fps"] == 13, 5.0)
+    status, ans = post(console, "/api/key", {"key": "t"})  # 704x576 is the top of the list
+    assert status == 409
+    assert "top" in ans["message"]
+    assert post(console, "/api/key", {"key": "Z"})[0] == 400
+
+
+def test_video_controls_and_bandwidth_budget(ros: Any) -> None:
+    fake = FakePtz(ros)
+    console = make_console(ros)
+    ros.wait_for(lambda: console.state()["video"] is not None, 5.0)
+    status, ans = post(
+        console, "/api/video", {"fps": 5, "resolution": "352x288", "compression": 60, "max_bitrate_kbps": 800}
+    )
+    assert status == 200, ans
+    assert ans["ok"], ans
+    r = fake.requests["video"][-1]
+    assert (r.fps, r.resolution, r.compression) == (5, "352x288", 60)
+    assert fake.node.get_parameter("max_bitrate_kbps").value == 800
+    ros.wait_for(lambda: console.state()["video"]["resolution"] == "352x288", 5.0)
+    # a refusal by the stream node comes back as the message
+    status, ans = post(console, "/api/video", {"resolution": "1920x1080"})
+    assert status == 409
+    assert "not supported" in ans["message"]
+    assert post(console, "/api/video", {"fps": 99})[0] == 400
+    state = json.loads(request(console, "GET", "/api/state")[2])
+    assert any("not supported" in e["message"] for e in state["errors"])
+
+
+def test_service_timeout_does_not_block_http_or_executor(ros: Any) -> None:
+    fake = FakePtz(ros, delay=4.0)
+    console = make_console(ros)
+    result: dict[str, Any] = {}
+
+    def slow() -> None:
+        t0 = time.monotonic()
+        result["answer"] = post(console, "/api/center", {"u": 1, "v": 1, "width": 10, "height": 10})
+        result["elapsed"] = time.monotonic() - t0
+
+    t = threading.Thread(target=slow)
+    t.start()
+    time.sleep(0.5)
+    # meanwhile the console still answers and the executor still delivers messages
+    t0 = time.monotonic()
+    assert request(console, "GET", "/api/state")[0] == 200
+    assert time.monotonic() - t0 < 1.0
+    fake.video.fps = 21
+    fake.params_pub.publish(fake.video)
+    ros.wait_for(lambda: (console.state()["video"] or {}).get("fps") == 21, 3.0)
+    t.join(10)
+    status, ans = result["answer"]
+    assert status == 504
+    assert "did not answer" in ans["message"]
+    assert 1.8 < result["elapsed"] < 3.5  # service_timeout = 2 s
+
+
+def test_missing_services_are_reported_not_hung(ros: Any) -> None:
+    console = make_console(ros)
+    t0 = time.monotonic()
+    status, ans = post(console, "/api/home", {})
+    assert status == 503
+    assert "not available" in ans["message"]
+    assert time.monotonic() - t0 < 3.0
+
+
+# ---------------------------------------------------------------------------------------------------------
+# security
+# ---------------------------------------------------------------------------------------------------------
+def test_token_required_when_configured(ros: Any, tmp_path: Any) -> None:
+    token_file = tmp_path / "token"
+    token_file.write_text("s3cret-token\n")
+    console = make_console(ros, token_file=str(token_file))
+    status, _, body = request(console, "GET", "/")
+    assert status == 401
+    assert b"Access token" in body
+    assert b"s3cret" not in body
+    assert request(console, "GET", "/api/state")[0] == 401
+    assert request(console, "GET", "/video/ptz.mjpg")[0] == 401
+    assert request(console, "GET", "/api/state", headers={"Authorization": "Bearer wrong"})[0] == 401
+    assert request(console, "GET", "/api/state", headers={"Authorization": "Bearer s3cret-token"})[0] == 200
+    assert request(console, "GET", "/api/state", headers={"X-Axis-Token": "s3cret-token"})[0] == 200
+    # the login form sets an HttpOnly cookie that then works for the page and the video
+    status, headers, _ = request(
+        console,
+        "POST",
+        "/login",
+        raw=b"token=s3cret-token",
+        headers={"Content-Type": "application/x-www-form-urlencoded"},
+    )
+    assert status == 303
+    assert "HttpOnly" in headers["set-cookie"]
+    cookie = headers["set-cookie"].split(";")[0]
+    status, _, body = request(console, "GET", "/", headers={"Cookie": cookie})
+    assert status == 200
+    assert b"Axis PTZ console" in body
+    assert request(console, "GET", "/api/state", headers={"Cookie": "axis_token=nope"})[0] == 401
+
+
+def test_non_loopback_bind_needs_a_token() -> None:
+    class Nothing:
+        pass
+
+    # refused before any socket is bound
+    with pytest.raises(ValueError, match="token"):
+        ConsoleServer(Nothing(), bind="0.0.0.0", port=0, token=None)  # type: ignore[arg-type]
+
+
+def test_host_origin_and_content_type_checks(ros: Any) -> None:
+    FakePtz(ros)
+    console = make_console(ros)
+    body = {"u": 1, "v": 1, "width": 10, "height": 10}
+    assert request(console, "GET", "/api/state", headers={"Host": "attacker.example:8090"})[0] == 421
+    status, ans = post(console, "/api/center", body, headers={"Origin": "http://attacker.example"})
+    assert status == 403
+    host = f"127.0.0.1:{console.server.port}"
+    status, ans = post(console, "/api/center", body, headers={"Origin": f"http://{host}"})
+    assert status == 200
+    assert ans["ok"]
+    status, _, _ = request(
+        console, "POST", "/api/center", raw=json.dumps(body).encode(), headers={"Content-Type": "text/plain"}
+    )
+    assert status == 415
+    # static files: no traversal
+    assert request(console, "GET", "/static/../server.py")[0] == 404
+    assert request(console, "GET", "/static/app.js")[0] == 200
