@@ -16,8 +16,9 @@ pytest.importorskip("rclpy")
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from geometry_msgs.msg import TransformStamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from sensor_msgs.msg import CameraInfo, CompressedImage, Image  # noqa: E402
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState  # noqa: E402
 
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzState, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import CenterOnPixel, MovePtz, SetZoom  # noqa: E402
@@ -104,6 +105,10 @@ class Probe:
         self.images: list[CompressedImage] = []
         self.infos: dict[tuple[int, int], CameraInfo] = {}
         self.state: PtzState | None = None
+        self.transform: TransformStamped | None = None
+        self.joints: JointState | None = None
+        self.node.create_subscription(TransformStamped, "ptz/transform", self._on_tf, STREAM_QOS)
+        self.node.create_subscription(JointState, "joint_states", self._on_joints, STREAM_QOS)
         self.node.create_subscription(CompressedImage, "image_raw/compressed", self._on_image, STREAM_QOS)
         self.node.create_subscription(CameraInfo, "camera_info", self._on_info, STREAM_QOS)
         self.node.create_subscription(PtzState, "ptz/state", self._on_state, STREAM_QOS)
@@ -123,6 +128,12 @@ class Probe:
 
     def _on_state(self, msg: PtzState) -> None:
         self.state = msg
+
+    def _on_tf(self, msg: TransformStamped) -> None:
+        self.transform = msg
+
+    def _on_joints(self, msg: JointState) -> None:
+        self.joints = msg
 
     def publish_panorama(self, bgr: np.ndarray) -> None:
         if self.raw:
@@ -228,6 +239,15 @@ def test_marker_lands_at_K_R_inv_d_through_the_node(ros, tmp_path):
         state = probe.still_state(lambda s, z=zoom: not s.moving and abs(s.zoom - z) < 1e-6)
         assert state.hfov == pytest.approx(2 * math.atan((W / 2) / info.k[0]), abs=1e-12)
         assert state.vfov == pytest.approx(2 * math.atan((H / 2) / info.k[4]), abs=1e-12)
+        # joint_states and ptz/transform (base_link -> optical frame) describe the rendered view
+        js = ros.wait_for(lambda p=pan: (j := probe.joints) is not None and abs(j.position[0] - p) < 1e-9 and j)
+        assert list(js.name) == ["virtual_camera_pan_joint", "virtual_camera_tilt_joint"]
+        assert js.position[1] == pytest.approx(tilt, abs=1e-9)
+        tf = ros.wait_for(lambda st=js.header.stamp: (m := probe.transform) is not None and m.header.stamp == st and m)
+        assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "virtual_camera_optical_frame")
+        t, q = tf.transform.translation, tf.transform.rotation
+        assert (t.x, t.y, t.z) == pytest.approx(T_PANO, abs=1e-12)  # the view's centre is the panorama's
+        assert np.allclose(g.quaternion_to_matrix(q.x, q.y, q.z, q.w), view.R_base_opt, atol=1e-9)
         exp = expected_pixel(info, pan, tilt, D_MARKER)
         assert exp == pytest.approx(direction_pixel(view, D_MARKER), abs=1e-9)
         assert 30 < exp[0] < W - 30
