@@ -20,6 +20,7 @@ Nothing here imports ``rclpy`` or ROS messages.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -586,7 +587,8 @@ class BandwidthController:
     to the first level predicted under ``down_fraction`` of the budget; with room, it climbs one level
     once the prediction for it has stayed under ``up_fraction`` for ``up_hold_s``. Predictions scale
     the observed bytes per frame (per resolution and compression, learned as it goes) by pixel count
-    and the compression prior, times the fps the camera actually delivers.
+    and the compression prior (raised to an exponent fitted to the camera's own sizes), times the fps the
+    camera actually delivers. Climbing goes as far as the prediction leaves room.
     """
 
     def __init__(
@@ -603,6 +605,7 @@ class BandwidthController:
         self._resolutions = tuple(resolutions)
         self._observed: dict[tuple[Resolution, int], float] = {}
         self._observed_at: dict[tuple[Resolution, int], float] = {}
+        self._alpha = 1.0  # exponent on the compression prior, fitted to what this camera does
         self._ladder = self._build_ladder()
         self._level = 0
         self._changed_at: float | None = None
@@ -674,6 +677,10 @@ class BandwidthController:
         return tuple(ladder)
 
     # -- prediction ----------------------------------------------------------------------------------------
+    def _q(self, compression: int) -> float:
+        """Relative frame size at ``compression``: the prior raised to the fitted exponent."""
+        return float(compression_size_factor(compression) ** self._alpha)
+
     def _bytes_per_frame(self, p: VideoParams, ref: VideoParams, ref_bpf: float) -> float:
         known = self._observed.get((p.resolution, p.compression))
         if known is not None:
@@ -682,10 +689,33 @@ class BandwidthController:
         same_res = [(c, b) for (r, c), b in self._observed.items() if r == p.resolution]
         if same_res:
             c, b = min(same_res, key=lambda cb: abs(cb[0] - p.compression))
-            return b * compression_size_factor(p.compression) / compression_size_factor(c)
+            return b * self._q(p.compression) / self._q(c)
         pixel_ratio = (p.resolution.width * p.resolution.height) / (ref.resolution.width * ref.resolution.height)
-        q_ratio = compression_size_factor(p.compression) / compression_size_factor(ref.compression)
-        return ref_bpf * pixel_ratio * q_ratio
+        return ref_bpf * pixel_ratio * self._q(p.compression) / self._q(ref.compression)
+
+    def _fitted(self, resolution: Resolution) -> bool:
+        """Whether two compressions at least one step apart were observed at ``resolution``."""
+        comps = [c for (r, c) in self._observed if r == resolution]
+        return len(comps) >= 2 and max(comps) - min(comps) >= self._config.compression_step
+
+    def _fit_alpha(self) -> None:
+        """Fit the compression exponent to the two most distant observations at one resolution."""
+        best: tuple[int, float] | None = None
+        by_res: dict[Resolution, list[tuple[int, float]]] = {}
+        for (r, c), b in self._observed.items():
+            by_res.setdefault(r, []).append((c, b))
+        for points in by_res.values():
+            if len(points) < 2:
+                continue
+            (c1, b1), (c2, b2) = min(points), max(points)
+            p1, p2 = compression_size_factor(c1), compression_size_factor(c2)
+            if c2 - c1 < 10 or b1 <= 0 or b2 <= 0 or p1 <= p2 * 1.01:
+                continue
+            alpha = math.log(b2 / b1) / math.log(p2 / p1)
+            if best is None or c2 - c1 > best[0]:
+                best = (c2 - c1, min(max(alpha, 0.2), 8.0))
+        if best is not None:
+            self._alpha = best[1]
 
     def predict_kbps(self, level: int, ref_bpf: float) -> float:
         """Predicted kbit/s at ``level``, from the current level's measured bytes per frame."""
@@ -720,19 +750,28 @@ class BandwidthController:
             self._up_since = None
             target = cfg.down_fraction * self._budget
             level = self._level + 1
-            while level < len(self._ladder) - 1 and self.predict_kbps(level, bytes_per_frame) > target:
-                level += 1
             if level >= len(self._ladder):
                 return None  # already at the bottom
+            nxt = self._ladder[level]
+            probe = not self._fitted(cur.resolution) and (nxt.resolution, nxt.fps) == (cur.resolution, cur.fps)
+            # With nothing learned about this camera's compression yet, take one compression step and
+            # measure (cheap, and it calibrates the prior); otherwise jump to the first level predicted
+            # under the target.
+            while not probe and level < len(self._ladder) - 1 and self.predict_kbps(level, bytes_per_frame) > target:
+                level += 1
             return self._go(level, now)
         if self._level == 0:
             self._up_since = None
             return None
-        if self.predict_kbps(self._level - 1, bytes_per_frame) < cfg.up_fraction * self._budget:
+        room = cfg.up_fraction * self._budget
+        if self.predict_kbps(self._level - 1, bytes_per_frame) < room:
             if self._up_since is None:
                 self._up_since = now
             if now - self._up_since >= cfg.up_hold_s:
-                return self._go(self._level - 1, now)
+                level = self._level - 1  # climb as far as the prediction leaves room
+                while level > 0 and self.predict_kbps(level - 1, bytes_per_frame) < room:
+                    level -= 1
+                return self._go(level, now)
         else:
             self._up_since = None
         return None
@@ -746,11 +785,13 @@ class BandwidthController:
         if previous is not None and abs(bytes_per_frame - previous) > cfg.scene_change * previous:
             self._observed.clear()
             self._observed_at.clear()
+            self._alpha = 1.0
         for k, t in list(self._observed_at.items()):
             if now - t > cfg.memory_s:
                 del self._observed[k], self._observed_at[k]
         self._observed[key] = bytes_per_frame
         self._observed_at[key] = now
+        self._fit_alpha()
         return cur
 
     def _go(self, level: int, now: float) -> VideoParams:

@@ -123,15 +123,19 @@ def test_compression_prior_is_monotone():
 
 
 class FakeCamera:
-    """Bytes per frame ∝ pixels · (1 - 0.8·compression/100); fps as asked up to ``max_fps``."""
+    """Bytes per frame ∝ pixels · q(compression); fps as asked up to ``max_fps``."""
 
-    def __init__(self, bpf_full: float = 15000.0, max_fps: float = 30.0) -> None:
+    def __init__(self, bpf_full: float = 15000.0, max_fps: float = 30.0, steep: bool = False) -> None:
         self.bpf_full = bpf_full
         self.max_fps = max_fps
+        self.steep = steep  # like a JPEG encoder at quality 100 - compression: c=10 is already ~3x smaller
 
     def measure(self, p: VideoParams) -> tuple[float, float, float]:
         pixels = p.resolution.width * p.resolution.height / (704 * 576)
-        bpf = self.bpf_full * pixels * (1.0 - 0.8 * p.compression / 100.0)
+        q = 0.35 * (1.0 - 0.6 * p.compression / 100.0) if self.steep and p.compression else 1.0
+        if not self.steep:
+            q = 1.0 - 0.8 * p.compression / 100.0
+        bpf = self.bpf_full * pixels * q
         fps = min(float(p.fps), self.max_fps)
         return bpf * fps * 8 / 1000, fps, bpf
 
@@ -162,6 +166,17 @@ def test_controller_gets_under_budget_fast_and_stays():
     assert c.current.resolution == P704.resolution
 
 
+def test_controller_learns_a_camera_unlike_the_prior():
+    cam = FakeCamera(steep=True)  # c=0 -> 3600 kbit/s, c=10 -> ~1200: far steeper than the thesis' prior
+    c = BandwidthController(P704, 1500.0)
+    hist = run_controller(c, cam, 12.0)
+    under = [t for t, _, k in hist if k <= 1500]
+    assert under[0] <= 2.0
+    late = [k for t, _, k in hist if t > 8.0]
+    assert max(late) <= 1500 * 1.1
+    assert min(late) >= 1500 * 0.5, "stuck far below the budget"
+
+
 def test_controller_steps_fps_then_resolution_for_tight_budgets():
     cam = FakeCamera()
     c = BandwidthController(P704, 300.0)
@@ -185,7 +200,7 @@ def test_controller_climbs_back_with_hysteresis_when_budget_grows():
     c.configure(budget_kbps=800.0)  # same budget, restart: gets back to the same level
     run_controller(c, cam, 10.0, t0=10.0)
     assert c.level == degraded
-    # the scene gets 10x simpler: it climbs back one step at a time, each after >= up_hold_s of room
+    # the scene gets 10x simpler: it climbs back, each climb after >= up_hold_s of room
     cam.bpf_full /= 10.0
     changes = []
     last = c.level
@@ -194,7 +209,7 @@ def test_controller_climbs_back_with_hysteresis_when_budget_grows():
             changes.append(t)
             last = c.ladder.index(p)
     assert c.level == 0
-    assert len(changes) == degraded
+    assert 1 <= len(changes) <= degraded
     assert all(b - a >= 3.0 - 1e-9 for a, b in zip(changes, changes[1:], strict=False))
 
 

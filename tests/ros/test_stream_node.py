@@ -1,0 +1,412 @@
+"""axis_stream over real DDS against the simulated camera (in-process, port 0).
+
+Every parameter change goes through ``/axis_stream/set_parameters`` (what ``ros2 param set`` calls) and is
+checked on the frames themselves (decoded size, measured rate, JPEG size); refusals are checked on the
+simulator's request counters. Short timeouts/back-offs via parameters keep the file fast.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import CameraInfo, CompressedImage  # noqa: E402
+
+from axis_ptz_interfaces.msg import PtzState, VideoParams  # noqa: E402
+from axis_ptz_interfaces.srv import SetVideoParams  # noqa: E402
+from axis_ptz_ros2.geometry import AXIS_214_ZOOM  # noqa: E402
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
+from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.streaming import sim_stamp  # noqa: E402
+from tests.ros.conftest import RosHarness  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+FAST = {"backoff_initial": 0.05, "backoff_max": 0.3, "stall_timeout": 0.4, "auth_retry": 1.0, "read_timeout": 2.0}
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimulatedCamera]:
+    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
+    try:
+        yield cam
+    finally:
+        cam.stop()
+
+
+@pytest.fixture
+def camera(sim: SimulatedCamera) -> SimulatedCamera:
+    """The shared simulator with faults and counters reset."""
+    deadline = time.monotonic() + 5
+    while sim.rebooting and time.monotonic() < deadline:
+        time.sleep(0.05)
+    sim.set_faults(FaultConfig())
+    sim.teleport(0.0, 0.0, 1.0)
+    sim.reset_counts()
+    return sim
+
+
+@dataclass
+class Frame:
+    t_rx: float  # monotonic at reception
+    data: bytes
+    seq: int
+    t_sent: int
+
+
+@dataclass
+class Recorder:
+    frames: list[Frame] = field(default_factory=list)
+    infos: list[CameraInfo] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def on_image(self, msg: CompressedImage) -> None:
+        data = bytes(msg.data)
+        st = sim_stamp(data) or (-1, -1)
+        with self.lock:
+            self.frames.append(Frame(time.monotonic(), data, st[0], st[1]))
+
+    def on_info(self, msg: CameraInfo) -> None:
+        with self.lock:
+            self.infos.append(msg)
+
+    def since(self, t: float) -> list[Frame]:
+        with self.lock:
+            return [f for f in self.frames if f.t_rx >= t]
+
+    def count(self) -> int:
+        with self.lock:
+            return len(self.frames)
+
+
+def make_node(ros: RosHarness, camera: SimulatedCamera, **params) -> StreamNode:
+    values = {"port": camera.port, **FAST, **params}
+    overrides = [Parameter(k, value=v) for k, v in values.items()]
+    return ros.add(StreamNode(context=ros.context, parameter_overrides=overrides))
+
+
+def subscribe(ros: RosHarness, probe, info: bool = True) -> tuple[Recorder, list]:
+    rec = Recorder()
+    subs = [probe.create_subscription(CompressedImage, "image_raw/compressed", rec.on_image, STREAM_QOS)]
+    if info:
+        subs.append(probe.create_subscription(CameraInfo, "camera_info", rec.on_info, STREAM_QOS))
+    return rec, subs
+
+
+def decoded_size(data: bytes) -> tuple[int, int]:
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None, "frame does not decode"
+    return img.shape[1], img.shape[0]
+
+
+def rate(frames: list[Frame]) -> float:
+    if len(frames) < 2:
+        return 0.0
+    return (len(frames) - 1) / (frames[-1].t_rx - frames[0].t_rx)
+
+
+def set_params(ros: RosHarness, probe, **values):
+    """Exactly what ``ros2 param set`` does: the node's SetParameters service."""
+    client = probe.create_client(SetParameters, "/axis_stream/set_parameters")
+    req = SetParameters.Request()
+    req.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+    return ros.call(client, req).results
+
+
+def get_params(ros: RosHarness, probe, *names: str) -> list:
+    client = probe.create_client(GetParameters, "/axis_stream/get_parameters")
+    req = GetParameters.Request()
+    req.names = list(names)
+    return ros.call(client, req).values
+
+
+def video_count(camera: SimulatedCamera) -> int:
+    return camera.request_counts.endpoints.get("video", 0)
+
+
+def assert_never_repeated(frames: list[Frame]) -> None:
+    """Each frame published once: send times strictly increasing, seq increasing within a connection."""
+    ts = [f.t_sent for f in frames]
+    assert all(b > a for a, b in zip(ts, ts[1:], strict=False)), "a frame was repeated or reordered"
+    # the simulator numbers frames per connection: within a run seq goes up by one; a new run starts low
+    runs = 1
+    for a, b in zip(frames, frames[1:], strict=False):
+        if b.seq <= a.seq:
+            runs += 1
+            assert b.seq <= 5, f"seq went back from {a.seq} to {b.seq} without a new connection"
+    assert runs >= 2
+
+
+# --------------------------------------------------------------------------------------------------------
+def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros, camera):
+    node = make_node(ros, camera, fps=15)
+    probe = ros.probe()
+    time.sleep(0.6)
+    assert camera.request_counts.endpoints.get("video", 0) == 0, "streamed with nobody subscribed"
+    assert node._reader.stats().state.value == "idle-lazy"
+    t0 = time.monotonic()
+    rec, subs = subscribe(ros, probe, info=False)
+    ros.wait_for(lambda: rec.count() >= 3, timeout=5)
+    assert rec.frames[0].t_rx - t0 < 1.5, "streaming did not start promptly"
+    assert video_count(camera) == 1
+    # camera_info alone also keeps it streaming
+    info_rec = Recorder()
+    info_sub = probe.create_subscription(CameraInfo, "camera_info", info_rec.on_info, STREAM_QOS)
+    probe.destroy_subscription(subs[0])
+    time.sleep(0.5)
+    n = len(info_rec.infos)
+    time.sleep(0.5)
+    assert len(info_rec.infos) > n
+    probe.destroy_subscription(info_sub)
+    ros.wait_for(lambda: node._reader.stats().state.value == "idle-lazy", timeout=3)
+    time.sleep(0.3)  # the camera notices a closed socket on its next write or two
+    sent = camera.frames_sent
+    time.sleep(0.5)
+    assert camera.frames_sent == sent, "the camera still streams after the last subscriber left"
+    assert video_count(camera) == 1
+
+
+def test_parameters_change_the_frames_live(ros, camera):
+    make_node(ros, camera, fps=20, resolution="704x576", compression=0)
+    probe = ros.probe()
+    params_seen: list[VideoParams] = []
+    probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
+    rec, _ = subscribe(ros, probe)
+    ros.wait_for(lambda: rec.count() >= 10, timeout=5)
+    assert decoded_size(rec.frames[-1].data) == (704, 576)
+    size_c0 = len(rec.frames[-1].data)
+    ros.wait_for(lambda: params_seen and params_seen[-1].source == "startup", timeout=3)
+
+    # resolution
+    (res,) = set_params(ros, probe, resolution="352x288")
+    assert res.successful, res.reason
+    t = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t)) >= 3 and decoded_size(rec.since(t)[-1].data) == (352, 288), timeout=3)
+    ros.wait_for(lambda: params_seen[-1].resolution == "352x288", timeout=2)
+    assert params_seen[-1].source == "parameter"
+    assert (params_seen[-1].width, params_seen[-1].height) == (352, 288)
+    with rec.lock:
+        later = [i for i in rec.infos if i.header.stamp.sec > 0][-3:]
+    assert all((i.width, i.height) == (352, 288) for i in later)
+
+    # fps: measured rate follows
+    (res,) = set_params(ros, probe, fps=5)
+    assert res.successful, res.reason
+    time.sleep(0.5)
+    t = time.monotonic()
+    time.sleep(1.6)
+    assert rate(rec.since(t)) == pytest.approx(5.0, rel=0.25)
+
+    # compression: JPEG size follows (same resolution, same view)
+    assert all(r.successful for r in set_params(ros, probe, resolution="704x576", fps=20))
+    (res,) = set_params(ros, probe, compression=90)
+    assert res.successful, res.reason
+    t = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t)) >= 3, timeout=3)
+    f = rec.since(t)[-1]
+    assert decoded_size(f.data) == (704, 576)
+    assert len(f.data) < 0.5 * size_c0
+    assert rate(rec.since(t)) > 10  # fps=20 again
+    values = get_params(ros, probe, "fps", "resolution", "compression")
+    assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (20, "704x576", 90)
+
+
+def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
+    make_node(ros, camera, fps=10, resolution="352x288", compression=30)
+    probe = ros.probe()
+    rec, _ = subscribe(ros, probe)
+    ros.wait_for(lambda: rec.count() >= 5, timeout=5)
+    before = video_count(camera)
+    cases = {
+        "resolution": ["640x480", "banana", "0x0"],
+        "fps": [0, 31],
+        "compression": [-1, 101],
+    }
+    for name, bad_values in cases.items():
+        for bad in bad_values:
+            (res,) = set_params(ros, probe, **{name: bad})
+            assert not res.successful, f"{name}={bad!r} accepted"
+            assert res.reason, f"{name}={bad!r} refused without a reason"
+    (res,) = set_params(ros, probe, hostname="10.0.0.1")  # read-only connection setting
+    assert not res.successful
+    (res,) = set_params(ros, probe, resolution="640x480")
+    assert "640x480" in res.reason
+    assert "352x288" in res.reason  # the reason lists what the camera supports
+    t = time.monotonic()
+    time.sleep(0.6)
+    after = rec.since(t)
+    assert len(after) >= 3, "stream interrupted by a refused value"
+    assert all(decoded_size(f.data) == (352, 288) for f in after[-2:])
+    assert video_count(camera) == before, "the camera saw a request for refused values"
+    values = get_params(ros, probe, "fps", "resolution", "compression")
+    assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (10, "352x288", 30)
+
+
+def test_service_sets_several_atomically(ros, camera):
+    make_node(ros, camera, fps=10, resolution="704x576", compression=30)
+    probe = ros.probe()
+    rec, _ = subscribe(ros, probe)
+    ros.wait_for(lambda: rec.count() >= 3, timeout=5)
+    client = probe.create_client(SetVideoParams, "video/set_params")
+    before = video_count(camera)
+    bad = ros.call(client, SetVideoParams.Request(fps=5, resolution="123x45", compression=80))
+    assert not bad.success
+    assert "123x45" in bad.message
+    assert (bad.params.fps, bad.params.resolution, bad.params.compression) == (10, "704x576", 30)
+    assert video_count(camera) == before
+    ok = ros.call(client, SetVideoParams.Request(fps=5, resolution="176x144", compression=80))
+    assert ok.success, ok.message
+    assert (ok.params.fps, ok.params.resolution, ok.params.compression) == (5, "176x144", 80)
+    assert ok.params.source == "service"
+    values = get_params(ros, probe, "fps", "resolution", "compression")
+    assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (5, "176x144", 80)
+    t = time.monotonic()
+    time.sleep(1.3)
+    got = rec.since(t)
+    assert decoded_size(got[-1].data) == (176, 144)
+    assert rate(got) == pytest.approx(5.0, rel=0.3)
+    keep = ros.call(client, SetVideoParams.Request(fps=0, resolution="", compression=-1))
+    assert keep.success
+    assert (keep.params.fps, keep.params.resolution, keep.params.compression) == (5, "176x144", 80)
+
+
+def test_recovers_after_reboot_stall_and_garbage(ros, camera):
+    node = make_node(ros, camera, fps=20, resolution="176x144")
+    probe = ros.probe()
+    rec, _ = subscribe(ros, probe, info=False)
+    ros.wait_for(lambda: rec.count() >= 5, timeout=5)
+
+    # reboot: connections dropped, refused for 1 s, back on the same port
+    camera.reboot(1.0)
+    ros.wait_for(lambda: camera.rebooting, timeout=2)
+    ros.wait_for(lambda: not camera.rebooting, timeout=5)
+    back = time.monotonic()
+    ros.wait_for(lambda: rec.since(back), timeout=3)
+    assert rec.since(back)[0].t_rx - back < 1.0
+
+    # stall: the socket stays open but nothing comes; the watchdog reconnects
+    camera.set_faults(stall_after_frames=3, stall_seconds=30.0)
+    t = time.monotonic()
+    ros.wait_for(lambda: node._reader.stats().stalls >= 2, timeout=5)
+    camera.set_faults(FaultConfig())
+    t = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t)) >= 5, timeout=3)
+
+    # garbage between parts and truncated frames: dropped and counted, the rest decodes
+    camera.set_faults(garbage_between_parts=True, truncate_every=3)
+    t = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t)) >= 12, timeout=4)
+    camera.set_faults(FaultConfig())
+    s = node._reader.stats()
+    assert s.parser.dropped_truncated >= 2
+    assert s.parser.garbage_bytes > 0
+    for f in rec.since(t):
+        assert decoded_size(f.data) == (176, 144)
+        assert f.seq % 3 != 0 or f.seq == -1, "a truncated frame was published"
+    assert_never_repeated(rec.frames)
+    assert s.reconnects >= 3
+
+
+def test_auth_failure_reported_clearly_and_not_hammered(ros, tmp_path):
+    cam = SimulatedCamera(host="127.0.0.1", port=0, auth="digest", user="root", password="right-pass").start()
+    try:
+        pw = tmp_path / "cred"
+        pw.write_text("root:wrong-pass-XYZ\n")
+        node = make_node(ros, cam, password_file=str(pw), lazy=False, auth_retry=1.0)
+        probe = ros.probe()
+        diags: list[DiagnosticArray] = []
+        probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+        ros.wait_for(lambda: any(ord(s.level) == 2 for d in diags for s in d.status), timeout=5)
+        time.sleep(2.2)
+        counts = cam.request_counts
+        status = [s for d in diags for s in d.status if s.name.endswith("MJPEG stream")][-1]
+        assert ord(status.level) == 2
+        assert "authentication failed" in status.message
+        assert "401" in status.message
+        text = status.message + " ".join(kv.value for kv in status.values)
+        assert "wrong-pass-XYZ" not in text
+        kv = {k.key: k.value for k in status.values}
+        assert kv["state"] == "auth-failed"
+        assert int(kv["auth failures"]) <= 4
+        total = sum(counts.endpoints.values())
+        assert total <= 12, f"camera hammered: {dict(counts.endpoints)}"  # ~3 attempts x (challenge + try)
+        assert counts.status.get(401, 0) >= 2
+        assert node._reader.stats().frames == 0
+    finally:
+        cam.stop()
+
+
+def test_camera_info_matches_frames_and_follows_zoom(ros, camera):
+    make_node(ros, camera, fps=15, resolution="704x576", zoom=1.0)
+    probe = ros.probe()
+    rec, _ = subscribe(ros, probe)
+    ros.wait_for(lambda: len(rec.infos) >= 5, timeout=5)
+    with rec.lock:
+        pairs = {(i.header.stamp.sec, i.header.stamp.nanosec): i for i in rec.infos}
+    info = rec.infos[-1]
+    assert (info.width, info.height) == (704, 576)
+    assert info.header.frame_id == "axis_ptz_optical_frame"
+    k_wide = AXIS_214_ZOOM.intrinsics(1.0, 704, 576)
+    assert info.k[0] == pytest.approx(k_wide.fx)
+    assert info.k[4] == pytest.approx(k_wide.fy)
+    assert len(pairs) >= 3  # stamped per frame, not a frozen copy
+
+    (res,) = set_params(ros, probe, resolution="352x288")
+    assert res.successful
+    ros.wait_for(lambda: rec.infos[-1].width == 352, timeout=3)
+    half = rec.infos[-1]
+    assert half.height == 288
+    assert half.k[0] == pytest.approx(info.k[0] / 2, rel=1e-6)
+    assert half.k[4] == pytest.approx(info.k[4] / 2, rel=1e-6)
+
+    pub = probe.create_publisher(PtzState, "ptz/state", STREAM_QOS)
+    state = PtzState(zoom=5000.0)
+    want = AXIS_214_ZOOM.intrinsics(5000.0, 352, 288).fx
+    ros.wait_for(lambda: (pub.publish(state), rec.infos[-1].k[0] == pytest.approx(want))[1], timeout=3)
+    assert rec.infos[-1].k[0] > 5 * half.k[0]
+    f = rec.frames[-1]
+    assert decoded_size(f.data) == (rec.infos[-1].width, rec.infos[-1].height)
+
+
+def test_bandwidth_budget_holds_the_bitrate(ros, camera):
+    make_node(ros, camera, fps=20, resolution="704x576", compression=0)
+    probe = ros.probe()
+    params_seen: list[VideoParams] = []
+    probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
+    rec, _ = subscribe(ros, probe, info=False)
+    ros.wait_for(lambda: rec.count() >= 10, timeout=5)
+    time.sleep(1.0)
+    t = time.monotonic() - 1.0
+    full = rec.since(t)
+    full_kbps = sum(len(f.data) for f in full[1:]) * 8 / 1000 / (full[-1].t_rx - full[0].t_rx)
+    budget = int(full_kbps * 0.4)
+    (res,) = set_params(ros, probe, max_bitrate_kbps=budget)
+    assert res.successful
+    ros.wait_for(lambda: params_seen and params_seen[-1].source == "bandwidth_budget", timeout=5)
+    assert params_seen[-1].max_bitrate_kbps == budget
+    time.sleep(3.0)
+    t = time.monotonic()
+    time.sleep(2.0)
+    got = rec.since(t)
+    kbps = sum(len(f.data) for f in got[1:]) * 8 / 1000 / (got[-1].t_rx - got[0].t_rx)
+    print(f"budget {budget} kbit/s (full {full_kbps:.0f}): held {kbps:.0f} kbit/s with {params_seen[-1]}")
+    assert kbps <= budget * 1.1, f"{kbps:.0f} kbit/s over the budget {budget}"
+    assert kbps >= budget * 0.3
+    last = params_seen[-1]
+    assert (last.compression, last.fps, last.resolution) != (0, 20, "704x576")
+    # switched off: back to the request
+    (res,) = set_params(ros, probe, max_bitrate_kbps=0)
+    assert res.successful
+    ros.wait_for(lambda: params_seen[-1].compression == 0 and params_seen[-1].fps == 20, timeout=3)
