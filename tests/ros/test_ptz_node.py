@@ -1,0 +1,479 @@
+"""PtzNode against the simulated camera over real DDS and loopback HTTP.
+
+Every check reads the SIMULATOR's own ground truth (``cam.position()``, its renderer, its request log), never
+the node's state, so a sign, unit or frame error in the driver cannot cancel out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import PointStamped  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from axis_ptz_interfaces.msg import PtzCommand, PtzState, PtzVelocity  # noqa: E402
+from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom  # noqa: E402
+from axis_ptz_ros2.config import MountConfig, save_mount  # noqa: E402
+from axis_ptz_ros2.geometry import Transform, pan_tilt_to_direction  # noqa: E402
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
+from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
+from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
+from axis_ptz_ros2.sim.scene import PtzLimits, TargetSpec, load_world  # noqa: E402
+from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
+
+NAN = float("nan")
+W, H = 704, 576
+SPEED = 300.0  # deg/s, fast sim head (tests stay short)
+MAST_Z = 3.0  # the test world's PTZ sits on a 3 m mast so targets 40 deg below the horizon are above ground
+UP_COLOR = (255, 0, 255)  # BGR magenta
+DOWN_COLOR = (255, 255, 0)  # BGR cyan
+
+
+def _point_at(centre: np.ndarray, pan_deg: float, elev_deg: float, rng: float) -> tuple[float, float, float]:
+    d = pan_tilt_to_direction(math.radians(pan_deg), math.radians(elev_deg))
+    p = centre + rng * d
+    return float(p[0]), float(p[1]), float(p[2])
+
+
+def _world() -> Any:
+    base = load_world()
+    T = base.T_base_ptz
+    mast = Transform(T.R, np.array([T.t[0], T.t[1], MAST_Z]))
+    centre = mast.apply(np.array([0.0, 0.0, base.kinematics.h_tilt]))
+    targets = (
+        TargetSpec("up_marker", "marker", _point_at(centre, 12.0, 40.0, 4.0), (0.3, 0.3), color=UP_COLOR),
+        TargetSpec("down_marker", "marker", _point_at(centre, -15.0, -40.0, 3.0), (0.3, 0.3), color=DOWN_COLOR),
+        TargetSpec("side_marker", "marker", (float(T.t[0]), float(T.t[1]) + 3.0, MAST_Z), (0.4, 0.4)),
+    )
+    limits = PtzLimits(-170.0, 170.0, -90.0, 90.0, 1, 9999)
+    return dataclasses.replace(base, T_base_ptz=mast, limits=limits, targets=targets)
+
+
+@pytest.fixture(scope="module")
+def cam() -> Iterator[SimulatedCamera]:
+    c = SimulatedCamera(_world(), port=0, speeds=Speeds(SPEED, SPEED, 0.5, 0.5)).start()
+    try:
+        yield c
+    finally:
+        c.stop()
+
+
+@pytest.fixture(scope="module")
+def config_files(cam: SimulatedCamera, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str]:
+    d = tmp_path_factory.mktemp("ptz_cfg")
+    model = yaml.safe_load(Path("config/axis214.yaml").read_text(encoding="utf-8"))
+    kin = cam.world.kinematics
+    model["head"] = {"h_tilt": kin.h_tilt, "d_opt": list(kin.d_opt)}
+    model["max_speed"] = {"pan_dps": SPEED, "tilt_dps": SPEED}
+    model_path = d / "model.yaml"
+    model_path.write_text(yaml.safe_dump(model), encoding="utf-8")
+    mount_path = d / "mount.yaml"
+    save_mount(MountConfig(transform=cam.world.T_base_ptz), mount_path)  # the sim's TRUE mount
+    return str(model_path), str(mount_path)
+
+
+@pytest.fixture
+def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNode:
+    cam.set_faults(FaultConfig())
+    cam.teleport(0.0, 0.0, 1)
+    cam.reset_counts()
+    model, mount = config_files
+    overrides = [
+        Parameter("port", value=cam.port),
+        Parameter("camera_model", value=model),
+        Parameter("mount_file", value=mount),
+        Parameter("state_timeout", value=0.5),
+        Parameter("arrival_tolerance", value=0.001),
+    ]
+    n = ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
+    ros.wait_for(lambda: n.poller.latest is not None, 10.0)
+    return n
+
+
+# ------------------------------------------------------------------------------------------------------
+# helpers
+# ------------------------------------------------------------------------------------------------------
+def sim_pose(cam: SimulatedCamera) -> tuple[float, float, float]:
+    """The simulator's true pose in REP-103 radians (its OWN conversion) and zoom units."""
+    p, t, z = cam.position()
+    pr, tr = vapix_to_ros(p, t)
+    return pr, tr, z
+
+
+def wait_sim_still(cam: SimulatedCamera, timeout: float = 10.0) -> tuple[float, float, float]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not cam.state.moving():
+            return sim_pose(cam)
+        time.sleep(0.01)
+    raise AssertionError("simulated head still moving")
+
+
+def motion_requests(cam: SimulatedCamera) -> list[Any]:
+    return [e for e in cam.request_counts.ptz_log if "query=" not in e.query]
+
+
+def connect(ros: Any, pub: Any) -> Any:
+    """Wait until the node's subscription matched (and give the other side's discovery a moment)."""
+    ros.wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
+    time.sleep(0.3)
+    return pub
+
+
+def cmd(pan: float = NAN, tilt: float = NAN, zoom: float = NAN, speed: float = NAN) -> PtzCommand:
+    return PtzCommand(pan=pan, tilt=tilt, zoom=zoom, speed=speed)
+
+
+def move(ros: Any, probe: Any, service: str, command: PtzCommand, wait: bool = True) -> Any:
+    client = probe.create_client(MovePtz, service)
+    return ros.call(client, MovePtz.Request(command=command, wait=wait, timeout_s=10.0), timeout=15.0)
+
+
+def snapshot(cam: SimulatedCamera) -> np.ndarray:
+    jpeg = cam.frame_jpeg(W, H, 0)
+    return cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+
+
+def find_marker(img: np.ndarray, bgr: tuple[int, int, int]) -> tuple[float, float, float, float] | None:
+    """Bounding box (u0, v0, u1, v1) of the pixels of a solid marker colour."""
+    diff = np.abs(img.astype(np.int32) - np.array(bgr, np.int32)).sum(axis=2)
+    ys, xs = np.nonzero(diff < 90)
+    if len(xs) < 20:
+        return None
+    return float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max())
+
+
+def centre_of(box: tuple[float, float, float, float]) -> tuple[float, float]:
+    return (box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0
+
+
+# ------------------------------------------------------------------------------------------------------
+# tests
+# ------------------------------------------------------------------------------------------------------
+def test_absolute_relative_service_and_topic_land_on_the_sim(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    pub_abs = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))
+    pub_rel = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS))
+    resp = move(ros, probe, "ptz/move_absolute", cmd(math.radians(30.0), math.radians(10.0), 3000.0))
+    assert resp.success, resp.message
+    p, t, z = sim_pose(cam)
+    # +30 deg REP-103 pan = LEFT = VAPIX -30 (the sim's own convention)
+    assert cam.position()[0] == pytest.approx(-30.0, abs=1e-3)
+    assert (p, t, z) == pytest.approx((math.radians(30.0), math.radians(10.0), 3000.0), abs=1e-4)
+    assert resp.state.pan == pytest.approx(p, abs=1e-4)
+
+    resp = move(ros, probe, "ptz/move_relative", cmd(math.radians(-5.0), math.radians(2.5), -1000.0))
+    assert resp.success, resp.message
+    assert sim_pose(cam) == pytest.approx((math.radians(25.0), math.radians(12.5), 2000.0), abs=1e-4)
+
+    # NaN axes stay where they are
+    resp = move(ros, probe, "ptz/move_absolute", cmd(tilt=math.radians(-20.0)))
+    assert resp.success, resp.message
+    assert sim_pose(cam) == pytest.approx((math.radians(25.0), math.radians(-20.0), 2000.0), abs=1e-4)
+
+    pub_abs.publish(cmd(math.radians(-60.0), math.radians(5.0), 1.0))
+    want = (math.radians(-60.0), math.radians(5.0), 1.0)
+    ros.wait_for(lambda: sim_pose(cam) == pytest.approx(want, abs=1e-4), 5.0)
+    pub_rel.publish(cmd(pan=math.radians(10.0)))
+    want = (math.radians(-50.0), math.radians(5.0), 1.0)
+    ros.wait_for(lambda: sim_pose(cam) == pytest.approx(want, abs=1e-4), 5.0)
+
+
+def test_out_of_limits_refused_and_never_sent(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    cam.reset_counts()
+    for command, service in (
+        (cmd(pan=math.radians(175.0)), "ptz/move_absolute"),
+        (cmd(tilt=math.radians(95.0)), "ptz/move_absolute"),
+        (cmd(zoom=12000.0), "ptz/move_absolute"),
+        (cmd(pan=math.radians(-171.0)), "ptz/move_relative"),
+    ):
+        resp = move(ros, probe, service, command)
+        assert not resp.success
+        assert "limits" in resp.message, resp.message
+    pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))
+    pub.publish(cmd(pan=math.radians(-200.0)))
+    time.sleep(0.3)
+    assert motion_requests(cam) == []  # the camera never saw a command
+    assert cam.position() == pytest.approx((0.0, 0.0, 1.0))
+    # a command right at the limit is accepted
+    resp = move(ros, probe, "ptz/move_absolute", cmd(pan=math.radians(-170.0)))
+    assert resp.success, resp.message
+    assert cam.position()[0] == pytest.approx(170.0, abs=1e-3)
+
+
+def test_velocity_moves_then_stops_by_itself(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    pub = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
+    cam.reset_counts()
+    rate = math.radians(30.0)  # rad/s, left
+    t0 = time.monotonic()
+    pub.publish(PtzVelocity(pan_rate=rate, tilt_rate=-rate / 2.0, zoom_rate=0.0))
+    ros.wait_for(lambda: cam.state.moving(), 2.0)
+    p_mid = sim_pose(cam)[0]
+    assert p_mid > 0.0  # REP-103 left = the sim's +yaw
+    ros.wait_for(lambda: not cam.state.moving(), 3.0)
+    stopped_after = time.monotonic() - t0
+    p, t, _ = sim_pose(cam)
+    # nothing else was published: it stopped after velocity_timeout (0.5 s) + at most a watchdog tick + RTT
+    assert 0.45 < stopped_after < 1.2, stopped_after
+    assert p == pytest.approx(rate * stopped_after, rel=0.25)
+    assert t == pytest.approx(-p / 2.0, rel=0.05)
+    stops = [
+        e
+        for e in motion_requests(cam)
+        if "continuouspantiltmove=0%2C0" in e.query or "continuouspantiltmove=0,0" in e.query
+    ]
+    assert stops, [e.query for e in motion_requests(cam)]
+    time.sleep(0.3)
+    assert sim_pose(cam) == pytest.approx((p, t, 1.0), abs=1e-6)
+
+
+@pytest.mark.parametrize(("name", "color", "tilt_sign"), [("up_marker", UP_COLOR, 1), ("down_marker", DOWN_COLOR, -1)])
+def test_center_on_rendered_target_at_steep_tilt(
+    ros: Any, node: PtzNode, cam: SimulatedCamera, name: str, color: tuple[int, int, int], tilt_sign: int
+) -> None:
+    # start 7 deg beside and 5 deg nearer the horizon than the target (which is at 40 deg elevation)
+    pan0 = (-12.0 + 7.0) if tilt_sign > 0 else (15.0 - 7.0)  # VAPIX degrees (+ = right)
+    tilt0 = 35.0 * tilt_sign
+    cam.teleport(pan0, tilt0, 1)
+    ros.wait_for(
+        lambda: node.poller.latest is not None and abs(node.poller.latest.reading.tilt - math.radians(tilt0)) < 1e-4,
+        3.0,
+    )
+    box = find_marker(snapshot(cam), color)
+    assert box is not None, f"{name} not visible"
+    assert box[0] > 0
+    assert box[2] < W - 1
+    assert box[1] > 0
+    assert box[3] < H - 1
+    u, v = centre_of(box)
+    assert math.hypot(u - (W - 1) / 2, v - (H - 1) / 2) > 40.0  # really off-centre to start with
+    probe = ros.probe()
+    client = probe.create_client(CenterOnPixel, "ptz/center")
+    req = CenterOnPixel.Request(wait=True, timeout_s=10.0)
+    req.target.u, req.target.v, req.target.image_width, req.target.image_height = u, v, W, H
+    resp = ros.call(client, req, timeout=15.0)
+    assert resp.success, resp.message
+    wait_sim_still(cam)
+    box2 = find_marker(snapshot(cam), color)
+    assert box2 is not None
+    u2, v2 = centre_of(box2)
+    err = math.hypot(u2 - (W - 1) / 2, v2 - (H - 1) / 2)
+    assert err < 3.0, (u2, v2, err)
+    assert abs(cam.position()[1]) == pytest.approx(40.0, abs=1.0)  # truly centred at a steep tilt
+
+
+def test_area_zoom_fills_the_view_with_the_box(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    cam.teleport(-12.0 + 3.0, 38.0, 1)
+    ros.wait_for(
+        lambda: node.poller.latest is not None and abs(node.poller.latest.reading.tilt - math.radians(38)) < 1e-3
+    )
+    time.sleep(0.1)
+    box = find_marker(snapshot(cam), UP_COLOR)
+    assert box is not None
+    probe = ros.probe()
+    client = probe.create_client(AreaZoom, "ptz/area_zoom")
+    req = AreaZoom.Request(
+        u_min=box[0], v_min=box[1], u_max=box[2], v_max=box[3], image_width=W, image_height=H, wait=True, timeout_s=10.0
+    )
+    resp = ros.call(client, req, timeout=15.0)
+    assert resp.success, resp.message
+    wait_sim_still(cam)
+    box2 = find_marker(snapshot(cam), UP_COLOR)
+    assert box2 is not None
+    u2, v2 = centre_of(box2)
+    assert math.hypot(u2 - (W - 1) / 2, v2 - (H - 1) / 2) < 4.0
+    # the box's larger relative side now fills its image dimension (pixel-edge quantisation of the box: ~2 %)
+    fill = max((box2[2] - box2[0] + 1) / W, (box2[3] - box2[1] + 1) / H)
+    assert fill == pytest.approx(1.0, abs=0.05), (box, box2)
+    assert cam.position()[2] > 1000
+
+
+def test_set_zoom_by_units_magnification_and_hfov(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    client = probe.create_client(SetZoom, "ptz/set_zoom")
+    zm = cam.world.zoom_model  # the sim's own optics
+
+    def call(**kw: float) -> Any:
+        req = SetZoom.Request(zoom=NAN, magnification=NAN, hfov=NAN, wait=True, timeout_s=10.0)
+        for k, v in kw.items():
+            setattr(req, k, v)
+        return ros.call(client, req, timeout=15.0)
+
+    assert call(zoom=4321.0).success
+    assert cam.position()[2] == pytest.approx(4321.0)
+    resp = call(magnification=5.0)
+    assert resp.success, resp.message
+    assert zm.magnification(cam.position()[2]) == pytest.approx(5.0, abs=0.01)
+    assert resp.state.magnification == pytest.approx(5.0, abs=0.01)
+    resp = call(hfov=math.radians(10.0))
+    assert resp.success, resp.message
+    assert math.degrees(zm.hfov(cam.position()[2])) == pytest.approx(10.0, abs=0.02)
+    assert not call(magnification=40.0).success
+    assert not call(zoom=100.0, hfov=0.3).success
+
+
+def test_home_and_presets(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    preset = probe.create_client(Preset, "ptz/preset")
+    listing = probe.create_client(ListPresets, "ptz/list_presets")
+    home = probe.create_client(Trigger, "ptz/home")
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(-45.0), math.radians(20.0), 2500.0)).success
+    r = ros.call(preset, Preset.Request(action="set", name="door", wait=False))
+    assert r.success, r.message
+    assert ros.call(home, Trigger.Request()).success
+    assert wait_sim_still(cam) == pytest.approx((0.0, 0.0, 1.0), abs=1e-6)
+    r = ros.call(preset, Preset.Request(action="goto", name="door", wait=True, timeout_s=10.0), timeout=15.0)
+    assert r.success, r.message
+    assert cam.position() == pytest.approx((45.0, 20.0, 2500.0), abs=1e-3)
+    names = ros.call(listing, ListPresets.Request())
+    assert names.success
+    assert "door" in names.names
+    assert ros.call(preset, Preset.Request(action="remove", name="door")).success
+    assert "door" not in ros.call(listing, ListPresets.Request()).names
+    r = ros.call(preset, Preset.Request(action="goto", name="door", wait=True))
+    assert not r.success
+    assert "door" in r.message
+    assert not ros.call(preset, Preset.Request(action="jump", name="x")).success
+
+
+def test_look_at_a_3d_target_with_parallax(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    target = cam.renderer.scene.target("side_marker").center if hasattr(cam.renderer, "scene") else None
+    if target is None:
+        target = np.array(cam.world.targets[2].center)
+    probe = ros.probe()
+    client = probe.create_client(LookAt, "ptz/look_at")
+    req = LookAt.Request(zoom=NAN, wait=True, timeout_s=10.0)
+    req.target.header.frame_id = "base_link"
+    req.target.point.x, req.target.point.y, req.target.point.z = (float(v) for v in target)
+    resp = ros.call(client, req, timeout=15.0)
+    assert resp.success, resp.message
+    T = cam.renderer.camera_pose(*cam.position()[:2])  # TRUE optical frame in base_link
+    axis = T.R[:, 2]
+    to_target = np.asarray(target) - T.t
+    err = math.degrees(math.acos(float(np.clip(axis @ to_target / np.linalg.norm(to_target), -1, 1))))
+    assert err < 0.15, err
+    # a point in the PTZ base frame too, via the topic
+    pub = connect(ros, probe.create_publisher(PointStamped, "ptz/cmd/look_at", COMMAND_QOS))
+    msg = PointStamped()
+    msg.header.frame_id = "axis_ptz_base"
+    msg.point.x, msg.point.y, msg.point.z = 5.0, -5.0, 0.0687 + 5.0 * math.sqrt(2.0)
+    pub.publish(msg)
+    ros.wait_for(lambda: cam.position()[:2] == pytest.approx((45.0, 45.0), abs=0.05), 5.0)
+    # an unknown frame is refused
+    req.target.header.frame_id = "map"
+    assert not ros.call(client, req).success
+
+
+def test_state_joint_states_and_transform(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    states: list[PtzState] = []
+    joints: list[JointState] = []
+    probe.create_subscription(PtzState, "ptz/state", states.append, STREAM_QOS)
+    probe.create_subscription(JointState, "joint_states", joints.append, STREAM_QOS)
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(20.0), math.radians(-10.0), 5000.0)).success
+    n0 = len(states)
+    t0 = time.monotonic()
+    time.sleep(1.0)
+    rate = (len(states) - n0) / (time.monotonic() - t0)
+    assert rate > 10.0, rate  # nominal 20 Hz (not a speed assertion: the bench measures it)
+    s = states[-1]
+    assert (s.pan, s.tilt, s.zoom) == pytest.approx((math.radians(20.0), math.radians(-10.0), 5000.0), abs=1e-4)
+    assert not s.moving
+    assert s.hfov == pytest.approx(cam.world.zoom_model.hfov(5000.0), rel=1e-6)
+    assert s.pan_max == pytest.approx(math.radians(170.0))
+    assert s.tilt_min == pytest.approx(math.radians(-90.0))
+    j = joints[-1]
+    assert list(j.name) == ["axis_ptz_pan_joint", "axis_ptz_tilt_joint"]
+    assert list(j.position) == pytest.approx([math.radians(20.0), math.radians(-10.0)], abs=1e-4)
+
+
+def test_burst_of_relative_commands_coalesces(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    latency = 0.1  # s per request, like a real 214 over a robot's link
+    cam.set_faults(latency_ms=latency * 1000.0)
+    probe = ros.probe()
+    pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS))
+    cam.reset_counts()
+    step = math.radians(0.1)
+    t_last = 0.0
+    for _ in range(300):
+        pub.publish(cmd(pan=step))
+        t_last = time.time()
+        time.sleep(1.0 / 30.0)
+    want_vapix = -300 * 0.1  # 30 deg left
+    ros.wait_for(lambda: abs(cam.position()[0] - want_vapix) < 1e-3, 5.0)
+    reqs = motion_requests(cam)
+    assert len(reqs) < 150, len(reqs)  # ~ one per round trip instead of 300
+    final = [e for e in reqs if "pan=-30" in e.query]
+    assert final, reqs[-1].query
+    delay = final[0].t_wall - t_last
+    assert delay < 2 * latency + 0.1, delay  # at most the request in flight, then its own
+    cam.set_faults(FaultConfig())
+
+
+def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    states: list[tuple[float, PtzState]] = []
+    diags: list[DiagnosticArray] = []
+    probe.create_subscription(PtzState, "ptz/state", lambda m: states.append((time.monotonic(), m)), STREAM_QOS)
+    probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+    ros.wait_for(lambda: len(states) > 3)
+
+    def resumes_at(pan_deg: float, timeout: float = 5.0) -> None:
+        t = time.monotonic()
+        ros.wait_for(
+            lambda: (
+                states and states[-1][0] > t and states[-1][1].pan == pytest.approx(math.radians(-pan_deg), abs=1e-4)
+            ),
+            timeout,
+        )
+
+    for code in (500, 503):
+        cam.set_faults(http_error=code)
+        time.sleep(0.8)
+        cam.teleport(10.0 + code / 100.0, 0.0, 1)  # the head moved while we were blind
+        cam.set_faults(FaultConfig())
+        resumes_at(10.0 + code / 100.0)
+    # a stall: every reply 1.5 s late (> state_timeout 0.5 s)
+    cam.set_faults(latency_ms=1500.0)
+    time.sleep(1.5)
+    cam.teleport(-33.0, 0.0, 1)
+    cam.set_faults(FaultConfig())
+    resumes_at(-33.0, 8.0)
+    failed = node.poller.stats.failed
+    assert failed >= 3
+    ros.wait_for(
+        lambda: any(kv.key == "polls_failed" and int(kv.value) > 0 for d in diags for s in d.status for kv in s.values),
+        3.0,
+    )
+    # a reboot: refused connections for 1.5 s, then back at home
+    cam.reboot(1.5)
+    time.sleep(0.5)
+    assert node.poller.stats.consecutive_failures > 0
+    ros.wait_for(lambda: not cam.rebooting, 5.0)
+    resumes_at(0.0, 8.0)
+    # and commands work again
+    assert move(ros, probe, "ptz/move_absolute", cmd(pan=math.radians(5.0))).success
+    assert cam.position()[0] == pytest.approx(-5.0, abs=1e-3)
