@@ -37,20 +37,6 @@ MARKER_PAN, MARKER_TILT = 0.7, 0.2  # rad, marker direction in base_link (az, el
 SIGMA = math.radians(0.35)  # angular size of the marker
 
 
-@pytest.fixture(autouse=True)
-def _diagnostic_level_as_int(monkeypatch):
-    """Workaround (reported): nodes/common.diagnostic() does ``bytes([level])`` but Jazzy's
-    ``DiagnosticStatus.OK`` is already ``bytes``, which kills the executor thread after 1 s. Pass the int."""
-    import axis_ptz_ros2.nodes.ptz_node as ptz_node
-
-    orig = ptz_node.diagnostic
-
-    def fixed(node, name, level, *args, **kwargs):
-        return orig(node, name, level[0] if isinstance(level, bytes) else level, *args, **kwargs)
-
-    monkeypatch.setattr(ptz_node, "diagnostic", fixed)
-
-
 def robot_file(tmp_path: Path, rpy: tuple[float, float, float]) -> str:
     p = tmp_path / "robot.yaml"
     p.write_text(
