@@ -459,8 +459,11 @@ class WebConsole(Node):
         return res
 
     @staticmethod
-    def _answer(res: Any, default: str) -> CommandResult:
-        return CommandResult(bool(res.success), res.message or default, 200 if res.success else 409)
+    def _answer(res: Any, what: str) -> CommandResult:
+        """Success: ``what`` (+ the node's note); refusal: the node's reason."""
+        if res.success:
+            return CommandResult(True, what + (f" ({res.message})" if res.message else ""))
+        return CommandResult(False, f"{what}: refused: {res.message or 'no reason given'}", 409)
 
     def _cmd_center(self, body: dict[str, Any]) -> CommandResult:
         req = CenterOnPixel.Request()
@@ -516,8 +519,6 @@ class WebConsole(Node):
         if warn:
             msg += f" ({warn})"
         out = self._answer(res, msg)
-        if out.ok:
-            out.message = msg
         out.extra["depth_source"] = str(rp.source)
         out.extra["range_m"] = rp.range_m
         return out
@@ -591,11 +592,10 @@ class WebConsole(Node):
         req = SetVideoParams.Request(fps=fps, resolution=resolution, compression=compression)
         res = self._call(self._set_video, req)
         p = res.params
-        return CommandResult(
-            bool(res.success),
-            res.message or f"video {p.resolution} at {p.fps} fps, compression {p.compression}",
-            200 if res.success else 409,
-        )
+        if not res.success:
+            return CommandResult(False, res.message or "video parameters refused", 409)
+        text = f"video {p.resolution} at {p.fps} fps, compression {p.compression}"
+        return CommandResult(True, text + (f" ({res.message})" if res.message else ""))
 
     def _cmd_video(self, body: dict[str, Any]) -> CommandResult:
         fps = integer(body, "fps", 0)

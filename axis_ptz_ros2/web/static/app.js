@@ -37,15 +37,16 @@ async function post(path, body) {
   return answer;
 }
 
-// Pixel of a mouse event in the image's own (natural) pixels: the displayed size may differ.
+// Pixel of a mouse event in the image's own (natural) pixels: the displayed size may differ. Pixel
+// coordinates follow geometry.py: pixel i covers [i - 0.5, i + 0.5), so the image centre is (w - 1) / 2.
 function naturalPixel(img, ev) {
   const r = img.getBoundingClientRect();
   const w = img.naturalWidth;
   const h = img.naturalHeight;
   if (!w || !h || r.width <= 0 || r.height <= 0) return null;
-  const x = ((ev.clientX - r.left) * w) / r.width;
-  const y = ((ev.clientY - r.top) * h) / r.height;
-  return { x: Math.min(Math.max(x, 0), w), y: Math.min(Math.max(y, 0), h), w, h };
+  const x = ((ev.clientX - r.left) * w) / r.width - 0.5;
+  const y = ((ev.clientY - r.top) * h) / r.height - 0.5;
+  return { x: Math.min(Math.max(x, 0), w - 1), y: Math.min(Math.max(y, 0), h - 1), w, h };
 }
 
 // ------------------------------------------------------------------------------------------------------

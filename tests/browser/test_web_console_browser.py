@@ -1,0 +1,349 @@
+"""The web console in real headless Chromium against the whole simulated suite (scripts/demo's processes).
+
+Every check goes through the simulator's ground truth (``/sim/state``, its own JPEG snapshots) or through
+ROS (``video/params``), never through the console's own report of itself. Screenshots go to artifacts/.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.demo import Demo, DemoConfig, DemoError
+
+pytestmark = pytest.mark.browser
+
+ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+W, H = 704, 576  # the stream and snapshot size used here
+#: the simulator's green marker (config/sim_world.yaml: side_marker, base_link centre)
+GREEN_MARKER = np.array([0.0, 3.0, 0.53])
+SIM_PTZ_MOUNT_XYZ = np.array([-0.209, -0.047, 0.462])  # the simulated camera's TRUE mount (sim_world.yaml)
+
+_NO_PROXY = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# simulator ground truth
+# ---------------------------------------------------------------------------------------------------------
+def http_get(url: str, timeout: float = 10.0) -> bytes:
+    assert url.startswith("http://127.0.0.1:"), url  # loopback only
+    with _NO_PROXY.open(url, timeout=timeout) as r:
+        return bytes(r.read())
+
+
+def sim_state(demo: Demo) -> dict[str, Any]:
+    return dict(json.loads(http_get(f"{demo.sim_url}/sim/state")))
+
+
+def sim_teleport(demo: Demo, pan: float, tilt: float, zoom: float) -> None:
+    http_get(f"{demo.sim_url}/sim/control?teleport={pan},{tilt},{zoom}")
+
+
+def sim_snapshot(demo: Demo) -> np.ndarray:
+    data = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution={W}x{H}")
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None
+    return img
+
+
+def wait_still(demo: Demo, timeout: float = 15.0) -> dict[str, Any]:
+    """Wait until the simulated head has stopped (and stays stopped for 0.5 s)."""
+    deadline = time.monotonic() + timeout
+    still_since = None
+    while time.monotonic() < deadline:
+        s = sim_state(demo)
+        if s["moving"]:
+            still_since = None
+        elif still_since is None:
+            still_since = time.monotonic()
+        elif time.monotonic() - still_since > 0.5:
+            return s
+        time.sleep(0.1)
+    raise AssertionError("the simulated head did not come to rest")
+
+
+def wait_for(pred: Any, timeout: float, what: str, page: Any = None) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        v = pred()
+        if v:
+            return v
+        time.sleep(0.1)
+    note = f" (message line: {page.locator('#message').text_content()!r})" if page is not None else ""
+    raise AssertionError(f"timed out after {timeout:g} s: {what}{note}")
+
+
+def green_blob(img: np.ndarray) -> tuple[float, float, int] | None:
+    """Centre (x, y) and area of the largest pure-green region (the marker), pixel-index convention."""
+    b, g, r = (img[..., i].astype(np.int32) for i in range(3))
+    mask = ((g > 140) & (r < 80) & (b < 80)).astype(np.uint8)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(mask)
+    if n < 2:
+        return None
+    i = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    x, y, w, h, area = stats[i]
+    if area < 30:
+        return None
+    # the marker is a square (with a white ring inside): the centre of its bounding box is its centre
+    return x + (w - 1) / 2.0, y + (h - 1) / 2.0, int(area)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# fixtures
+# ---------------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
+    d = Demo(DemoConfig(console_port=0, fps=8, resolution=f"{W}x{H}", log_dir=tmp_path_factory.mktemp("demo")))
+    try:
+        d.start()
+        d.wait_ready(90.0)
+    except DemoError as err:
+        d.stop()
+        pytest.fail(f"the simulated suite did not start: {err}")
+    try:
+        yield d
+    finally:
+        d.stop()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    sync_api = pytest.importorskip("playwright.sync_api")
+    exe = shutil.which("chromium")
+    if exe is None:
+        pytest.skip("Debian's chromium is not installed (./scripts/bootstrap --browser)")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=exe, args=CHROMIUM_ARGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
+def page(browser: Any, demo: Demo) -> Iterator[Any]:
+    ctx = browser.new_context(viewport={"width": 1500, "height": 1000})
+    pg = ctx.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto(demo.console_url + "/")
+    pg.wait_for_function("document.getElementById('ptz').naturalWidth > 0", timeout=30_000)
+    pg.wait_for_function("document.getElementById('r-pan').textContent !== '–'", timeout=30_000)
+    yield pg
+    ctx.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def shot(page: Any, name: str) -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    p = ARTIFACTS / f"web_console_{name}.png"
+    page.screenshot(path=str(p), full_page=True)
+    return p
+
+
+def element_png(page: Any, selector: str) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(page.locator(selector).screenshot(), np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None
+    return img
+
+
+def client_point(page: Any, selector: str, u: float, v: float) -> tuple[float, float]:
+    """Page coordinates of natural-image pixel (u, v) of an <img> (pixel-index convention)."""
+    page.locator(selector).scroll_into_view_if_needed()
+    box = page.locator(selector).bounding_box()
+    nw, nh = page.evaluate(
+        f"[document.querySelector('{selector}').naturalWidth, document.querySelector('{selector}').naturalHeight]"
+    )
+    return box["x"] + (u + 0.5) * box["width"] / nw, box["y"] + (v + 0.5) * box["height"] / nh
+
+
+def goto_pose(demo: Demo, page: Any, pan: float, tilt: float, zoom: float) -> None:
+    """Teleport the simulated head and wait until the page shows video from there (the driver caught up)."""
+    sim_teleport(demo, pan, tilt, zoom)
+    wait_still(demo)
+    want = -pan  # the 214 pans clockwise: REP-103 pan (shown on the page) = -VAPIX pan
+
+    def shown() -> bool:
+        text = page.locator("#r-pan").text_content() or ""
+        try:
+            return abs(float(text.split("°")[0]) - want) < 0.2
+        except ValueError:
+            return False
+
+    wait_for(shown, 10.0, f"the page to show pan {want:g}°")
+    time.sleep(0.6)  # a few frames from the new pose
+
+
+# ---------------------------------------------------------------------------------------------------------
+# tests
+# ---------------------------------------------------------------------------------------------------------
+def test_page_loads_and_ptz_view_updates(demo: Demo, page: Any) -> None:
+    assert page.title() == "Axis PTZ console"
+    goto_pose(demo, page, -60.0, 0.0, 1.0)
+    first = element_png(page, "#ptz")
+    sim_teleport(demo, -75.0, 0.0, 1.0)
+    wait_still(demo)
+    # the live image changes to the new view (a different frame, not a cached one)
+    wait_for(
+        lambda: float(np.mean(cv2.absdiff(element_png(page, "#ptz"), first))) > 8.0,
+        10.0,
+        "the PTZ view to update",
+    )
+    # readouts come from the live state: pan follows the simulator (REP-103 = -VAPIX for the 214)
+    wait_for(lambda: "75.00°" in (page.locator("#r-pan").text_content() or ""), 10.0, "pan readout 75°")
+    for rid in ("#r-fps", "#r-kbps", "#r-latency", "#r-video"):
+        assert page.locator(rid).text_content() not in ("", "–"), rid
+    fps = float((page.locator("#r-fps").text_content() or "0").split()[0])
+    assert 3.0 < fps < 15.0  # 8 fps requested
+    # the key map of the keyboard teleop is on the page
+    page.keyboard.press("?")
+    assert page.locator("#keys-details").get_attribute("open") is not None
+    assert page.locator("#keys tbody tr").count() > 20
+    shot(page, "overview")
+
+
+def test_click_centres_the_clicked_target(demo: Demo, page: Any) -> None:
+    goto_pose(demo, page, -80.0, 3.0, 1.0)  # the green marker left of and below the centre
+    before = green_blob(sim_snapshot(demo))
+    assert before is not None, "the marker is not in view"
+    u, v, _ = before
+    assert abs(u - (W - 1) / 2) > 40, "the marker must start off-centre for this test to mean anything"
+    x, y = client_point(page, "#ptz", u, v)
+    page.mouse.click(x, y)
+    wait_for(lambda: "centring" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
+    time.sleep(0.3)
+    wait_still(demo)
+    after = green_blob(sim_snapshot(demo))
+    assert after is not None
+    err = math.hypot(after[0] - (W - 1) / 2, after[1] - (H - 1) / 2)
+    shot(page, "centred")
+    assert err < 4.0, f"marker at ({after[0]:.1f}, {after[1]:.1f}) after the click: {err:.1f} px from the centre"
+
+
+def test_shift_click_zooms_in_and_ctrl_click_zooms_out(demo: Demo, page: Any) -> None:
+    goto_pose(demo, page, -88.0, 0.0, 1000.0)
+    z0 = sim_state(demo)["zoom"]
+    cx, cy = client_point(page, "#ptz", (W - 1) / 2, (H - 1) / 2)
+    page.keyboard.down("Shift")
+    page.mouse.click(cx, cy)
+    page.keyboard.up("Shift")
+    time.sleep(0.3)
+    z1 = wait_still(demo)["zoom"]
+    assert z1 == pytest.approx(z0 + 2000, abs=2), (z0, z1)
+    shot(page, "zoomed_in")
+    page.keyboard.down("Control")
+    page.mouse.click(cx, cy)
+    page.keyboard.up("Control")
+    time.sleep(0.3)
+    z2 = wait_still(demo)["zoom"]
+    assert z2 == pytest.approx(max(1.0, z1 - 5000), abs=2), (z1, z2)
+
+
+def test_double_click_on_the_panorama_turns_the_camera_there(demo: Demo, page: Any) -> None:
+    goto_pose(demo, page, 0.0, 0.0, 3000.0)  # looking ahead, zoomed in
+    pano = cv2.imdecode(np.frombuffer(http_get(demo.console_url + "/video/panorama.jpg"), np.uint8), cv2.IMREAD_COLOR)
+    blob = green_blob(pano)
+    assert blob is not None, "the green marker is not in the panorama"
+    x, y = client_point(page, "#pano", blob[0], blob[1])
+    page.mouse.dblclick(x, y)
+    wait_for(lambda: "looking at" in (page.locator("#message").text_content() or ""), 10.0, "a confirmation", page)
+    assert "laser" in (page.locator("#message").text_content() or "")
+    time.sleep(0.3)
+    s = wait_still(demo)
+    # where the marker really is, seen from the PTZ head; and where the panorama camera sees it
+    d = GREEN_MARKER - SIM_PTZ_MOUNT_XYZ
+    true_pan = math.degrees(math.atan2(d[1], d[0]))
+    pano_centre = np.array([0.216, -0.044, 0.75])
+    dp = GREEN_MARKER - pano_centre
+    naive_pan = math.degrees(math.atan2(dp[1], dp[0]))
+    ros_pan = -s["pan"]  # VAPIX clockwise -> REP-103
+    shot(page, "panorama_look")
+    assert abs(naive_pan - true_pan) > 5.0  # the parallax is real here ...
+    assert abs(ros_pan - true_pan) < 2.0, (ros_pan, true_pan, naive_pan)  # ... and corrected
+    assert s["zoom"] == pytest.approx(1.0, abs=1)  # thesis: zoom = 1
+    # the camera now has the marker in view
+    assert green_blob(sim_snapshot(demo)) is not None
+
+
+def test_keyboard_shortcut_moves_the_camera(demo: Demo, page: Any) -> None:
+    goto_pose(demo, page, -10.0, 0.0, 1.0)
+    page.locator("#ptz").focus()
+    page.keyboard.press("d")  # turn right by x = 1 deg: VAPIX +1 on the clockwise 214
+    wait_for(lambda: "D:" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
+    time.sleep(0.3)
+    assert wait_still(demo)["pan"] == pytest.approx(-9.0, abs=0.2)
+
+
+def test_quality_controls_change_the_stream(demo: Demo, page: Any) -> None:
+    page.fill("#q-fps", "5")
+    page.select_option("#q-res", "352x288")
+    page.fill("#q-budget", "0")
+    page.click("#q-apply")
+    wait_for(lambda: "352x288" in (page.locator("#message").text_content() or ""), 10.0, "a confirmation", page)
+    params = latest_video_params()
+    assert (params.fps, params.resolution, params.width, params.height) == (5, "352x288", 352, 288)
+    # the page now shows the smaller stream, from the camera
+    wait_for(lambda: page.evaluate("document.getElementById('ptz').naturalWidth") == 352, 15.0, "352 px video")
+    shot(page, "quality")
+    # a refusal shows up in the message line
+    page.fill("#q-fps", "99")
+    page.click("#q-apply")
+    assert "1..30" in (page.locator("#message").text_content() or "")
+    # back to the size the other tests use
+    page.fill("#q-fps", "8")
+    page.select_option("#q-res", f"{W}x{H}")
+    page.click("#q-apply")
+    wait_for(lambda: latest_video_params().width == W, 10.0, "the stream back at full size")
+
+
+def latest_video_params() -> Any:
+    """The stream node's latched ``video/params`` as a late joiner sees it (over DDS, not via the console)."""
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from axis_ptz_interfaces.msg import VideoParams
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS
+
+    ctx = Context()
+    import rclpy
+
+    rclpy.init(context=ctx)
+    try:
+        node = Node("browser_test_probe", context=ctx)
+        got: list[Any] = []
+        node.create_subscription(VideoParams, "video/params", got.append, LATCHED_QOS)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        deadline = time.monotonic() + 10.0
+        while not got and time.monotonic() < deadline:
+            ex.spin_once(timeout_sec=0.1)
+        time.sleep(0.2)
+        ex.spin_once(timeout_sec=0.1)
+        assert got, "no video/params"
+        ex.shutdown()
+        node.destroy_node()
+        return got[-1]
+    finally:
+        rclpy.try_shutdown(context=ctx)
