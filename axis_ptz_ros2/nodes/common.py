@@ -187,12 +187,13 @@ def transform_msg(T: Transform, parent: str, child: str, stamp: Time) -> Transfo
 
 
 def diagnostic(
-    node: Node, name: str, level: int, message: str, values: Mapping[str, Any], hardware_id: str = ""
+    node: Node, name: str, level: int | bytes, message: str, values: Mapping[str, Any], hardware_id: str = ""
 ) -> DiagnosticArray:
-    """A one-status ``DiagnosticArray`` stamped now (level: DiagnosticStatus.OK/WARN/ERROR/STALE)."""
+    """A one-status ``DiagnosticArray`` stamped now (level: 0..3 or DiagnosticStatus.OK/WARN/ERROR/STALE)."""
     arr = DiagnosticArray()
     arr.header.stamp = node.get_clock().now().to_msg()
-    st = DiagnosticStatus(level=bytes([level]), name=name, message=message, hardware_id=hardware_id)
+    lvl = level if isinstance(level, bytes) else bytes([level])
+    st = DiagnosticStatus(level=lvl, name=name, message=message, hardware_id=hardware_id)
     for k, v in values.items():
         if isinstance(v, float):
             v = "nan" if math.isnan(v) else f"{v:.3f}"
