@@ -1,0 +1,429 @@
+"""Capture mode of ``axis_calibrate``: record calibration views from the running ROS system.
+
+For every view the tool records
+
+* the PTZ state (``ptz/state``: pan/tilt rad REP-103, zoom units) while the head stands still — minus the
+  encoder offsets of the mount file the PTZ node runs with, so the file holds the *reported* head position;
+* one frame of ``image_raw/compressed`` received after the head stopped (and the settle time), saved as
+  ``<OUT stem>_views/<view>.jpg`` next to the correspondence file (path stored in the view's ``image``);
+* one laser snapshot (``laser/points``, ``sensor_msgs/PointCloud2`` with float x, y, z[, intensity])
+  received after the head stopped, transformed into ``base_link`` with the laser pose of
+  ``config/robot.yaml`` (or ``--laser-pose``) and saved as ``<OUT stem>_views/<view>.npy`` — an (N, 4)
+  float32 array x, y, z (m, base_link), intensity (NaN when the cloud has none);
+
+optionally after commanding the head to a list of poses (``ptz/move_absolute`` with ``wait=true``). The view
+is then appended to the correspondence file with :func:`~axis_ptz_ros2.calibration.correspondences.append_view`
+— with its picked points when picking is automatic (:mod:`~axis_ptz_ros2.calibration.picking`, simulated
+boards), otherwise with none for a person to add (see the ``axis_calibrate`` docs).
+
+Everything above the :class:`CaptureSession` class is ROS-free; ``rclpy`` and the message packages are
+imported only when a session is created, so ``axis_ptz_ros2.calibration`` stays importable without ROS.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import re
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from axis_ptz_ros2.calibration.correspondences import Correspondence, CorrespondenceError, View, append_view
+from axis_ptz_ros2.geometry import Transform
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class CaptureError(RuntimeError):
+    """A view could not be captured (no data, head moving, service refused); the message says why."""
+
+
+# --------------------------------------------------------------------------------------------------------
+# Poses
+# --------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class PoseCommand:
+    """An absolute PTZ set-point: pan/tilt in rad (REP-103), zoom in VAPIX units (NaN = keep)."""
+
+    pan: float
+    tilt: float
+    zoom: float = math.nan
+
+
+def parse_poses(text: str) -> list[PoseCommand]:
+    """Parse ``"pan_deg,tilt_deg[,zoom];..."`` (REP-103 degrees: pan left positive, tilt up positive; zoom
+    in VAPIX units, omitted = keep the current zoom). Raises ``ValueError`` naming the bad entry."""
+    out: list[PoseCommand] = []
+    for i, entry in enumerate(e.strip() for e in text.split(";")):
+        if not entry:
+            continue
+        parts = [p.strip() for p in entry.split(",")]
+        if len(parts) not in (2, 3):
+            raise ValueError(f"pose {i + 1} {entry!r}: expected 'pan_deg,tilt_deg[,zoom]'")
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError as err:
+            raise ValueError(f"pose {i + 1} {entry!r}: not a number") from err
+        if not all(math.isfinite(v) for v in vals):
+            raise ValueError(f"pose {i + 1} {entry!r}: values must be finite")
+        if abs(vals[0]) > 360.0 or abs(vals[1]) > 90.0:
+            raise ValueError(f"pose {i + 1} {entry!r}: pan must be within ±360°, tilt within ±90° (degrees)")
+        if len(vals) == 3 and vals[2] < 0:
+            raise ValueError(f"pose {i + 1} {entry!r}: zoom must be >= 0 (VAPIX units)")
+        out.append(PoseCommand(math.radians(vals[0]), math.radians(vals[1]), vals[2] if len(vals) == 3 else math.nan))
+    if not out:
+        raise ValueError("no poses given")
+    return out
+
+
+def parse_pose6(text: str) -> Transform:
+    """Parse ``"x,y,z,roll_deg,pitch_deg,yaw_deg"`` (metres, degrees) into a transform."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 6:
+        raise ValueError(f"{text!r}: expected 'x,y,z,roll_deg,pitch_deg,yaw_deg'")
+    v = [float(p) for p in parts]
+    return Transform.from_xyz_rpy(v[0], v[1], v[2], *(math.radians(a) for a in v[3:]))
+
+
+# --------------------------------------------------------------------------------------------------------
+# Point clouds (ROS-free decoding of the PointCloud2 layout)
+# --------------------------------------------------------------------------------------------------------
+#: sensor_msgs/PointField datatypes → numpy type characters
+_PF_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+@dataclass(frozen=True, slots=True)
+class CloudField:
+    """One ``sensor_msgs/PointField``: name, byte offset, datatype code (7 = FLOAT32, 8 = FLOAT64)."""
+
+    name: str
+    offset: int
+    datatype: int
+
+
+def decode_cloud(
+    data: bytes, fields: Sequence[CloudField], point_step: int, n_points: int, is_bigendian: bool = False
+) -> FloatArray:
+    """(N, 4) float64 x, y, z, intensity (NaN if the cloud has no ``intensity``) of a PointCloud2 payload;
+    points with a non-finite coordinate are dropped."""
+    by_name = {f.name: f for f in fields}
+    for req in ("x", "y", "z"):
+        if req not in by_name:
+            raise ValueError(f"point cloud has no {req!r} field (fields: {sorted(by_name)})")
+    if point_step <= 0 or len(data) < point_step * n_points:
+        raise ValueError(f"point cloud payload of {len(data)} bytes is too short for {n_points}×{point_step}")
+    endian = ">" if is_bigendian else "<"
+    names, formats, offsets = [], [], []
+    for name in ("x", "y", "z", "intensity"):
+        f = by_name.get(name)
+        if f is None:
+            continue
+        if f.datatype not in _PF_TYPES:
+            raise ValueError(f"point cloud field {name!r} has unsupported datatype {f.datatype}")
+        names.append(name)
+        formats.append(endian + _PF_TYPES[f.datatype])
+        offsets.append(f.offset)
+    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
+    rec = np.frombuffer(data, dtype=dt, count=n_points)
+    out = np.full((n_points, 4), np.nan)
+    for k, name in enumerate(("x", "y", "z", "intensity")):
+        if name in names:
+            out[:, k] = rec[name].astype(np.float64)
+    ok = np.isfinite(out[:, :3]).all(axis=1)
+    return np.asarray(out[ok], dtype=np.float64)
+
+
+def transform_cloud(cloud: FloatArray, T: Transform) -> FloatArray:
+    """Apply ``T`` to the x, y, z columns of an (N, 3|4) cloud (other columns unchanged)."""
+    out = np.array(cloud, dtype=np.float64, copy=True)
+    if len(out):
+        out[:, :3] = T.apply(out[:, :3])
+    return out
+
+
+# --------------------------------------------------------------------------------------------------------
+# Captured views and their files
+# --------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CapturedView:
+    """Raw data of one view, before picking."""
+
+    name: str
+    pan: float  # rad, REP-103, reported by the head (encoder offsets removed)
+    tilt: float  # rad
+    zoom: float  # VAPIX units
+    jpeg: bytes
+    image_width: int
+    image_height: int
+    cloud: FloatArray  # (N, 4) x, y, z (m, base_link), intensity
+    state_spread: float = 0.0  # rad, max pan/tilt change over the states received while capturing
+    timings: dict[str, float] = field(default_factory=dict)  # s, for the record
+
+    def image(self) -> npt.NDArray[np.uint8]:
+        """The decoded BGR frame."""
+        img = cv2.imdecode(np.frombuffer(self.jpeg, np.uint8), cv2.IMREAD_COLOR)
+        if img is None:
+            raise CaptureError(f"view {self.name!r}: the frame is not a decodable JPEG")
+        return np.asarray(img, dtype=np.uint8)
+
+
+def views_dir(out: str | Path) -> Path:
+    """Folder of the images and clouds of a correspondence file: ``<dir>/<stem>_views``."""
+    p = Path(out)
+    return p.parent / f"{p.stem}_views"
+
+
+def cloud_path(correspondence_file: str | Path, view: View) -> Path:
+    """The laser snapshot of a captured view: its image path with the suffix ``.npy``."""
+    if not view.image:
+        raise CorrespondenceError(f"view {view.name!r} has no image path (not captured by axis_calibrate?)")
+    img = Path(view.image)
+    if not img.is_absolute():
+        img = Path(correspondence_file).parent / img
+    return img.with_suffix(".npy")
+
+
+def store_view(
+    out: str | Path,
+    cap: CapturedView,
+    points: Sequence[Correspondence] = (),
+    *,
+    camera_model: str | None = None,
+    comment: str = "",
+) -> View:
+    """Write the view's JPEG and cloud next to ``out`` and append the view (with ``points``) to ``out``."""
+    d = views_dir(out)
+    d.mkdir(parents=True, exist_ok=True)
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", cap.name):
+        raise CorrespondenceError(f"view name {cap.name!r}: use letters, digits, '_', '-', '.' only")
+    img_path = d / f"{cap.name}.jpg"
+    img_path.write_bytes(cap.jpeg)
+    np.save(d / f"{cap.name}.npy", cap.cloud.astype(np.float32))
+    rel = img_path.relative_to(Path(out).parent).as_posix()
+    view = View(
+        cap.name,
+        cap.pan,
+        cap.tilt,
+        cap.zoom,
+        cap.image_width,
+        cap.image_height,
+        tuple(points),
+        rel,
+        comment or f"laser snapshot {Path(rel).with_suffix('.npy').as_posix()} (base_link x y z intensity)",
+    )
+    append_view(out, view, camera_model=camera_model)
+    return view
+
+
+# --------------------------------------------------------------------------------------------------------
+# The ROS side
+# --------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class _Stamped:
+    t: float  # time.monotonic() at reception
+    value: Any
+
+
+class CaptureSession:
+    """Subscriptions and the service client of the capture tool on a caller-provided rclpy ``Node``.
+
+    The node must be spun by an executor in another thread (the blocking methods wait on data that arrives
+    through the node's callbacks). ``T_base_laser`` transforms the cloud into ``base_link`` when its
+    ``frame_id`` is ``laser_frame`` (a cloud already in ``base_frame`` is taken as is; any other frame is
+    refused). ``pan_offset``/``tilt_offset`` (rad) are the encoder offsets the PTZ node adds (its mount file);
+    they are removed so the stored pan/tilt are the head's reported position.
+    """
+
+    def __init__(
+        self,
+        node: Any,
+        *,
+        T_base_laser: Transform,
+        laser_frame: str = "laser_link",
+        base_frame: str = "base_link",
+        pan_offset: float = 0.0,
+        tilt_offset: float = 0.0,
+        laser_qos: str = "reliable",
+        settle_s: float = 0.3,
+        timeout_s: float = 15.0,
+        still_tolerance: float = 2e-4,
+    ) -> None:
+        # ROS imports happen here, not at module level (the calibration package is ROS-free); taken as Any
+        # because the interface packages ship no type information.
+        qos: Any = importlib.import_module("rclpy.qos")
+        sensor_msgs: Any = importlib.import_module("sensor_msgs.msg")
+        ptz_msg: Any = importlib.import_module("axis_ptz_interfaces.msg")
+        ptz_srv: Any = importlib.import_module("axis_ptz_interfaces.srv")
+        QoSProfile, History, Reliability = qos.QoSProfile, qos.HistoryPolicy, qos.ReliabilityPolicy
+        MovePtz = ptz_srv.MovePtz
+
+        self.node = node
+        self.T_base_laser = T_base_laser
+        self.laser_frame = laser_frame
+        self.base_frame = base_frame
+        self.pan_offset = pan_offset
+        self.tilt_offset = tilt_offset
+        self.settle_s = settle_s
+        self.timeout_s = timeout_s
+        self.still_tolerance = still_tolerance
+        self._lock = threading.Condition()
+        self._states: list[_Stamped] = []
+        self._image: _Stamped | None = None
+        self._cloud: _Stamped | None = None
+        self._MovePtz = MovePtz
+        stream = QoSProfile(depth=1, history=History.KEEP_LAST, reliability=Reliability.RELIABLE)
+        if laser_qos == "reliable":  # matches reliable publishers; gets a latched scan at once
+            lq = QoSProfile(
+                depth=1,
+                history=History.KEEP_LAST,
+                reliability=Reliability.RELIABLE,
+                durability=qos.DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+        elif laser_qos == "best_effort":  # matches every publisher (sensor-data QoS scanners)
+            lq = QoSProfile(depth=1, history=History.KEEP_LAST, reliability=Reliability.BEST_EFFORT)
+        else:
+            raise ValueError(f"laser_qos must be 'reliable' or 'best_effort', got {laser_qos!r}")
+        self._subs = [
+            node.create_subscription(ptz_msg.PtzState, "ptz/state", self._on_state, stream),
+            node.create_subscription(sensor_msgs.CompressedImage, "image_raw/compressed", self._on_image, stream),
+            node.create_subscription(sensor_msgs.PointCloud2, "laser/points", self._on_cloud, lq),
+        ]
+        self._move = node.create_client(MovePtz, "ptz/move_absolute")
+
+    # ---- callbacks (executor thread) ---------------------------------------------------------------
+    def _on_state(self, msg: Any) -> None:
+        with self._lock:
+            self._states.append(_Stamped(time.monotonic(), msg))
+            if len(self._states) > 400:
+                del self._states[:200]
+            self._lock.notify_all()
+
+    def _on_image(self, msg: Any) -> None:
+        with self._lock:
+            self._image = _Stamped(time.monotonic(), bytes(msg.data))
+            self._lock.notify_all()
+
+    def _on_cloud(self, msg: Any) -> None:
+        with self._lock:
+            self._cloud = _Stamped(time.monotonic(), msg)
+            self._lock.notify_all()
+
+    # ---- blocking API (caller thread) --------------------------------------------------------------
+    def _wait(self, what: str, pred: Callable[[], Any], timeout: float | None = None) -> Any:
+        deadline = time.monotonic() + (self.timeout_s if timeout is None else timeout)
+        with self._lock:
+            while True:
+                v = pred()
+                if v:
+                    return v
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise CaptureError(f"timed out after {self.timeout_s:.1f} s waiting for {what}")
+                self._lock.wait(min(left, 0.1))
+
+    def wait_ready(self, timeout: float | None = None) -> None:
+        """Wait until PTZ state, a camera frame and a laser scan have been received."""
+        self._wait("ptz/state", lambda: bool(self._states), timeout)
+        self._wait("image_raw/compressed", lambda: self._image is not None, timeout)
+        self._wait("laser/points", lambda: self._cloud is not None, timeout)
+
+    def move(self, pose: PoseCommand) -> None:
+        """Command an absolute pose and wait until the PTZ node reports the head arrived."""
+        if not self._move.wait_for_service(timeout_sec=self.timeout_s):
+            raise CaptureError("service ptz/move_absolute is not available (is the PTZ node running?)")
+        req = self._MovePtz.Request()
+        req.command.pan = float(pose.pan + self.pan_offset)
+        req.command.tilt = float(pose.tilt + self.tilt_offset)
+        req.command.zoom = float(pose.zoom)
+        req.command.speed = math.nan
+        req.wait = True
+        req.timeout_s = float(self.timeout_s)
+        fut = self._move.call_async(req)
+        deadline = time.monotonic() + self.timeout_s + 5.0
+        while not fut.done():
+            if time.monotonic() > deadline:
+                raise CaptureError("ptz/move_absolute did not answer")
+            time.sleep(0.01)
+        resp = fut.result()
+        if resp is None or not resp.success:
+            msg = "no response" if resp is None else resp.message
+            raise CaptureError(
+                f"move to pan {math.degrees(pose.pan):.2f}°, tilt {math.degrees(pose.tilt):.2f}°, "
+                f"zoom {pose.zoom:g} failed: {msg}"
+            )
+
+    def capture(self, name: str, *, fresh_cloud: bool = True) -> CapturedView:
+        """Record one view at the current (still) head position."""
+        t0 = time.monotonic()
+        # 1. A state received from now on that says the head stands still.
+        self._wait(
+            "a still ptz/state",
+            lambda: any(s.t >= t0 and not s.value.moving for s in self._states),
+        )
+        t_still = time.monotonic()
+        time.sleep(self.settle_s)
+        t1 = time.monotonic()
+        # 2. A frame received after the settle time, and a state after that frame.
+        img = self._wait("a camera frame", lambda: self._image if self._image and self._image.t >= t1 else None)
+        self._wait("ptz/state after the frame", lambda: any(s.t > img.t for s in self._states))
+        # 3. A laser scan (received after the head stopped, unless fresh_cloud is False).
+        t_cloud = t_still if fresh_cloud else -math.inf
+        cloud_msg = self._wait(
+            "laser/points", lambda: self._cloud if self._cloud and self._cloud.t >= t_cloud else None
+        )
+        with self._lock:
+            window = [s.value for s in self._states if t_still <= s.t]
+        if any(s.moving for s in window):
+            raise CaptureError(f"view {name!r}: the head moved while capturing; hold it still and retry")
+        pans = np.array([s.pan for s in window])
+        tilts = np.array([s.tilt for s in window])
+        zooms = np.array([s.zoom for s in window])
+        spread = float(max(np.ptp(pans), np.ptp(tilts)))
+        if spread > self.still_tolerance:
+            raise CaptureError(f"view {name!r}: pan/tilt changed by {math.degrees(spread):.4f}° while capturing; retry")
+        jpeg: bytes = img.value
+        arr = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+        if arr is None:
+            raise CaptureError(f"view {name!r}: the camera frame is not a decodable JPEG")
+        cloud = self._cloud_in_base(cloud_msg.value)
+        return CapturedView(
+            name=name,
+            pan=float(np.median(pans)) - self.pan_offset,
+            tilt=float(np.median(tilts)) - self.tilt_offset,
+            zoom=float(np.median(zooms)),
+            jpeg=jpeg,
+            image_width=int(arr.shape[1]),
+            image_height=int(arr.shape[0]),
+            cloud=cloud,
+            state_spread=spread,
+            timings={"still": t_still - t0, "total": time.monotonic() - t0},
+        )
+
+    def _cloud_in_base(self, msg: Any) -> FloatArray:
+        fields = [CloudField(f.name, int(f.offset), int(f.datatype)) for f in msg.fields]
+        pts = decode_cloud(
+            bytes(msg.data), fields, int(msg.point_step), int(msg.width) * int(msg.height), bool(msg.is_bigendian)
+        )
+        frame = str(msg.header.frame_id).lstrip("/")
+        if frame == self.base_frame:
+            return pts
+        if frame != self.laser_frame:
+            raise CaptureError(
+                f"laser/points is in frame {frame!r}, but the laser pose given is for {self.laser_frame!r} "
+                f"(set the laser frame/pose, e.g. config/robot.yaml)"
+            )
+        return transform_cloud(pts, self.T_base_laser)
+
+    def close(self) -> None:
+        """Destroy the subscriptions and the client (the node stays)."""
+        for s in self._subs:
+            self.node.destroy_subscription(s)
+        self.node.destroy_client(self._move)
