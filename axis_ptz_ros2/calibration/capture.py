@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import os
 import re
 import threading
 import time
@@ -36,7 +37,22 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.calibration.correspondences import Correspondence, CorrespondenceError, View, append_view
+from axis_ptz_ros2.calibration.correspondences import (
+    Correspondence,
+    CorrespondenceError,
+    View,
+    append_view,
+    load_correspondences,
+)
+from axis_ptz_ros2.calibration.picking import (
+    NoiseStats,
+    PickedPoint,
+    PickMode,
+    pick_view,
+    picking_noise,
+    scene_dot_features,
+)
+from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Transform
 
 FloatArray = npt.NDArray[np.float64]
@@ -427,3 +443,159 @@ class CaptureSession:
         for s in self._subs:
             self.node.destroy_subscription(s)
         self.node.destroy_client(self._move)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Running a capture (used by ``axis_calibrate capture``)
+# --------------------------------------------------------------------------------------------------------
+class SimBoardPicker:
+    """Automatic picking for the simulated scene's calibration boards (:mod:`~.picking`).
+
+    The scene's true dot positions are used only to choose the laser point an operator would click (and to
+    report the 3-D picking noise); which board a dot belongs to is decided with ``T_base_ptz_guess`` (the
+    nominal mount), and nothing here ever sees the simulator's true mount.
+    """
+
+    def __init__(
+        self,
+        world_file: str | Path | None,
+        camera_model: CameraModel,
+        T_base_ptz_guess: Transform,
+        *,
+        mode: PickMode = "blob",
+        max_angle_deg: float = 3.0,
+    ) -> None:
+        from axis_ptz_ros2.sim.scene import Scene, load_world
+
+        self.features = scene_dot_features(Scene(load_world(world_file)))
+        self.camera_model = camera_model
+        self.T_base_ptz_guess = T_base_ptz_guess
+        self.mode: PickMode = mode
+        self.max_angle_deg = max_angle_deg
+
+    def __call__(self, cap: CapturedView) -> list[PickedPoint]:
+        """Pick the pairs of one captured view."""
+        return pick_view(
+            cap.image(),
+            cap.cloud,
+            cap.pan,
+            cap.tilt,
+            cap.zoom,
+            self.features,
+            self.camera_model,
+            self.T_base_ptz_guess,
+            mode=self.mode,
+            max_angle_deg=self.max_angle_deg,
+        )
+
+
+@dataclass
+class CaptureReport:
+    """What a capture run did."""
+
+    views: list[View] = field(default_factory=list)
+    picked: list[PickedPoint] = field(default_factory=list)  # auto picking only
+
+    def picking_noise(self) -> NoiseStats:
+        """3-D picking error of the automatically picked points against the scene's truth."""
+        return picking_noise([p.laser.point for p in self.picked], [p.feature.point for p in self.picked])
+
+
+def next_view_names(out: str | Path, count: int, prefix: str = "view") -> list[str]:
+    """``count`` view names ``<prefix>NN`` not yet used in ``out`` (numbering continues an existing file)."""
+    p = Path(out)
+    used = {v.name for v in load_correspondences(p).views} if p.exists() else set()
+    names: list[str] = []
+    k = 0
+    while len(names) < count:
+        name = f"{prefix}{k:02d}"
+        if name not in used:
+            names.append(name)
+        k += 1
+    return names
+
+
+def capture_views(
+    session: CaptureSession,
+    out: str | Path,
+    names: Sequence[str],
+    *,
+    poses: Sequence[PoseCommand] | None = None,
+    picker: Callable[[CapturedView], list[PickedPoint]] | None = None,
+    camera_model_ref: str | None = None,
+    prompt: Callable[[str], bool] | None = None,
+    log: Callable[[str], None] = lambda s: None,
+) -> CaptureReport:
+    """Capture ``len(names)`` views into ``out``: at ``poses`` (one per name) if given, otherwise whenever
+    ``prompt(message)`` returns True (False stops early). Each view is appended as soon as it is captured."""
+    if poses is not None and len(poses) != len(names):
+        raise ValueError(f"{len(poses)} poses for {len(names)} views")
+    report = CaptureReport()
+    for k, name in enumerate(names):
+        if poses is not None:
+            session.move(poses[k])
+        elif prompt is not None and not prompt(f"view {k + 1}/{len(names)} ({name}): point the camera, then Enter"):
+            break
+        cap = session.capture(name)
+        picked = picker(cap) if picker is not None else []
+        view = store_view(out, cap, [p.correspondence() for p in picked], camera_model=camera_model_ref)
+        report.views.append(view)
+        report.picked.extend(picked)
+        msg = (
+            f"{name}: pan {math.degrees(cap.pan):+8.3f}°  tilt {math.degrees(cap.tilt):+7.3f}°  zoom {cap.zoom:6.0f}  "
+            f"{cap.image_width}x{cap.image_height}  {len(cap.cloud)} laser points"
+        )
+        if picker is not None:
+            msg += f"  {len(picked)} pairs picked"
+        log(msg)
+    return report
+
+
+class RosCapture:
+    """A private rclpy context, node and executor thread for a :class:`CaptureSession` (CLI use).
+
+    Sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless the environment already chooses a range.
+    """
+
+    def __init__(self, namespace: str = "", **session_kwargs: Any) -> None:
+        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self._rclpy: Any = importlib.import_module("rclpy")
+        executors: Any = importlib.import_module("rclpy.executors")
+        context_mod: Any = importlib.import_module("rclpy.context")
+        self.context = context_mod.Context()
+        self._rclpy.init(context=self.context)
+        self.node = self._rclpy.create_node("axis_calibrate_capture", namespace=namespace, context=self.context)
+        self.executor = executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="axis_calibrate_spin", daemon=True)
+        self._thread.start()
+        try:
+            self.session = CaptureSession(self.node, **session_kwargs)
+        except BaseException:
+            self.close()
+            raise
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - the context was shut down under us while closing
+                if not self.context.ok():
+                    return
+                raise
+
+    def close(self) -> None:
+        """Stop the executor and shut the context down."""
+        session = getattr(self, "session", None)
+        if session is not None:
+            session.close()
+        self.executor.shutdown(timeout_sec=2.0)
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
+
+    def __enter__(self) -> RosCapture:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
