@@ -152,6 +152,7 @@ class Feature:
     label: str  # e.g. "calib_front/dot_red"
     colour: str
     point: tuple[float, float, float]
+    radius: float = DEFAULT_DOT_RADIUS  # m, of the dot (board design: 0.08 × the board width)
 
 
 def associate_dots(
@@ -311,7 +312,7 @@ def scene_dot_features(scene: Scene, *, kinds: Sequence[str] = ("calib",)) -> li
             continue
         for name, p in t.features().items():
             if name.startswith("dot_"):
-                out.append(Feature(f"{t.name}/{name}", name[4:], _tuple3(p)))
+                out.append(Feature(f"{t.name}/{name}", name[4:], _tuple3(p), 0.08 * t.width))
     return out
 
 
@@ -377,17 +378,17 @@ def pick_view(
     mode: PickMode = "blob",
     max_angle_deg: float = 3.0,
     max_click_distance: float = 0.05,
-    dot_radius: float = DEFAULT_DOT_RADIUS,
 ) -> list[PickedPoint]:
     """Detect the dots of one view, tell which feature each is (with the *guessed* mount) and pick the laser
     point for it. Pairs whose nearest laser point is farther than ``max_click_distance`` from the feature
-    (the laser does not see it: occluded or out of range) are dropped."""
+    (the laser does not see it: occluded or out of range) are dropped. The dot radius of the ``"blob"``
+    refinement is the feature's."""
     H, W = image.shape[:2]
     K = camera_model.zoom.intrinsics(zoom, W, H)
     T_guess = T_base_ptz_guess @ camera_model.head.optical_in_ptz_base(pan, tilt)
     out: list[PickedPoint] = []
     for dot, feat in associate_dots(detect_dots(image), features, T_guess, K, max_angle_deg=max_angle_deg):
-        lp = pick_laser_point(cloud, feat.point, mode=mode, dot_radius=dot_radius)
+        lp = pick_laser_point(cloud, feat.point, mode=mode, dot_radius=feat.radius)
         if lp.click_distance <= max_click_distance:
             out.append(PickedPoint(dot, feat, lp))
     return out
