@@ -144,11 +144,11 @@ def load_credentials(password_file: str = "") -> tuple[str | None, str | None]:
             raise ValueError("credentials file must contain 'user:password' on its first line")
         user, _, pw = first.partition(":")
         return user, pw
-    user = os.environ.get("AXIS_USERNAME")
-    pw = os.environ.get("AXIS_PASSWORD")
-    if pw is not None and not user:
-        user = "root"
-    return user, pw
+    env_user = os.environ.get("AXIS_USERNAME")
+    env_pw = os.environ.get("AXIS_PASSWORD")
+    if env_pw is not None and not env_user:
+        env_user = "root"
+    return env_user, env_pw
 
 
 # ---------------------------------------------------------------------------------------------------------
