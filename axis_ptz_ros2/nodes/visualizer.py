@@ -213,15 +213,16 @@ class Visualizer(Node):
         if not self._dirty or self._pano_msg is None or self._pub.get_subscription_count() == 0:
             return
         msg_in = self._pano_msg
-        if self._pano_img is None:
-            img = cv2.imdecode(np.frombuffer(bytes(msg_in.data), np.uint8), cv2.IMREAD_COLOR)
-            if img is None:
+        pano = self._pano_img
+        if pano is None:
+            decoded = cv2.imdecode(np.frombuffer(bytes(msg_in.data), np.uint8), cv2.IMREAD_COLOR)
+            if decoded is None:
                 self.get_logger().warn("cannot decode the panorama frame", throttle_duration_sec=10.0)
                 self._dirty = False
                 return
-            self._pano_img = img
+            pano = self._pano_img = np.asarray(decoded, dtype=np.uint8)
         self._dirty = False
-        out = self.draw(self._pano_img)
+        out = self.draw(pano)
         q = int(self.get_parameter("jpeg_quality").value)
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, q])
         if not ok:  # pragma: no cover
