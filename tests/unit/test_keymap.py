@@ -37,9 +37,7 @@ def _move(key: str, step: int) -> RelativeMove:
     + [("<right>", +1, False)],
 )
 @pytest.mark.parametrize("step", [1, 4, 9])
-def test_pan_keys_follow_the_thesis_in_axis_degrees_and_turn_the_view_the_right_way(
-    key, pan_deg_thesis, fast, step
-):
+def test_pan_keys_follow_the_thesis_in_axis_degrees_and_turn_the_view_the_right_way(key, pan_deg_thesis, fast, step):
     m = _move(key, step)
     factor = 5 if fast else 1
     assert math.isnan(m.tilt)
