@@ -74,7 +74,8 @@ def _km() -> dict[str, Action]:
         ("s", Kind.TILT, -1, "tilt down by x deg"),
     ):
         m[key] = Action(kind, sign, False, 0, what)
-        m[key.upper()] = Action(kind, sign, True, 0, what.replace("by x", f"by {FAST_FACTOR}*x"))
+        fast = what.replace("by x", f"by {FAST_FACTOR}*x").replace("x deg)", f"{FAST_FACTOR}*x deg)")
+        m[key.upper()] = Action(kind, sign, True, 0, fast)
     m["q"] = Action(Kind.ZOOM, -1, False, 0, f"zoom out by {ZOOM_UNITS_PER_STEP}*x units")
     m["e"] = Action(Kind.ZOOM, +1, False, 0, f"zoom in by {ZOOM_UNITS_PER_STEP}*x units")
     m["Q"] = Action(Kind.ZOOM, -1, True, 0, f"zoom out by {FAST_ZOOM_UNITS_PER_STEP}*x units")
