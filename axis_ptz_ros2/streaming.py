@@ -6,8 +6,9 @@ parameter set) and the MJPEG items of §12 (reconnect with back-off, never a sta
 * :class:`StreamReader` — the one justified thread. It opens the stream through an injected
   ``opener`` (normally :meth:`VapixClient.open_mjpeg`), hands every JPEG to ``on_frame`` *on the
   reader thread* with its arrival time, reconnects with :class:`Backoff` (capped exponential, reset
-  after a good frame), retries a refused login slowly, and turns a stalled stream into a reconnect
-  (:meth:`StreamReader.check_watchdog`, called from the owner's timer). :meth:`StreamReader.stop`
+  after a good frame), retries a refused login slowly, and turns a stalled stream into a reconnect:
+  a silent socket through the read timeout (the stall limit), bytes without frames through
+  :meth:`StreamReader.check_watchdog` (called from the owner's timer). :meth:`StreamReader.stop`
   closes the stream from outside, so a blocked read ends at once.
 * :class:`BitrateMeter` — frames/s and kbit/s over a short sliding window.
 * :class:`BandwidthController` — a pure controller that keeps the measured bitrate under a budget by
@@ -29,7 +30,7 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Protocol
 
-from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, InvalidArgument
+from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraTimeout, InvalidArgument
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 
@@ -262,6 +263,10 @@ class ReaderConfig:
         """Frame age that counts as a stall at ``fps``: ``stall_timeout_s``, but at least 3 frame periods."""
         return max(self.stall_timeout_s, 3.0 / max(fps, 1))
 
+    def read_timeout(self, fps: int) -> float:
+        """Socket read timeout of a stream: a silent camera is a stall, detected inside the blocked read."""
+        return min(self.read_timeout_s, self.stall_limit(fps))
+
 
 @dataclass(frozen=True, slots=True)
 class ReaderStats:
@@ -471,7 +476,7 @@ class StreamReader:
             if self._state not in (StreamState.RECONNECTING, StreamState.AUTH_FAILED):
                 self._set_state(StreamState.CONNECTING)
             try:
-                source = self._opener(params, self._config.read_timeout_s)
+                source = self._opener(params, self._config.read_timeout(params.fps))
             except AuthError as err:
                 self._auth_failures += 1
                 self._set_state(StreamState.AUTH_FAILED, str(err))
@@ -523,6 +528,10 @@ class StreamReader:
                     self._backoff.reset()
                     self._set_state(StreamState.STREAMING)
                 on_frame(jpeg, arrival_ns)
+        except CameraTimeout as err:  # no byte for the stall limit: a stall seen from inside
+            error = str(err)
+            with self._lock:
+                self._stalled = not self._restart
         except AxisPtzError as err:
             error = str(err)
         finally:

@@ -18,6 +18,7 @@ Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/c
 from __future__ import annotations
 
 import os
+import socket
 import threading
 import time
 from pathlib import Path
@@ -60,6 +61,7 @@ from axis_ptz_ros2.vapix import (
     AuthError,
     AxisPtzError,
     CameraConfig,
+    CameraUnreachable,
     InvalidArgument,
     Resolution,
     VapixClient,
@@ -171,6 +173,7 @@ class StreamNode(Node):
         self._model = load_camera_model(_camera_model_path(str(p["camera_model"])))
         self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
         self._resolutions_pending = False
+        self._unreachable = False  # the last attempt could not connect: probe with TCP first
         requested = self._requested_from(p)  # raises ValueError (start-up error) if invalid
 
         user, password = load_credentials(str(p["password_file"]))
@@ -238,9 +241,11 @@ class StreamNode(Node):
         self.add_on_set_parameters_callback(self._validate_params)
         self.add_post_set_parameters_callback(self._apply_params)
         self._publish_params("startup")
+        self._budget_check = 0.0
         self._reader.start()
-        self._tick_timer = self.create_timer(0.1, self._tick)
-        self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
+        # Activity follows publisher-matched events at once; this 1 Hz timer is only the fallback poll,
+        # the byte-trickle watchdog (a silent socket is caught by the read timeout) and diagnostics.
+        self._timer = self.create_timer(1.0, self._housekeeping)
 
     # -- parameters ------------------------------------------------------------------------------------------
     def _known_resolutions(self) -> tuple[Resolution, ...]:
@@ -353,7 +358,26 @@ class StreamNode(Node):
 
     # -- camera access (reader thread) -----------------------------------------------------------------------
     def _open(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
-        """Opener for the reader: learn the camera's resolution list once, then open the stream."""
+        """Opener for the reader: learn the camera's resolution list once, then open the stream.
+
+        While the camera is unreachable, a bare TCP connect decides first whether an HTTP attempt is worth
+        it: building the HTTP client for each attempt costs ~10 ms of CPU, the probe ~0.1 ms.
+        """
+        if self._unreachable:
+            cfg = self._client.config
+            port = cfg.port if cfg.port is not None else (443 if cfg.use_https else 80)
+            try:
+                socket.create_connection((cfg.host, port), timeout=cfg.connect_timeout_s).close()
+            except OSError as err:
+                raise CameraUnreachable(f"camera {cfg.host}:{port} not accepting connections ({err})") from err
+        self._unreachable = False
+        try:
+            return self._open_http(params, read_timeout_s)
+        except CameraUnreachable:
+            self._unreachable = True
+            raise
+
+    def _open_http(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
         if self._resolutions is None:
             try:
                 listed = self._client.supported_resolutions()
@@ -371,27 +395,33 @@ class StreamNode(Node):
     def _on_frame(self, jpeg: bytes, arrival_ns: int) -> None:
         """Hot path (reader thread): publish the camera's bytes and a restamped CameraInfo."""
         stamp = stamp_from_ns(arrival_ns)
-        msg = self._image_msg
-        msg.header.stamp = stamp
-        # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
-        # it the immutable bytes as they are (the only copy is rclpy's serialisation).
-        msg._data = jpeg  # noqa: SLF001
-        self._image_pub.publish(msg)
-        size = jpeg_size(jpeg)
-        if size is None:
-            res = self._reader.params.resolution
-            size = (res.width, res.height)
-        zoom = self._zoom_ptz if self._zoom_ptz is not None else self._zoom_param
-        key = (size[0], size[1], zoom)
-        info = self._info_cache.get(key)
-        if info is None:
-            if len(self._info_cache) > 64:
-                self._info_cache.clear()
-            intr = self._model.zoom.intrinsics(zoom, size[0], size[1])
-            info = camera_info_msg(intr, self._frame_id, stamp)
-            self._info_cache[key] = info
-        info.header.stamp = stamp
-        self._info_pub.publish(info)
+        if self._image_pub.get_subscription_count():
+            msg = self._image_msg
+            msg.header.stamp = stamp
+            # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
+            # it the immutable bytes as they are (the only copy is rclpy's serialisation).
+            msg._data = jpeg  # noqa: SLF001
+            self._image_pub.publish(msg)
+        if self._info_pub.get_subscription_count():
+            size = jpeg_size(jpeg)
+            if size is None:
+                res = self._reader.params.resolution
+                size = (res.width, res.height)
+            zoom = self._zoom_ptz if self._zoom_ptz is not None else self._zoom_param
+            key = (size[0], size[1], zoom)
+            info = self._info_cache.get(key)
+            if info is None:
+                if len(self._info_cache) > 64:
+                    self._info_cache.clear()
+                intr = self._model.zoom.intrinsics(zoom, size[0], size[1])
+                info = camera_info_msg(intr, self._frame_id, stamp)
+                self._info_cache[key] = info
+            info.header.stamp = stamp
+            self._info_pub.publish(info)
+        if self._budget.budget_kbps > 0:
+            now = time.monotonic()
+            if now - self._budget_check >= 0.25:
+                self._check_budget(now)
 
     def _on_ptz_state(self, msg: PtzState) -> None:
         self._zoom_ptz = float(msg.zoom)
@@ -407,21 +437,26 @@ class StreamNode(Node):
         if reader is not None:
             reader.set_active(self._want_active())
 
-    def _tick(self) -> None:
+    def _housekeeping(self) -> None:
         self._update_activity()
-        reader = self._reader
-        reader.check_watchdog()
+        self._reader.check_watchdog()
         with self._lock:
             if self._resolutions_pending and self._resolutions:
                 self._resolutions_pending = False
                 self._budget.configure(resolutions=self._resolutions, now=time.monotonic())
-            if self._budget.budget_kbps <= 0 or reader.state is not StreamState.STREAMING:
+        self._publish_diagnostics()
+
+    def _check_budget(self, now: float) -> None:
+        """Reader thread, 4 Hz while a budget is set: measure, and switch parameters when it says so."""
+        self._budget_check = now
+        reader = self._reader
+        with self._lock:
+            if self._budget.budget_kbps <= 0:
                 return
-            now = time.monotonic()
             rate = reader.meter.rate(now)
             choice = self._budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
         if choice is not None:
-            reader.set_params(choice)
+            reader.set_params(choice)  # closes this stream: the reader reconnects with the new request
             self._publish_params("bandwidth_budget")
 
     # -- events and diagnostics ------------------------------------------------------------------------------

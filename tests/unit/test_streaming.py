@@ -24,7 +24,7 @@ from axis_ptz_ros2.streaming import (
     jpeg_size,
     sim_stamp,
 )
-from axis_ptz_ros2.vapix.errors import AuthError, CameraUnreachable, InvalidArgument
+from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout, CameraUnreachable, InvalidArgument
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 
@@ -390,9 +390,36 @@ def test_reader_watchdog_turns_a_stall_into_a_reconnect(reader_factory):
 
 
 def test_reader_stall_limit_scales_with_low_fps():
-    cfg = ReaderConfig(stall_timeout_s=1.0)
+    cfg = ReaderConfig(stall_timeout_s=1.0, read_timeout_s=5.0)
     assert cfg.stall_limit(30) == 1.0
     assert cfg.stall_limit(1) == 3.0
+    assert cfg.read_timeout(30) == 1.0
+    assert ReaderConfig(stall_timeout_s=1.0, read_timeout_s=0.5).read_timeout(30) == 0.5
+
+
+def test_reader_read_timeout_mid_stream_counts_as_stall(reader_factory):
+    class TimingOutSource(FakeSource):
+        def __iter__(self):
+            yield b"\xff\xd8a\xff\xd9"
+            raise CameraTimeout("GET /axis-cgi/mjpg/video.cgi: camera did not answer in time")
+
+    class StallingOpener(FakeOpener):
+        def __init__(self) -> None:
+            super().__init__()
+            self.timeouts: list[float] = []
+
+        def __call__(self, params, read_timeout_s):
+            self.timeouts.append(read_timeout_s)
+            src = super().__call__(params, read_timeout_s)
+            return TimingOutSource(src.frames) if len(self.timeouts) == 1 else src
+
+    opener2 = StallingOpener()
+    timeouts = opener2.timeouts
+    r = reader_factory(opener2, ReaderConfig(stall_timeout_s=0.7, read_timeout_s=5.0, backoff_initial_s=0.01))
+    wait_for(lambda: len(timeouts) >= 2)
+    assert timeouts[0] == pytest.approx(0.7)  # the socket read timeout is the stall limit
+    wait_for(lambda: r.stats().stalls == 1)
+    assert "did not answer" in r.stats().last_error or "stalled" in r.stats().last_error
 
 
 def test_reader_new_params_reconnect_without_backoff(reader_factory):

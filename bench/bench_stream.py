@@ -1,0 +1,607 @@
+"""Benchmark of the stream node (``axis_stream``, its own process) next to ``bench/minimal_pipeline.py``.
+
+One run against the simulated camera (``axis_camera_sim --port 0`` as a subprocess); this process is the
+subscriber (a third process). Both pipelines are measured the same way, one after the other (2 cores):
+
+(a) latency from the simulator sending a frame (its JPEG COM stamp ``axsim seq=<n> t=<ns>``) to this
+    subscriber receiving it, median and p99, at 704x576 @ 30 fps (compression 30);
+(b) CPU (% of one core, /proc/<pid>/stat) and RSS at that load, and CPU with zero subscribers;
+(c) the most frames/s sustained with the simulator at fps=0 (laziness off + no subscriber = ingest ceiling,
+    and with one subscriber);
+(d) seconds from the camera accepting connections again after a reboot (and after a stall) to the first
+    new frame; CPU while the camera is absent; Ctrl-C exit time;
+(e) a bitrate table over resolution x fps x compression (the thesis's Tables 6.2-6.4);
+(f) the bitrate held under a budget (max_bitrate_kbps): time to get under it and the steady value.
+
+    .venv/bin/python bench/bench_stream.py [--quick]
+
+The simulator has no switch to ignore the client's ``fps=`` (the node always sends 1..30), so (c) runs a
+second simulator process in which this script forces fps=0 on the video handler (``--sim-child``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import re
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_LOCALHOST_ONLY", None)
+os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
+
+ROOT = Path(__file__).resolve().parent.parent
+BIN = Path(sys.executable).parent
+CLK = os.sysconf("SC_CLK_TCK")
+RESULTS: list[tuple[str, bool, str]] = []
+
+
+# --------------------------------------------------------------------------------------------------------
+# simulator child with fps forced to 0 (ingest ceiling)
+# --------------------------------------------------------------------------------------------------------
+def sim_child() -> int:
+    """Run a simulator whose video handler streams as fast as possible whatever fps= the client asks."""
+    from axis_ptz_ros2.sim import server
+    from axis_ptz_ros2.sim.server import SimulatedCamera
+
+    original = server._Handler._image_args
+
+    def unlimited(self, args, video):  # noqa: ANN001, ANN202 - bench-only shim of a private method
+        w, h, comp, overlay, opts = original(self, args, video)
+        if video:
+            opts["fps"] = 0
+        return w, h, comp, overlay, opts
+
+    server._Handler._image_args = unlimited
+    cam = SimulatedCamera(port=0).start()
+    print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (fps forced to 0)", flush=True)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    signal.signal(signal.SIGINT, lambda *_: done.set())
+    done.wait()
+    cam.stop()
+    return 0
+
+
+# --------------------------------------------------------------------------------------------------------
+# processes
+# --------------------------------------------------------------------------------------------------------
+class Proc:
+    def __init__(self, cmd: list[str], name: str) -> None:
+        self.name = name
+        self.p = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True
+        )
+        self.lines: list[str] = []
+        threading.Thread(target=self._drain, daemon=True).start()
+
+    def _drain(self) -> None:
+        assert self.p.stdout is not None
+        for line in self.p.stdout:
+            self.lines.append(line.rstrip())
+
+    def wait_line(self, pattern: str, timeout: float = 20.0) -> re.Match[str]:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.lines):
+                m = re.search(pattern, line)
+                if m:
+                    return m
+            if self.p.poll() is not None:
+                break
+            time.sleep(0.05)
+        raise RuntimeError(f"{self.name}: no line matching {pattern!r}; output: {self.lines[-10:]}")
+
+    def cpu_s(self) -> float:
+        fields = Path(f"/proc/{self.p.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / CLK  # utime, stime (all threads)
+
+    def rss_mb(self) -> float:
+        for line in Path(f"/proc/{self.p.pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+        return float("nan")
+
+    def cpu_percent(self, seconds: float) -> float:
+        c0, t0 = self.cpu_s(), time.monotonic()
+        time.sleep(seconds)
+        return 100.0 * (self.cpu_s() - c0) / (time.monotonic() - t0)
+
+    def interrupt(self, timeout: float = 10.0) -> float:
+        """SIGINT (Ctrl-C); seconds until the process exited."""
+        t0 = time.monotonic()
+        self.p.send_signal(signal.SIGINT)
+        try:
+            self.p.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.p.kill()
+            self.p.wait()
+            return float("inf")
+        return time.monotonic() - t0
+
+    def stop(self) -> None:
+        if self.p.poll() is None:
+            self.p.send_signal(signal.SIGINT)
+            try:
+                self.p.wait(5)
+            except subprocess.TimeoutExpired:
+                self.p.kill()
+                self.p.wait()
+
+
+def start_sim(force_fps0: bool = False) -> tuple[Proc, int]:
+    if force_fps0:
+        proc = Proc([sys.executable, str(Path(__file__).resolve()), "--sim-child"], "sim(fps=0)")
+    else:
+        proc = Proc([str(BIN / "axis_camera_sim"), "--port", "0"], "sim")
+    port = int(proc.wait_line(r"http://127\.0\.0\.1:(\d+)/").group(1))
+    return proc, port
+
+
+def start_ours(port: int, **params: object) -> Proc:
+    values = {"port": port, "fps": 30, "resolution": "704x576", "compression": 30, **params}
+    args = [str(BIN / "axis_stream"), "--ros-args", "-r", "__ns:=/ours"]
+    for k, v in values.items():
+        args += ["-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}"]
+    return Proc(args, "axis_stream")
+
+
+def start_minimal(port: int, fps: int = 30) -> Proc:
+    return Proc(
+        [sys.executable, str(ROOT / "bench" / "minimal_pipeline.py"), "--port", str(port), "--fps", str(fps)],
+        "minimal",
+    )
+
+
+def sim_get(port: int, path: str) -> dict:
+    import httpx
+
+    return httpx.get(f"http://127.0.0.1:{port}{path}", timeout=5.0, trust_env=False).json()
+
+
+# --------------------------------------------------------------------------------------------------------
+# subscriber
+# --------------------------------------------------------------------------------------------------------
+@dataclass
+class Rx:
+    t_rx: float  # monotonic
+    latency_ms: float
+    seq: int
+    nbytes: int
+    size: tuple[int, int] | None
+
+
+@dataclass
+class Recorder:
+    frames: list[Rx] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def since(self, t: float) -> list[Rx]:
+        with self.lock:
+            return [f for f in self.frames if f.t_rx >= t]
+
+    def last(self) -> Rx | None:
+        with self.lock:
+            return self.frames[-1] if self.frames else None
+
+
+class Subscriber:
+    def __init__(self) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        rclpy.init()
+        self.node = rclpy.create_node("bench_stream_probe")
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def subscribe(self, topic: str) -> tuple[Recorder, object]:
+        from sensor_msgs.msg import CompressedImage
+
+        from axis_ptz_ros2.nodes.common import STREAM_QOS
+        from axis_ptz_ros2.streaming import jpeg_size, sim_stamp
+
+        rec = Recorder()
+
+        def on_image(msg: CompressedImage) -> None:
+            now_ns = time.time_ns()
+            t = time.monotonic()
+            view = memoryview(msg.data)
+            st = sim_stamp(view) or (-1, now_ns)
+            f = Rx(t, (now_ns - st[1]) / 1e6, st[0], len(view), jpeg_size(view))
+            with rec.lock:
+                rec.frames.append(f)
+
+        sub = self.node.create_subscription(CompressedImage, topic, on_image, STREAM_QOS)
+        return rec, sub
+
+    def unsubscribe(self, sub: object) -> None:
+        self.node.destroy_subscription(sub)
+
+    def call(self, srv_type: type, name: str, request: object, timeout: float = 10.0) -> object:
+        client = self.node.create_client(srv_type, name)
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise RuntimeError(f"service {name} not available")
+            fut = client.call_async(request)
+            deadline = time.monotonic() + timeout
+            while not fut.done() and time.monotonic() < deadline:
+                time.sleep(0.005)
+            if not fut.done():
+                raise RuntimeError(f"service {name} timed out")
+            return fut.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def call_ready(self, name: str, timeout: float = 15.0) -> None:
+        from axis_ptz_interfaces.srv import SetVideoParams
+
+        client = self.node.create_client(SetVideoParams, name)
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise RuntimeError(f"{name} did not come up")
+        finally:
+            self.node.destroy_client(client)
+
+    def set_video(self, fps: int = 0, resolution: str = "", compression: int = -1) -> object:
+        from axis_ptz_interfaces.srv import SetVideoParams
+
+        req = SetVideoParams.Request(fps=fps, resolution=resolution, compression=compression)
+        res = self.call(SetVideoParams, "/ours/video/set_params", req)
+        if not res.success:
+            raise RuntimeError(res.message)
+        return res
+
+    def set_param(self, name: str, value: object) -> None:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+        res = self.call(SetParameters, "/ours/axis_stream/set_parameters", req)
+        if not res.results[0].successful:
+            raise RuntimeError(res.results[0].reason)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def wait_until(pred: Callable[[], object], timeout: float, period: float = 0.01) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(period)
+    return False
+
+
+def kbps(frames: list[Rx]) -> float:
+    if len(frames) < 2 or frames[-1].t_rx <= frames[0].t_rx:
+        return float("nan")
+    return sum(f.nbytes for f in frames[1:]) * 8 / 1000 / (frames[-1].t_rx - frames[0].t_rx)
+
+
+def fps_of(frames: list[Rx]) -> float:
+    if len(frames) < 2:
+        return 0.0
+    return (len(frames) - 1) / (frames[-1].t_rx - frames[0].t_rx)
+
+
+def pct(values: list[float], q: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, round(q / 100 * (len(s) - 1)))] if s else float("nan")
+
+
+def verdict(name: str, ok: bool, detail: str) -> None:
+    RESULTS.append((name, ok, detail))
+    print(f"  [{'PASS' if ok else 'FAIL'}] {name}: {detail}", flush=True)
+
+
+@contextlib.contextmanager
+def subscribed(sub: Subscriber, topic: str) -> Iterator[Recorder]:
+    rec, handle = sub.subscribe(topic)
+    try:
+        yield rec
+    finally:
+        sub.unsubscribe(handle)
+
+
+# --------------------------------------------------------------------------------------------------------
+# sections
+# --------------------------------------------------------------------------------------------------------
+@dataclass
+class Load:
+    lat_med: float
+    lat_p99: float
+    fps: float
+    cpu: float
+    rss: float
+    cpu_idle: float
+    frames: int
+
+
+def measure_load(sub: Subscriber, proc: Proc, topic: str, seconds: float) -> Load:
+    time.sleep(1.5)
+    cpu_idle = proc.cpu_percent(3.0)  # zero subscribers
+    with subscribed(sub, topic) as rec:
+        if not wait_until(lambda: len(rec.frames) >= 10, 10.0):
+            raise RuntimeError(f"{proc.name}: no frames")
+        time.sleep(1.5)  # warm-up
+        t0 = time.monotonic()
+        cpu = proc.cpu_percent(seconds)
+        rss = proc.rss_mb()
+        frames = rec.since(t0)
+    lat = [f.latency_ms for f in frames]
+    return Load(statistics.median(lat), pct(lat, 99), fps_of(frames), cpu, rss, cpu_idle, len(frames))
+
+
+def measure_ingest(sub: Subscriber, proc: Proc, sim_port: int, topic: str, seconds: float) -> tuple[float, float]:
+    """(sim frames/s with no subscriber, subscriber frames/s with one)."""
+    time.sleep(1.5)
+    s0, t0 = sim_get(sim_port, "/sim/state")["frames_sent"], time.monotonic()
+    time.sleep(seconds)
+    s1, t1 = sim_get(sim_port, "/sim/state")["frames_sent"], time.monotonic()
+    no_sub = (s1 - s0) / (t1 - t0)
+    with subscribed(sub, topic) as rec:
+        wait_until(lambda: len(rec.frames) >= 5, 10.0)
+        time.sleep(1.0)
+        t = time.monotonic()
+        time.sleep(seconds)
+        with_sub = fps_of(rec.since(t))
+    return no_sub, with_sub
+
+
+def port_open(port: int) -> bool:
+    with socket.socket() as s:
+        s.settimeout(0.05)
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+def measure_reboot(rec: Recorder, sim_port: int, seconds: float) -> float:
+    sim_get(sim_port, f"/sim/control?reboot={seconds}")
+    time.sleep(0.2)
+    wait_until(lambda: not port_open(sim_port), 2.0, 0.005)
+    if not wait_until(lambda: port_open(sim_port), seconds + 10, 0.005):
+        raise RuntimeError("simulator did not come back")
+    t_up = time.monotonic()
+    if not wait_until(lambda: rec.since(t_up), 15.0, 0.002):
+        return float("inf")
+    return rec.since(t_up)[0].t_rx - t_up
+
+
+def measure_stall(rec: Recorder, sim_port: int) -> float:
+    """Gap between the last frame before a stall and the first after it (the stall itself lasts 5 s)."""
+    last = rec.last()
+    assert last is not None
+    sim_get(sim_port, f"/sim/control?stall_after_frames={last.seq + 10}&stall_seconds=5")
+    wait_until(lambda: (lf := rec.last()) is not None and time.monotonic() - lf.t_rx > 0.25, 5.0)
+    sim_get(sim_port, "/sim/control?reset_faults=1")  # the next connection must not stall too
+    before = rec.last()
+    assert before is not None
+    wait_until(lambda: (lf := rec.last()) is not None and lf.t_rx > before.t_rx, 10.0, 0.002)
+    after = rec.last()
+    assert after is not None
+    return after.t_rx - before.t_rx
+
+
+def bitrate_table(sub: Subscriber, rec: Recorder, quick: bool) -> dict[tuple[str, int, int], float]:
+    table: dict[tuple[str, int, int], float] = {}
+    resolutions = ["704x576", "352x288", "176x144"]
+    for res in resolutions:
+        for comp in (0, 30, 100):
+            for fps in (1, 15, 30):
+                sub.set_video(fps=fps, resolution=res, compression=comp)
+                t = time.monotonic()
+                # first frame of the new connection (the simulator numbers frames per connection)
+                wait_until(lambda t=t: any(f.seq <= 2 for f in rec.since(t)), 5.0)
+                start = next((f.t_rx for f in rec.since(t) if f.seq <= 2), time.monotonic())
+                window = (3.2 if quick else 4.2) if fps == 1 else (1.2 if quick else 2.0)
+                time.sleep(max(0.0, start + window - time.monotonic()))
+                frames = [f for f in rec.since(start) if f.size == tuple(map(int, res.split("x")))]
+                table[(res, fps, comp)] = kbps(frames)
+    return table
+
+
+def print_table(table: dict[tuple[str, int, int], float]) -> None:
+    thesis = {
+        "704x576": {0: (239, 2190, 3440), 30: (118, 1350, 2340), 100: (43, 540, 950)},
+        "352x288": {0: (87, 1020, 2040), 30: (43, 530, 820), 100: (8, 104, 180)},
+        "176x144": {0: (26, 250, 400), 30: (7, 65, 180), 100: (1.3, 19, 30)},
+    }
+    for res in ("704x576", "352x288", "176x144"):
+        print(f"\n  {res} [kbit/s]  | 1 fps | 15 fps | 30 fps || thesis (Axis 214): 1 | 15 | 30")
+        print("  ---------------|-------|--------|--------||--------------------------------")
+        for comp in (0, 30, 100):
+            ours = " | ".join(f"{table[(res, f, comp)]:>6.0f}" for f in (1, 15, 30))
+            th = " | ".join(f"{v:>6g}" for v in thesis[res][comp])
+            print(f"  compression {comp:>3} | {ours} || {th}")
+
+
+def measure_budget(sub: Subscriber, rec: Recorder, budget: int, seconds: float) -> tuple[float, float, str]:
+    from axis_ptz_interfaces.msg import VideoParams
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS
+
+    seen: list[VideoParams] = []
+    psub = sub.node.create_subscription(VideoParams, "/ours/video/params", seen.append, LATCHED_QOS)
+    sub.set_video(fps=30, resolution="704x576", compression=30)
+    time.sleep(2.5)
+    t_full = time.monotonic()
+    time.sleep(1.5)
+    full = kbps(rec.since(t_full))
+    t0 = time.monotonic()
+    sub.set_param("max_bitrate_kbps", budget)
+    time.sleep(seconds)
+    frames = rec.since(t0)
+    # rolling 1 s bitrate; time to get under = first time after which it stays <= 1.1 x budget
+    series = []
+    for f in frames:
+        win = [g for g in frames if f.t_rx - 1.0 <= g.t_rx <= f.t_rx]
+        if f.t_rx - t0 >= 1.0:
+            series.append((f.t_rx - t0, kbps(win)))
+    t_under = float("inf")
+    for i, (t, _) in enumerate(series):
+        if all(v <= 1.1 * budget for _, v in series[i:]):
+            t_under = t
+            break
+    steady = kbps([f for f in frames if f.t_rx >= t0 + seconds - 5.0])
+    sub.set_param("max_bitrate_kbps", 0)
+    sub.node.destroy_subscription(psub)
+    final = seen[-1] if seen else None
+    choice = f"{final.resolution}@{final.fps}fps c{final.compression} ({final.source})" if final else "?"
+    print(f"  full rate before the budget: {full:.0f} kbit/s")
+    return t_under, steady, choice
+
+
+# --------------------------------------------------------------------------------------------------------
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sim-child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--quick", action="store_true", help="shorter windows (noisier numbers)")
+    args = ap.parse_args()
+    if args.sim_child:
+        return sim_child()
+    window = 5.0 if args.quick else 10.0
+    sub = Subscriber()
+    procs: list[Proc] = []
+    try:
+        sim, port = start_sim()
+        procs.append(sim)
+        print(f"simulator on port {port}; ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']}", flush=True)
+
+        # ---------------- (a)(b) ours ----------------
+        print("\n== (a)(b) 704x576 @ 30 fps, compression 30: latency sim->subscriber, CPU, RSS", flush=True)
+        ours = start_ours(port)
+        procs.append(ours)
+        sub.call_ready("/ours/video/set_params")
+        load_ours = measure_load(sub, ours, "/ours/image_raw/compressed", window)
+        mini = start_minimal(port)
+        procs.append(mini)
+        load_min = measure_load(sub, mini, "/minimal/image_raw/compressed", window)
+        mini.stop()
+        print("  pipeline  | frames | fps  | latency median | p99     | CPU %core | RSS MB | CPU, 0 subscribers")
+        for name, ld in (("axis_stream", load_ours), ("minimal", load_min)):
+            print(
+                f"  {name:<9} | {ld.frames:>6} | {ld.fps:4.1f} | {ld.lat_med:10.2f} ms  | {ld.lat_p99:5.2f} ms"
+                f" | {ld.cpu:9.1f} | {ld.rss:6.1f} | {ld.cpu_idle:.2f} %"
+            )
+        verdict(
+            "latency median <= 1.1x minimal",
+            load_ours.lat_med <= 1.1 * load_min.lat_med,
+            f"{load_ours.lat_med:.2f} vs {load_min.lat_med:.2f} ms "
+            f"(p99 {load_ours.lat_p99:.2f} vs {load_min.lat_p99:.2f} ms)",
+        )
+        verdict(
+            "CPU at 30 fps <= 1.2x minimal",
+            load_ours.cpu <= 1.2 * load_min.cpu,
+            f"{load_ours.cpu:.1f} vs {load_min.cpu:.1f} % of a core",
+        )
+        verdict(
+            "CPU with zero subscribers ~ 0 (< 1 % core)",
+            load_ours.cpu_idle < 1.0,
+            f"{load_ours.cpu_idle:.2f} % (minimal, which never idles: {load_min.cpu_idle:.1f} %)",
+        )
+
+        # ---------------- (e) bitrate table ----------------
+        print("\n== (e) bitrate at the subscriber over resolution x fps x compression (Tables 6.2-6.4)", flush=True)
+        with subscribed(sub, "/ours/image_raw/compressed") as rec:
+            wait_until(lambda: rec.frames, 5.0)
+            table = bitrate_table(sub, rec, args.quick)
+            print_table(table)
+
+            # ---------------- (f) budget ----------------
+            budget = 3000
+            print(f"\n== (f) bandwidth budget max_bitrate_kbps={budget} from 704x576@30 c30", flush=True)
+            t_under, steady, choice = measure_budget(sub, rec, budget, 10.0 if args.quick else 15.0)
+            print(f"  under the budget after {t_under:.2f} s; steady {steady:.0f} kbit/s with {choice}")
+            verdict(
+                "budget held within 10 % within 5 s",
+                t_under <= 5.0 and steady <= 1.1 * budget,
+                f"under after {t_under:.2f} s, steady {steady:.0f} / {budget} kbit/s ({100 * steady / budget:.0f} %)",
+            )
+
+            # ---------------- (d) recovery ----------------
+            print("\n== (d) recovery (back-off 0.1 s -> 2 s cap, stall_timeout 1 s: the defaults)", flush=True)
+            sub.set_video(fps=30, resolution="352x288", compression=30)
+            wait_until(lambda: len(rec.frames) > 10, 5.0)
+            time.sleep(1.0)
+            reboots = [
+                measure_reboot(rec, port, s) for s in ((1.0, 2.5, 4.0) if args.quick else (1.0, 1.7, 2.5, 4.0, 6.0))
+            ]
+            time.sleep(1.0)
+            stalls = [measure_stall(rec, port) for _ in range(2)]
+            print("  reboot -> first frame after the port accepts again: " + ", ".join(f"{r:.2f} s" for r in reboots))
+            print(
+                "  stall gap (last frame -> first new frame): "
+                + ", ".join(f"{g:.2f} s" for g in stalls)
+                + "; minus the 1.0 s watchdog limit: "
+                + ", ".join(f"{g - 1.0:.2f} s" for g in stalls)
+            )
+            verdict(
+                "recovery after reboot <= 1.5 s",
+                max(reboots) <= 1.5,
+                f"median {statistics.median(reboots):.2f} s, worst {max(reboots):.2f} s",
+            )
+            verdict(
+                "recovery after stall <= 1.5 s (after the 1 s watchdog)",
+                max(g - 1.0 for g in stalls) <= 1.5,
+                f"worst {max(stalls):.2f} s gap",
+            )
+            # camera absent for 12 s with a subscriber waiting
+            sim_get(port, "/sim/control?reboot=12")
+            time.sleep(1.5)
+            absent = ours.cpu_percent(9.0)
+            verdict("CPU with the camera absent <= 1 % core", absent <= 1.0, f"{absent:.2f} % of a core")
+            wait_until(lambda: port_open(port), 10.0)
+            wait_until(lambda: (lf := rec.last()) is not None and time.monotonic() - lf.t_rx < 0.2, 5.0)
+        time_exit = ours.interrupt()
+        verdict("Ctrl-C exits within 2 s (while streaming)", time_exit <= 2.0, f"{time_exit:.2f} s")
+
+        # ---------------- (c) ingest ----------------
+        print("\n== (c) ingest ceiling, simulator at fps=0, 704x576 c30", flush=True)
+        sim.stop()
+        sim0, port0 = start_sim(force_fps0=True)
+        procs.append(sim0)
+        ours0 = start_ours(port0, lazy=False)
+        procs.append(ours0)
+        ing_ours = measure_ingest(sub, ours0, port0, "/ours/image_raw/compressed", window / 2)
+        ours0.stop()
+        mini0 = start_minimal(port0)
+        procs.append(mini0)
+        ing_min = measure_ingest(sub, mini0, port0, "/minimal/image_raw/compressed", window / 2)
+        mini0.stop()
+        print("  pipeline    | no subscriber (sim frames/s) | one subscriber (received frames/s)")
+        print(f"  axis_stream | {ing_ours[0]:28.0f} | {ing_ours[1]:.0f}")
+        print(f"  minimal     | {ing_min[0]:28.0f} | {ing_min[1]:.0f}")
+        verdict(
+            "ingest >= 0.85x minimal",
+            ing_ours[0] >= 0.85 * ing_min[0] and ing_ours[1] >= 0.85 * ing_min[1],
+            f"no subscriber {ing_ours[0]:.0f} vs {ing_min[0]:.0f}; "
+            f"one subscriber {ing_ours[1]:.0f} vs {ing_min[1]:.0f} frames/s",
+        )
+    finally:
+        for p in reversed(procs):
+            p.stop()
+        sub.close()
+    print("\n== summary")
+    for name, ok, detail in RESULTS:
+        print(f"  {'PASS' if ok else 'FAIL'}  {name}: {detail}")
+    return 0 if all(ok for _, ok, _ in RESULTS) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
