@@ -16,6 +16,22 @@ is then appended to the correspondence file with :func:`~axis_ptz_ros2.calibrati
 — with its picked points when picking is automatic (:mod:`~axis_ptz_ros2.calibration.picking`, simulated
 boards), otherwise with none for a person to add (see the ``axis_calibrate`` docs).
 
+Picking by hand (a real robot; no automatic picker)::
+
+    axis_calibrate capture calib.yaml --views 6 --camera-model config/axis214.yaml --ply
+    # per view: aim the camera (web console / keyboard teleop) at corners the laser sees well (board
+    # corners, box edges) at several depths, keep the robot still, press Enter
+
+1. Open ``calib_views/viewNN.jpg`` in an image viewer that shows pixel indices (GIMP's pointer dialog,
+   ``cv2.imshow`` with a mouse callback): integer pixel indices are pixel *centres* in the file's
+   convention, so read [u, v] directly (sub-pixel where the viewer allows).
+2. Open ``calib_views/viewNN.ply`` (written with ``--ply``; same points as the ``.npy``, base_link, intensity
+   as a scalar field) in CloudCompare / MeshLab and use its point-picking tool to read [x, y, z] of the same
+   corner; or, live, RViz with fixed frame ``base_link``, ``laser/points`` and the *Publish Point* tool.
+3. Add the pairs under the view's ``points:`` (``{pixel: [u, v], point: [x, y, z], label: ...}``): ≥ 8 per
+   view spread over the image, ≥ 5 views, some at a higher zoom; then ``axis_calibrate solve calib.yaml
+   --sigma-3d 0.01 --out mount.yaml`` and check the residual table for mis-picks.
+
 Everything above the :class:`CaptureSession` class is ROS-free; ``rclpy`` and the message packages are
 imported only when a session is created, so ``axis_ptz_ros2.calibration`` stays importable without ROS.
 """
@@ -207,6 +223,18 @@ def cloud_path(correspondence_file: str | Path, view: View) -> Path:
     return img.with_suffix(".npy")
 
 
+def write_ply(path: str | Path, cloud: FloatArray) -> None:
+    """ASCII PLY of an (N, 3|4) cloud (x, y, z in metres; intensity as a scalar property) for point viewers."""
+    C = np.asarray(cloud, dtype=np.float64)
+    has_i = C.shape[1] >= 4
+    header = ["ply", "format ascii 1.0", f"element vertex {len(C)}", "property float x", "property float y"]
+    header += ["property float z"] + (["property float intensity"] if has_i else []) + ["end_header"]
+    cols = C[:, :4] if has_i else C[:, :3]
+    with open(path, "w", encoding="ascii") as f:
+        f.write("\n".join(header) + "\n")
+        np.savetxt(f, np.nan_to_num(cols, nan=0.0), fmt="%.5f")
+
+
 def store_view(
     out: str | Path,
     cap: CapturedView,
@@ -214,8 +242,10 @@ def store_view(
     *,
     camera_model: str | None = None,
     comment: str = "",
+    ply: bool = False,
 ) -> View:
-    """Write the view's JPEG and cloud next to ``out`` and append the view (with ``points``) to ``out``."""
+    """Write the view's JPEG and cloud (and a PLY copy with ``ply``) next to ``out`` and append the view
+    (with ``points``) to ``out``."""
     d = views_dir(out)
     d.mkdir(parents=True, exist_ok=True)
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", cap.name):
@@ -223,6 +253,8 @@ def store_view(
     img_path = d / f"{cap.name}.jpg"
     img_path.write_bytes(cap.jpeg)
     np.save(d / f"{cap.name}.npy", cap.cloud.astype(np.float32))
+    if ply:
+        write_ply(d / f"{cap.name}.ply", cap.cloud)
     rel = img_path.relative_to(Path(out).parent).as_posix()
     view = View(
         cap.name,
@@ -525,6 +557,7 @@ def capture_views(
     camera_model_ref: str | None = None,
     prompt: Callable[[str], bool] | None = None,
     log: Callable[[str], None] = lambda s: None,
+    ply: bool = False,
 ) -> CaptureReport:
     """Capture ``len(names)`` views into ``out``: at ``poses`` (one per name) if given, otherwise whenever
     ``prompt(message)`` returns True (False stops early). Each view is appended as soon as it is captured."""
@@ -538,7 +571,7 @@ def capture_views(
             break
         cap = session.capture(name)
         picked = picker(cap) if picker is not None else []
-        view = store_view(out, cap, [p.correspondence() for p in picked], camera_model=camera_model_ref)
+        view = store_view(out, cap, [p.correspondence() for p in picked], camera_model=camera_model_ref, ply=ply)
         report.views.append(view)
         report.picked.extend(picked)
         msg = (

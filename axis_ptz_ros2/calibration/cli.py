@@ -201,6 +201,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
                 camera_model_ref=model_ref,
                 prompt=prompt,
                 log=print,
+                ply=args.ply,
             )
     except (cap.CaptureError, CorrespondenceError) as err:
         print(f"capture failed: {err}", file=sys.stderr)
@@ -266,6 +267,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--settle", type=float, default=0.3, help="wait after the head stopped before the frame [s]")
     c.add_argument("--timeout", type=float, default=15.0, help="timeout for moves and data [s]")
     c.add_argument("--name-prefix", default="view", help="view names PREFIXNN")
+    c.add_argument("--ply", action="store_true", help="also write each laser snapshot as PLY (for point viewers)")
     c.add_argument("--namespace", default="", help="ROS namespace of the camera topics")
     c.set_defaults(func=_cmd_capture)
     return ap

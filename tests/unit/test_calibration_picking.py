@@ -270,7 +270,7 @@ def test_store_view_writes_image_cloud_and_appends(tmp_path):
     ok, jpeg = cv2.imencode(".jpg", np.full((H, W, 3), 200, np.uint8))
     assert ok
     cap = CapturedView("v0", 0.1, -0.05, 1.0, jpeg.tobytes(), W, H, np.array([[1.0, 2.0, 3.0, 0.5]]))
-    view = store_view(out, cap, camera_model="model.yaml")
+    view = store_view(out, cap, camera_model="model.yaml", ply=True)
     assert view.image == "calib_views/v0.jpg"
     assert (views_dir(out) / "v0.jpg").read_bytes() == jpeg.tobytes()
     cs = load_correspondences(out)
@@ -279,6 +279,10 @@ def test_store_view_writes_image_cloud_and_appends(tmp_path):
     assert cs.camera_model == "model.yaml"
     saved = np.load(cloud_path(out, cs.views[0]))
     np.testing.assert_allclose(saved, [[1.0, 2.0, 3.0, 0.5]])
+    ply = (views_dir(out) / "v0.ply").read_text(encoding="ascii").splitlines()
+    assert ply[:3] == ["ply", "format ascii 1.0", "element vertex 1"]
+    assert "property float intensity" in ply
+    assert [float(x) for x in ply[-1].split()] == [1.0, 2.0, 3.0, 0.5]
     with pytest.raises(CorrespondenceError, match="already exists"):
         store_view(out, cap)
     with pytest.raises(CorrespondenceError, match="letters"):
