@@ -24,12 +24,14 @@ W, H = 1024, 512
 # expected pixel is computed independently of the node's code path.
 PTZ_BASE = np.array([-0.214, -0.044, 0.455])
 H_TILT = 0.0687
+D_OPT = 0.03  # optical centre ahead of the tilt axis (config/axis214.yaml head.d_opt)
 PANO = np.array([0.216, -0.044, 0.75])
 
 
 def _expected_pixel(pan: float, tilt: float, depth: float) -> tuple[float, float]:
-    c = PTZ_BASE + [0.0, 0.0, H_TILT]
-    P = c + depth * np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
+    ray = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
+    c = PTZ_BASE + [0.0, 0.0, H_TILT] + D_OPT * ray
+    P = c + depth * ray
     d = P - PANO
     az = math.atan2(d[1], d[0])
     el = math.atan2(d[2], math.hypot(d[0], d[1]))
