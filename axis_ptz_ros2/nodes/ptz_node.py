@@ -23,7 +23,6 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, TransformStamped
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -146,7 +145,8 @@ class PtzNode(Node):
         """``backend``: a ready head (e.g. a virtual camera); default: the Axis backend from parameters."""
         super().__init__(node_name, **kwargs)
         self._p = declare_params(self, PARAMS)
-        self.add_on_set_parameters_callback(self._on_set_params)
+        self.add_on_set_parameters_callback(lambda params: check_params(_SPECS, params))
+        self.add_post_set_parameters_callback(self._post_set_params)  # applied only once every check passed
         p = self._p
         self._model = load_camera_model(p["camera_model"] or None)
         self._mount: MountConfig = load_mount(p["mount_file"] or None)
@@ -228,13 +228,10 @@ class PtzNode(Node):
     # ------------------------------------------------------------------------------------------------
     # Parameters
     # ------------------------------------------------------------------------------------------------
-    def _on_set_params(self, params: list[Parameter]) -> SetParametersResult:
-        result = check_params(_SPECS, params)
-        if result.successful:
-            for prm in params:
-                if prm.name in _DYNAMIC:
-                    self._p[prm.name] = prm.value
-        return result
+    def _post_set_params(self, params: list[Parameter]) -> None:
+        for prm in params:
+            if prm.name in _DYNAMIC:
+                self._p[prm.name] = prm.value
 
     def _image_size(self, width: int = 0, height: int = 0) -> tuple[int, int]:
         return (int(width) or int(self._p["image_width"])), (int(height) or int(self._p["image_height"]))

@@ -477,3 +477,18 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
     # and commands work again
     assert move(ros, probe, "ptz/move_absolute", cmd(pan=math.radians(5.0))).success
     assert cam.position()[0] == pytest.approx(-5.0, abs=1e-3)
+
+
+def test_parameters_dynamic_and_read_only(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    res = node.set_parameters([Parameter("velocity_timeout", value=0.2)])
+    assert res[0].successful
+    assert not node.set_parameters([Parameter("hostname", value="10.0.0.1")])[0].successful  # read-only
+    assert not node.set_parameters([Parameter("velocity_timeout", value=100.0)])[0].successful  # range
+    probe = ros.probe()
+    pub = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
+    t0 = time.monotonic()
+    pub.publish(PtzVelocity(pan_rate=-0.5, tilt_rate=0.0, zoom_rate=0.0))
+    ros.wait_for(lambda: cam.state.moving(), 2.0)
+    ros.wait_for(lambda: not cam.state.moving(), 2.0)
+    assert time.monotonic() - t0 < 0.6  # the new 0.2 s timeout, not the default 0.5 s
+    assert cam.position()[0] > 0.0  # REP-103 negative pan rate = right = VAPIX +
