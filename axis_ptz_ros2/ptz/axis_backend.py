@@ -137,9 +137,7 @@ class AxisBackend:
         except AxisPtzError as err:
             raise PtzBackendError(str(err)) from err
 
-    def move_to(
-        self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None
-    ) -> None:
+    def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
         """``pan=…&tilt=…&zoom=…[&speed=…]`` (degrees rounded to the protocol's 4 decimals)."""
         pan_deg = None if pan is None else round(self._conv.to_vapix(pan, 0.0)[0], 4)
         tilt_deg = None if tilt is None else round(self._conv.to_vapix(0.0, tilt)[1], 4)
@@ -151,12 +149,8 @@ class AxisBackend:
 
     def velocity(self, pan_rate: float, tilt_rate: float, zoom_rate: float) -> None:
         """``continuouspantiltmove=p,t&continuouszoommove=z`` scaled by the camera model's maximum speeds."""
-        p = speed_to_vapix(
-            self._conv.pan_rate_to_vapix(math.degrees(pan_rate)), self._model.max_pan_speed_dps
-        )
-        t = speed_to_vapix(
-            self._conv.tilt_rate_to_vapix(math.degrees(tilt_rate)), self._model.max_tilt_speed_dps
-        )
+        p = speed_to_vapix(self._conv.pan_rate_to_vapix(math.degrees(pan_rate)), self._model.max_pan_speed_dps)
+        t = speed_to_vapix(self._conv.tilt_rate_to_vapix(math.degrees(tilt_rate)), self._model.max_tilt_speed_dps)
         z = speed_to_vapix(zoom_rate, 1.0)
         self._send(ContinuousMove(p, t, z))
 

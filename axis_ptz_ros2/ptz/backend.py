@@ -40,9 +40,7 @@ class PtzLimitsRos:
         """Whether the pan range covers the whole circle (targets are then wrapped, not refused)."""
         return self.pan_max - self.pan_min >= 2.0 * math.pi - 1e-6
 
-    def violation(
-        self, pan: float | None, tilt: float | None, zoom: float | None, eps: float = 1e-9
-    ) -> str | None:
+    def violation(self, pan: float | None, tilt: float | None, zoom: float | None, eps: float = 1e-9) -> str | None:
         """A human-readable reason if any given axis lies outside the limits, else None."""
         if pan is not None:
             if not math.isfinite(pan):
@@ -99,9 +97,7 @@ class PtzBackend(Protocol):
         """Measure the current pose."""
         ...
 
-    def move_to(
-        self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None
-    ) -> None:
+    def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
         """Absolute move; None keeps an axis. ``speed`` is a 0..1 fraction of the maximum (None: default)."""
         ...
 

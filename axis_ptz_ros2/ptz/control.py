@@ -137,9 +137,7 @@ def area_zoom_target(
     return pan, tilt, zoom_model.zoom_for_magnification(m)
 
 
-def zoom_target(
-    zoom_model: ZoomModel, zoom: float | None, magnification: float | None, hfov: float | None
-) -> float:
+def zoom_target(zoom_model: ZoomModel, zoom: float | None, magnification: float | None, hfov: float | None) -> float:
     """Zoom units from exactly one of units, magnification or horizontal FOV (rad)."""
     given = [x is not None for x in (zoom, magnification, hfov)]
     if sum(given) != 1:
@@ -176,9 +174,7 @@ def look_at_target(
     elif frame == mount_parent_frame:
         p_base = T_parent_ptzbase.inverse().apply(p)
     else:
-        raise ValueError(
-            f"unknown frame {frame!r}: give the point in {ptz_base_frame!r} or {mount_parent_frame!r}"
-        )
+        raise ValueError(f"unknown frame {frame!r}: give the point in {ptz_base_frame!r} or {mount_parent_frame!r}")
     if not np.all(np.isfinite(p_base)):
         raise ValueError("the point is not finite")
     return kinematics.look_at(p_base)

@@ -111,9 +111,7 @@ class StatePoller:
             self._latest = sample
             if self._last_ok_t is not None and t1 > self._last_ok_t:
                 inst = 1.0 / (t1 - self._last_ok_t)
-                self.stats.rate_hz = (
-                    inst if self.stats.rate_hz == 0.0 else 0.9 * self.stats.rate_hz + 0.1 * inst
-                )
+                self.stats.rate_hz = inst if self.stats.rate_hz == 0.0 else 0.9 * self.stats.rate_hz + 0.1 * inst
             self._last_ok_t = t1
             self.stats.ok += 1
             self.stats.consecutive_failures = 0
