@@ -459,9 +459,9 @@ def measure_budget(sub: Subscriber, rec: Recorder, budget: int, seconds: float) 
             t_under = t
             break
     steady = kbps([f for f in frames if f.t_rx >= t0 + seconds - 5.0])
+    final = seen[-1] if seen else None  # what the budget chose (before switching it off)
     sub.set_param("max_bitrate_kbps", 0)
     sub.node.destroy_subscription(psub)
-    final = seen[-1] if seen else None
     choice = f"{final.resolution}@{final.fps}fps c{final.compression} ({final.source})" if final else "?"
     print(f"  full rate before the budget: {full:.0f} kbit/s")
     return t_under, steady, choice

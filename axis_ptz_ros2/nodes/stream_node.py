@@ -221,6 +221,8 @@ class StreamNode(Node):
             BudgetConfig(max_compression=int(p["budget_max_compression"])),
         )
         self._lazy = bool(p["lazy"])
+        self._image_wanted = False
+        self._info_wanted = False
         self._pending_source = "parameter"
         self._log_throttle: dict[str, float] = {}
 
@@ -395,14 +397,14 @@ class StreamNode(Node):
     def _on_frame(self, jpeg: bytes, arrival_ns: int) -> None:
         """Hot path (reader thread): publish the camera's bytes and a restamped CameraInfo."""
         stamp = stamp_from_ns(arrival_ns)
-        if self._image_pub.get_subscription_count():
+        if self._image_wanted:
             msg = self._image_msg
             msg.header.stamp = stamp
             # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
             # it the immutable bytes as they are (the only copy is rclpy's serialisation).
             msg._data = jpeg  # noqa: SLF001
             self._image_pub.publish(msg)
-        if self._info_pub.get_subscription_count():
+        if self._info_wanted:
             size = jpeg_size(jpeg)
             if size is None:
                 res = self._reader.params.resolution
@@ -428,9 +430,10 @@ class StreamNode(Node):
 
     # -- activity, watchdog, budget (10 Hz) ------------------------------------------------------------------
     def _want_active(self) -> bool:
-        if not self._lazy:
-            return True
-        return self._image_pub.get_subscription_count() > 0 or self._info_pub.get_subscription_count() > 0
+        # Cached for the hot path (no rmw call per frame); refreshed on matched events and at 1 Hz.
+        self._image_wanted = self._image_pub.get_subscription_count() > 0
+        self._info_wanted = self._info_pub.get_subscription_count() > 0
+        return not self._lazy or self._image_wanted or self._info_wanted
 
     def _update_activity(self) -> None:
         reader = getattr(self, "_reader", None)
