@@ -454,6 +454,8 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "Boa/0.94.14rc21"  # the web server of Axis firmware 4.x
     sys_version = ""
     timeout = 60
+    # Reply promptly like the camera's own stack: Nagle + delayed ACK would add ~40 ms to every query reply.
+    disable_nagle_algorithm = True
     server: _Server
 
     # ---- plumbing -------------------------------------------------------------------------------------
@@ -474,6 +476,7 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib signature
         """Silent (and so never logs credentials)."""
+
 
     @property
     def cam(self) -> SimulatedCamera:
