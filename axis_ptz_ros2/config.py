@@ -37,9 +37,24 @@ ROBOT_FORMAT = "axis_ptz_ros2/robot/v1"
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
 
 
+def _share_config_dir() -> Path | None:
+    """``share/axis_ptz_ros2/config`` of a colcon/ament install, if this package is installed that way."""
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    except ImportError:
+        return None
+    try:
+        return Path(get_package_share_directory("axis_ptz_ros2")) / "config"
+    except (PackageNotFoundError, ValueError, LookupError):
+        return None
+
+
 def default_config_path(name: str) -> Path:
-    """Path of a file in the repository's ``config/`` folder (or the installed share folder)."""
-    candidates = [CONFIG_DIR / name, Path(__file__).resolve().parent / "config" / name]
+    """Path of a file in the repository's ``config/`` folder, or the installed ``share/axis_ptz_ros2/config``."""
+    candidates = [CONFIG_DIR / name]
+    share = _share_config_dir()
+    if share is not None:
+        candidates.append(share / name)
     for c in candidates:
         if c.exists():
             return c

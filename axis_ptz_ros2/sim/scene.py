@@ -161,7 +161,12 @@ def world_from_dict(cfg: dict[str, Any]) -> SimWorld:
 
 def load_world(path: str | Path | None = None) -> SimWorld:
     """Load the world from a YAML file (default: the repository's ``config/sim_world.yaml``)."""
-    p = Path(path) if path is not None else DEFAULT_WORLD_PATH
+    if path is not None:
+        p = Path(path)
+    else:  # the repository's file, or the installed share/axis_ptz_ros2/config copy (colcon)
+        from axis_ptz_ros2.config import default_config_path
+
+        p = DEFAULT_WORLD_PATH if DEFAULT_WORLD_PATH.exists() else default_config_path("sim_world.yaml")
     with p.open(encoding="utf-8") as fh:
         cfg = yaml.safe_load(fh) or {}
     return world_from_dict(cfg)
