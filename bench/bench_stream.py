@@ -149,7 +149,14 @@ def start_sim(force_fps0: bool = False) -> tuple[Proc, int]:
 
 
 def start_ours(port: int, **params: object) -> Proc:
-    values = {"port": port, "fps": 30, "resolution": "704x576", "compression": 30, **params}
+    values = {
+        "port": port,
+        "fps": 30,
+        "resolution": "704x576",
+        "compression": 30,
+        "camera_model": str(ROOT / "config" / "axis214.yaml"),  # explicit: no ament index lookup needed
+        **params,
+    }
     args = [str(BIN / "axis_stream"), "--ros-args", "-r", "__ns:=/ours"]
     for k, v in values.items():
         args += ["-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}"]
@@ -277,6 +284,7 @@ class Subscriber:
         import rclpy
 
         self.executor.shutdown(timeout_sec=1.0)
+        self.thread.join(2.0)
         self.node.destroy_node()
         rclpy.try_shutdown()
 
