@@ -45,7 +45,7 @@ def _share_config_dir() -> Path | None:
         return None
     try:
         return Path(get_package_share_directory("axis_ptz_ros2")) / "config"
-    except (PackageNotFoundError, ValueError, LookupError):
+    except (PackageNotFoundError, ValueError, LookupError, OSError):  # OSError: no AMENT_PREFIX_PATH
         return None
 
 
