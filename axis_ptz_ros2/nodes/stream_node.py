@@ -353,6 +353,8 @@ class StreamNode(Node):
         msg.compression = vp.compression
         msg.max_bitrate_kbps = int(self._budget.budget_kbps)
         msg.source = source
+        known = sorted(self._known_resolutions(), key=lambda r: (r.width * r.height, r.width))
+        msg.available_resolutions = list(dict.fromkeys(str(r) for r in known))
         return msg
 
     def _publish_params(self, source: str) -> None:
@@ -444,9 +446,12 @@ class StreamNode(Node):
         self._update_activity()
         self._reader.check_watchdog()
         with self._lock:
-            if self._resolutions_pending and self._resolutions:
+            learned = self._resolutions_pending and bool(self._resolutions)
+            if learned:
                 self._resolutions_pending = False
                 self._budget.configure(resolutions=self._resolutions, now=time.monotonic())
+        if learned:  # the camera's own list is known now: tell the teleops (latched)
+            self._publish_params("camera")
         self._publish_diagnostics()
 
     def _check_budget(self, now: float) -> None:

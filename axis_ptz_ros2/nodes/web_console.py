@@ -304,6 +304,8 @@ class WebConsole(Node):
     def _on_video(self, msg: VideoParams) -> None:
         with self._lock:
             self._video = msg
+            if msg.available_resolutions:  # the camera's own list, from the stream node
+                self._resolutions = keymap.sort_resolutions(list(msg.available_resolutions))
             self._teleop = keymap.TeleopState(
                 step=self._teleop.step,
                 fps=int(msg.fps),

@@ -79,12 +79,14 @@ class KeyboardTeleop(Node):
 
     def _on_video(self, msg: VideoParams) -> None:
         self.video = msg
+        # the camera's own list (published by the stream node) wins over the `resolutions` parameter
+        listed = km.sort_resolutions(list(msg.available_resolutions)) if msg.available_resolutions else ()
         self.state = km.TeleopState(
             step=self.state.step,
             fps=int(msg.fps),
             resolution=str(msg.resolution) or f"{msg.width}x{msg.height}",
             compression=int(msg.compression),
-            resolutions=self.state.resolutions,
+            resolutions=listed or self.state.resolutions,
         )
         self._status_dirty = True
 

@@ -410,3 +410,16 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     (res,) = set_params(ros, probe, max_bitrate_kbps=0)
     assert res.successful
     ros.wait_for(lambda: params_seen[-1].compression == 0 and params_seen[-1].fps == 20, timeout=3)
+
+
+def test_video_params_carry_the_cameras_resolution_list(ros: RosHarness, camera: SimulatedCamera) -> None:
+    """The latched video/params tells the teleops which sizes the camera offers (read from param.cgi)."""
+    make_node(ros, camera)
+    probe = ros.probe("res_probe")
+    got: list[VideoParams] = []
+    probe.create_subscription(VideoParams, "video/params", got.append, LATCHED_QOS)
+    rec, _ = subscribe(ros, probe)  # a subscriber makes the node contact the camera and read its list
+    ros.wait_for(lambda: any(m.source == "camera" for m in got), timeout=10)
+    last = [m for m in got if m.source == "camera"][-1]
+    # the 214 persona lists 4CIF,2CIFEXP,2CIF,CIF,QCIF (PAL): four distinct sizes, smallest first
+    assert list(last.available_resolutions) == ["176x144", "352x288", "704x288", "704x576"]
