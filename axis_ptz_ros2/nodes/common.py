@@ -25,6 +25,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import CameraInfo
 
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion
+from axis_ptz_ros2.vapix import CameraConfig
 
 # ---------------------------------------------------------------------------------------------------------
 # QoS
@@ -65,9 +66,7 @@ class ParamSpec:
         text = self.description + (f" [{self.unit}]" if self.unit else "")
         if self.choices:
             text += " (one of: " + ", ".join(self.choices) + ")"
-        d = ParameterDescriptor(
-            description=text, read_only=self.read_only, dynamic_typing=self.dynamic_typing
-        )
+        d = ParameterDescriptor(description=text, read_only=self.read_only, dynamic_typing=self.dynamic_typing)
         if self.int_range is not None:
             d.integer_range = [IntegerRange(from_value=self.int_range[0], to_value=self.int_range[1], step=1)]
         if self.float_range is not None:
@@ -123,10 +122,47 @@ def params_markdown(specs: Sequence[ParamSpec]) -> str:
     for s in specs:
         kind = type(s.default).__name__
         ro = " (read-only)" if s.read_only else ""
-        rows.append(
-            f"| `{s.name}` | {kind} | `{s.default!r}` | {s.unit} | {s.range_text()} | {s.description}{ro} |"
-        )
+        rows.append(f"| `{s.name}` | {kind} | `{s.default!r}` | {s.unit} | {s.range_text()} | {s.description}{ro} |")
     return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Camera connection: the same read-only parameters on every node that talks to the camera
+# ---------------------------------------------------------------------------------------------------------
+CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("hostname", "127.0.0.1", "camera host name or address", read_only=True),
+    ParamSpec("port", 80, "camera HTTP(S) port", int_range=(1, 65535), read_only=True),
+    ParamSpec("use_https", False, "talk HTTPS to the camera", read_only=True),
+    ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
+    ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
+    ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
+    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
+    ParamSpec(
+        "password_file",
+        "",
+        "file with 'user:password' (else AXIS_USERNAME/AXIS_PASSWORD env; never a parameter)",
+        read_only=True,
+    ),
+    ParamSpec("connect_timeout", 2.0, "TCP connect timeout", "s", float_range=(0.05, 60.0), read_only=True),
+)
+
+
+def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraConfig:
+    """A :class:`CameraConfig` from the CONNECTION_PARAMS values, credentials from the environment or file."""
+    user, password = load_credentials(str(p["password_file"]))
+    verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
+    return CameraConfig(
+        host=str(p["hostname"]),
+        port=int(p["port"]),
+        use_https=bool(p["use_https"]),
+        verify_tls=verify,
+        username=user,
+        password=password,
+        camera=int(p["camera"]),
+        timeout_s=timeout_s,
+        connect_timeout_s=float(p["connect_timeout"]),
+        auth=str(p["auth"]),
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -34,13 +34,14 @@ from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt
 from axis_ptz_ros2.config import CameraModel, MountConfig, load_camera_model, load_mount
 from axis_ptz_ros2.nodes.common import (
     COMMAND_QOS,
+    CONNECTION_PARAMS,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
+    camera_config_from_params,
     check_params,
     declare_params,
     diagnostic,
-    load_credentials,
     make_tf_broadcasters,
     run_nodes,
     stamp_from_ns,
@@ -62,21 +63,8 @@ from axis_ptz_ros2.ptz.control import (
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 
 PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("hostname", "127.0.0.1", "camera host name or address", read_only=True),
-    ParamSpec("port", 80, "camera HTTP(S) port", int_range=(1, 65535), read_only=True),
-    ParamSpec("use_https", False, "talk HTTPS to the camera", read_only=True),
-    ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
-    ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
-    ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
-    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
-    ParamSpec(
-        "password_file",
-        "",
-        "file with 'user:password' (else AXIS_USERNAME/AXIS_PASSWORD env; never a parameter)",
-        read_only=True,
-    ),
+    *CONNECTION_PARAMS,
     ParamSpec("timeout", 5.0, "command request timeout", "s", float_range=(0.1, 60.0), read_only=True),
-    ParamSpec("connect_timeout", 2.0, "TCP connect timeout", "s", float_range=(0.05, 60.0), read_only=True),
     ParamSpec("state_timeout", 1.0, "timeout of one state poll", "s", float_range=(0.05, 30.0), read_only=True),
     ParamSpec("camera_model", "", "camera-model YAML ('' = config/axis214.yaml)", read_only=True),
     ParamSpec("mount_file", "", "mount YAML base_link -> PTZ base ('' = config/mount.yaml)", read_only=True),
@@ -119,22 +107,8 @@ _DYNAMIC = (
 def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
     """The default backend: VAPIX over HTTP, configured from the node's parameters."""
     from axis_ptz_ros2.ptz.axis_backend import AxisBackend
-    from axis_ptz_ros2.vapix import CameraConfig
 
-    user, password = load_credentials(str(p["password_file"]))
-    verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
-    cfg = CameraConfig(
-        host=str(p["hostname"]),
-        port=int(p["port"]),
-        use_https=bool(p["use_https"]),
-        verify_tls=verify,
-        username=user,
-        password=password,
-        camera=int(p["camera"]),
-        timeout_s=float(p["timeout"]),
-        connect_timeout_s=float(p["connect_timeout"]),
-        auth=str(p["auth"]),
-    )
+    cfg = camera_config_from_params(p, timeout_s=float(p["timeout"]))
     return AxisBackend(cfg, model, state_timeout_s=float(p["state_timeout"]))
 
 

@@ -36,14 +36,15 @@ from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
 from axis_ptz_interfaces.srv import SetVideoParams
 from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.nodes.common import (
+    CONNECTION_PARAMS,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
+    camera_config_from_params,
     camera_info_msg,
     check_params,
     declare_params,
     diagnostic,
-    load_credentials,
     run_nodes,
     stamp_from_ns,
 )
@@ -60,7 +61,6 @@ from axis_ptz_ros2.streaming import (
 from axis_ptz_ros2.vapix import (
     AuthError,
     AxisPtzError,
-    CameraConfig,
     CameraUnreachable,
     InvalidArgument,
     Resolution,
@@ -99,20 +99,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
     ParamSpec("camera_model", "", "camera-model YAML ('' = config/axis214.yaml)", read_only=True),
     # -- connection (read-only) --
-    ParamSpec("hostname", "127.0.0.1", "camera host name or address", read_only=True),
-    ParamSpec("port", 80, "camera HTTP(S) port", int_range=(1, 65535), read_only=True),
-    ParamSpec("use_https", False, "talk HTTPS to the camera", read_only=True),
-    ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
-    ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
-    ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
-    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
-    ParamSpec(
-        "password_file",
-        "",
-        "file with 'user:password' (else AXIS_USERNAME/AXIS_PASSWORD env; never a parameter)",
-        read_only=True,
-    ),
-    ParamSpec("connect_timeout", 2.0, "TCP connect timeout", "s", float_range=(0.05, 60.0), read_only=True),
+    *CONNECTION_PARAMS,
     ParamSpec("read_timeout", 5.0, "socket read timeout of the stream", "s", float_range=(0.05, 60.0), read_only=True),
     # -- self-healing (read-only) --
     ParamSpec(
@@ -176,23 +163,9 @@ class StreamNode(Node):
         self._unreachable = False  # the last attempt could not connect: probe with TCP first
         requested = self._requested_from(p)  # raises ValueError (start-up error) if invalid
 
-        user, password = load_credentials(str(p["password_file"]))
-        verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
         self._client = VapixClient(
-            CameraConfig(
-                host=str(p["hostname"]),
-                port=int(p["port"]),
-                use_https=bool(p["use_https"]),
-                verify_tls=verify,
-                username=user,
-                password=password,
-                camera=int(p["camera"]),
-                timeout_s=max(float(p["read_timeout"]), float(p["connect_timeout"])),
-                connect_timeout_s=float(p["connect_timeout"]),
-                auth=str(p["auth"]),
-            )
+            camera_config_from_params(p, timeout_s=max(float(p["read_timeout"]), float(p["connect_timeout"])))
         )
-        del user, password
 
         # zoom for K: ptz/state when a PTZ node runs, else the parameter
         self._zoom_param = float(p["zoom"])
