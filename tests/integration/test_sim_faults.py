@@ -14,12 +14,6 @@ pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=CIF&fps=30"
 
 
-@pytest.fixture(scope="module")
-def cam():
-    with SimulatedCamera() as c:
-        yield c
-
-
 @pytest.fixture
 def client(cam):
     cam.set_faults(FaultConfig())

@@ -3,27 +3,13 @@
 import re
 import time
 
-import httpx
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.sim import SimulatedCamera
 from axis_ptz_ros2.sim.testing import blob, decode
 
 pytestmark = pytest.mark.integration
 PTZ = "/axis-cgi/com/ptz.cgi"
-
-
-@pytest.fixture(scope="module")
-def cam():
-    with SimulatedCamera() as c:
-        yield c
-
-
-@pytest.fixture
-def client(cam):
-    with httpx.Client(base_url=cam.base_url, timeout=5.0) as c:
-        yield c
 
 
 def wait_still(cam, timeout=6.0):

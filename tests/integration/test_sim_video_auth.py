@@ -12,18 +12,6 @@ pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi"
 
 
-@pytest.fixture(scope="module")
-def cam():
-    with SimulatedCamera() as c:
-        yield c
-
-
-@pytest.fixture
-def client(cam):
-    with httpx.Client(base_url=cam.base_url, timeout=5.0) as c:
-        yield c
-
-
 @pytest.mark.parametrize(
     ("resolution", "extra", "size"),
     [
