@@ -115,15 +115,24 @@ def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
 class PtzNode(Node):
     """Pan-tilt-zoom control and state (see the module docstring and the README tables)."""
 
-    def __init__(self, *, backend: PtzBackend | None = None, node_name: str = "axis_ptz", **kwargs: Any) -> None:
-        """``backend``: a ready head (e.g. a virtual camera); default: the Axis backend from parameters."""
+    def __init__(
+        self,
+        *,
+        backend: PtzBackend | None = None,
+        model: CameraModel | None = None,
+        mount: MountConfig | None = None,
+        node_name: str = "axis_ptz",
+        **kwargs: Any,
+    ) -> None:
+        """``backend``: a ready head (e.g. a virtual camera); default: the Axis backend from parameters.
+        ``model``/``mount``: given directly instead of read from the ``camera_model``/``mount_file`` files."""
         super().__init__(node_name, **kwargs)
         self._p = declare_params(self, PARAMS)
         self.add_on_set_parameters_callback(lambda params: check_params(_SPECS, params))
         self.add_post_set_parameters_callback(self._post_set_params)  # applied only once every check passed
         p = self._p
-        self._model = load_camera_model(p["camera_model"] or None)
-        self._mount: MountConfig = load_mount(p["mount_file"] or None)
+        self._model = model if model is not None else load_camera_model(p["camera_model"] or None)
+        self._mount: MountConfig = mount if mount is not None else load_mount(p["mount_file"] or None)
         self._offsets = JointOffsets(self._mount.pan_offset, self._mount.tilt_offset)
         prefix = str(p["frame_prefix"])
         self._base_frame = prefix + (p["base_frame"] or self._mount.parent_frame)

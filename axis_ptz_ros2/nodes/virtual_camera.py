@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +46,6 @@ from axis_ptz_ros2.config import (
     camera_model_from_dict,
     default_config_path,
     load_robot,
-    save_mount,
 )
 from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import (
@@ -214,33 +212,30 @@ class VirtualCameraNode(Node):
 
     # ------------------------------------------------------------------------------------------------
     def _make_ptz_node(self, raw: dict[str, Any], mount: MountConfig, kwargs: dict[str, Any]) -> PtzNode:
-        """The PTZ node over the virtual head, configured through its ordinary parameters.
-
-        Its camera model (square-pixel zoom model, no head offsets) and mount (panorama origin) are handed over
-        as files, which it reads while it is constructed.
-        """
+        """The PTZ node over the virtual head: its camera model (square-pixel zoom model, no head offsets) and
+        mount (the panorama origin) are handed over directly; the rest through its ordinary parameters."""
         p = self._p
-        with tempfile.TemporaryDirectory(prefix="axis_virtual_camera_") as tmp:
-            model_file, mount_file = Path(tmp) / "camera_model.yaml", Path(tmp) / "mount.yaml"
-            model_file.write_text(yaml.safe_dump(raw, sort_keys=False), encoding="utf-8")
-            save_mount(mount, mount_file)
-            forced = {
-                "camera_model": str(model_file),
-                "mount_file": str(mount_file),
-                "image_width": self.width,
-                "image_height": self.height,
-                "follow_video_params": False,  # video/params of another camera must not resize this view
-                "frame_prefix": str(p["frame_prefix"]),
-                "ptz_base_frame": str(p["ptz_base_frame"]),
-                "base_frame": "",  # the mount's parent: the robot base frame
-                "optical_frame": str(p["optical_frame"]),
-                "pan_joint": str(p["pan_joint"]),
-                "tilt_joint": str(p["tilt_joint"]),
-            }
-            overrides = [o for o in (kwargs.get("parameter_overrides") or []) if o.name not in forced]
-            overrides += [Parameter(k, value=v) for k, v in forced.items()]
-            ptz_kwargs = {**kwargs, "parameter_overrides": overrides}
-            ptz = PtzNode(backend=self.backend, node_name=str(p["ptz_node_name"]), **ptz_kwargs)
+        forced = {
+            "image_width": self.width,
+            "image_height": self.height,
+            "follow_video_params": False,  # video/params of another camera must not resize this view
+            "frame_prefix": str(p["frame_prefix"]),
+            "ptz_base_frame": str(p["ptz_base_frame"]),
+            "base_frame": "",  # the mount's parent: the robot base frame
+            "optical_frame": str(p["optical_frame"]),
+            "pan_joint": str(p["pan_joint"]),
+            "tilt_joint": str(p["tilt_joint"]),
+        }
+        overrides = [o for o in (kwargs.get("parameter_overrides") or []) if o.name not in forced]
+        overrides += [Parameter(k, value=v) for k, v in forced.items()]
+        ptz_kwargs = {**kwargs, "parameter_overrides": overrides}
+        ptz = PtzNode(
+            backend=self.backend,
+            model=camera_model_from_dict(raw),
+            mount=mount,
+            node_name=str(p["ptz_node_name"]),
+            **ptz_kwargs,
+        )
         ptz.add_on_set_parameters_callback(self._refuse_ptz_resize)
         return ptz
 
