@@ -159,6 +159,7 @@ class StreamNode(Node):
         self._frame_id = str(p["frame_id"])
         self._model = load_camera_model(_camera_model_path(str(p["camera_model"])))
         self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
+        self._params_source = "startup"  # cause of the video parameters in effect (VideoParams.source)
         self._resolutions_pending = False
         self._unreachable = False  # the last attempt could not connect: probe with TCP first
         requested = self._requested_from(p)  # raises ValueError (start-up error) if invalid
@@ -331,6 +332,7 @@ class StreamNode(Node):
         return msg
 
     def _publish_params(self, source: str) -> None:
+        self._params_source = source
         self._params_pub.publish(self._params_msg(source))
 
     # -- camera access (reader thread) -----------------------------------------------------------------------
@@ -423,8 +425,8 @@ class StreamNode(Node):
             if learned:
                 self._resolutions_pending = False
                 self._budget.configure(resolutions=self._resolutions, now=time.monotonic())
-        if learned:  # the camera's own list is known now: tell the teleops (latched)
-            self._publish_params("camera")
+        if learned:  # the camera's own list is known now: tell the teleops (latched); the values and their
+            self._publish_params(self._params_source)  # cause are unchanged, so the source stays as it was
         self._publish_diagnostics()
 
     def _check_budget(self, now: float) -> None:
