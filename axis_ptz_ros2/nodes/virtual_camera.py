@@ -303,6 +303,7 @@ class VirtualCameraNode(Node):
         self._decode_pending()
         if self._pano is None or self._renderer is None:
             return
+        t_view_ns = time.time_ns()  # the image shows the pose read now: stamp it with this time, not the render's end
         view = self.view()
         key = (self._pano_seq, view)
         now = time.monotonic()
@@ -310,10 +311,12 @@ class VirtualCameraNode(Node):
         stale = min_rate > 0.0 and now - self._last_pub_mono >= 1.0 / min_rate
         if key == self._last_key and not new_sub and not stale:
             return
-        self._publish(self._pano, self._renderer, view, now)
+        self._publish(self._pano, self._renderer, view, now, t_view_ns)
         self._last_key = key
 
-    def _publish(self, pano: U8, renderer: VirtualCameraRenderer, view: ViewSpec, now_mono: float) -> None:
+    def _publish(
+        self, pano: U8, renderer: VirtualCameraRenderer, view: ViewSpec, now_mono: float, t_view_ns: int
+    ) -> None:
         shape = (view.height, view.width, *pano.shape[2:])
         if self._out is None or self._out.shape != shape:
             self._out = np.empty(shape, np.uint8)
@@ -325,7 +328,7 @@ class VirtualCameraNode(Node):
         if not ok:  # pragma: no cover - cv2 fails only on invalid images
             self.get_logger().error("JPEG encoding failed", throttle_duration_sec=5.0)
             return
-        stamp = stamp_from_ns(time.time_ns())
+        stamp = stamp_from_ns(t_view_ns)
         msg = CompressedImage()
         msg.header.stamp = stamp
         msg.header.frame_id = self.optical_frame

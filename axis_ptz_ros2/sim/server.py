@@ -91,6 +91,7 @@ class RequestCounts:
     endpoints: collections.Counter[str] = field(default_factory=collections.Counter)
     ptz: collections.Counter[str] = field(default_factory=collections.Counter)
     ptz_log: list[PtzLogEntry] = field(default_factory=list)
+    video_log: list[PtzLogEntry] = field(default_factory=list)  #: video.cgi / image.cgi requests (query strings)
     status: collections.Counter[int] = field(default_factory=collections.Counter)
 
     def as_dict(self) -> dict[str, Any]:
@@ -100,6 +101,7 @@ class RequestCounts:
             "ptz": dict(self.ptz),
             "status": {str(k): v for k, v in self.status.items()},
             "ptz_log": [[e.t_wall, e.method, e.query] for e in self.ptz_log[-200:]],
+            "video_log": [[e.t_wall, e.method, e.query] for e in self.video_log[-200:]],
         }
 
 
@@ -556,6 +558,10 @@ class _Handler(BaseHTTPRequestHandler):
             return
         endpoint = _ENDPOINTS.get(path, "")
         cam._count(endpoint or "other")
+        if endpoint in ("video", "image"):  # what the camera was asked for (tests: "the camera never saw it")
+            with cam._counts_lock:
+                cam._counts.video_log.append(PtzLogEntry(time.time(), time.monotonic(), self.command, query))
+                del cam._counts.video_log[:-10000]
         faults = cam.faults
         if faults.latency_ms > 0:
             time.sleep(faults.latency_ms / 1000.0)

@@ -26,11 +26,12 @@ class RosHarness:
         rclpy.init(context=self.context)
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self.nodes: list[Node] = []
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        while self.context.ok():
+        while self.context.ok() and not self._stop.is_set():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - context shut down under us at teardown
@@ -67,6 +68,8 @@ class RosHarness:
         return fut.result()
 
     def close(self) -> None:
+        self._stop.set()  # stop spinning before anything is destroyed (no callback on a destroyed handle)
+        self._thread.join(timeout=2.0)
         for n in reversed(self.nodes):
             try:
                 self.executor.remove_node(n)
