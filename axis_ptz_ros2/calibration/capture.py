@@ -70,6 +70,7 @@ from axis_ptz_ros2.calibration.picking import (
 )
 from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.pointcloud import decode_cloud_msg
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -123,54 +124,6 @@ def parse_pose6(text: str) -> Transform:
         raise ValueError(f"{text!r}: expected 'x,y,z,roll_deg,pitch_deg,yaw_deg'")
     v = [float(p) for p in parts]
     return Transform.from_xyz_rpy(v[0], v[1], v[2], *(math.radians(a) for a in v[3:]))
-
-
-# --------------------------------------------------------------------------------------------------------
-# Point clouds (ROS-free decoding of the PointCloud2 layout)
-# --------------------------------------------------------------------------------------------------------
-#: sensor_msgs/PointField datatypes → numpy type characters
-_PF_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
-
-
-@dataclass(frozen=True, slots=True)
-class CloudField:
-    """One ``sensor_msgs/PointField``: name, byte offset, datatype code (7 = FLOAT32, 8 = FLOAT64)."""
-
-    name: str
-    offset: int
-    datatype: int
-
-
-def decode_cloud(
-    data: bytes, fields: Sequence[CloudField], point_step: int, n_points: int, is_bigendian: bool = False
-) -> FloatArray:
-    """(N, 4) float64 x, y, z, intensity (NaN if the cloud has no ``intensity``) of a PointCloud2 payload;
-    points with a non-finite coordinate are dropped."""
-    by_name = {f.name: f for f in fields}
-    for req in ("x", "y", "z"):
-        if req not in by_name:
-            raise ValueError(f"point cloud has no {req!r} field (fields: {sorted(by_name)})")
-    if point_step <= 0 or len(data) < point_step * n_points:
-        raise ValueError(f"point cloud payload of {len(data)} bytes is too short for {n_points}×{point_step}")
-    endian = ">" if is_bigendian else "<"
-    names, formats, offsets = [], [], []
-    for name in ("x", "y", "z", "intensity"):
-        f = by_name.get(name)
-        if f is None:
-            continue
-        if f.datatype not in _PF_TYPES:
-            raise ValueError(f"point cloud field {name!r} has unsupported datatype {f.datatype}")
-        names.append(name)
-        formats.append(endian + _PF_TYPES[f.datatype])
-        offsets.append(f.offset)
-    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
-    rec = np.frombuffer(data, dtype=dt, count=n_points)
-    out = np.full((n_points, 4), np.nan)
-    for k, name in enumerate(("x", "y", "z", "intensity")):
-        if name in names:
-            out[:, k] = rec[name].astype(np.float64)
-    ok = np.isfinite(out[:, :3]).all(axis=1)
-    return np.asarray(out[ok], dtype=np.float64)
 
 
 def transform_cloud(cloud: FloatArray, T: Transform) -> FloatArray:
@@ -456,10 +409,7 @@ class CaptureSession:
         )
 
     def _cloud_in_base(self, msg: Any) -> FloatArray:
-        fields = [CloudField(f.name, int(f.offset), int(f.datatype)) for f in msg.fields]
-        pts = decode_cloud(
-            bytes(msg.data), fields, int(msg.point_step), int(msg.width) * int(msg.height), bool(msg.is_bigendian)
-        )
+        pts = decode_cloud_msg(msg)
         frame = str(msg.header.frame_id).lstrip("/")
         if frame == self.base_frame:
             return pts

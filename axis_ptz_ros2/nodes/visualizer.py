@@ -31,6 +31,7 @@ from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform, quaternion_to_matrix
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import footprint_on_panorama, point_along_ray, project_to_panorama
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -134,13 +135,10 @@ class Visualizer(Node):
         self._T_base_laser = tf_to_transform(msg)
 
     def _on_cloud(self, msg: PointCloud2) -> None:
-        offs = {f.name: f.offset for f in msg.fields}
-        if not {"x", "y", "z"} <= offs.keys() or msg.is_bigendian:
-            return
-        raw = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(-1, msg.point_step)
-        cols = [raw[:, offs[k] : offs[k] + 4].copy().view("<f4").reshape(-1) for k in ("x", "y", "z")]
-        pts = np.stack(cols, -1).astype(np.float64)
-        self._cloud_laser = pts[np.all(np.isfinite(pts), axis=1)]
+        try:
+            self._cloud_laser = decode_cloud_msg(msg)[:, :3]
+        except ValueError as err:  # a cloud without x/y/z: keep the last usable one
+            self.get_logger().warn(f"laser cloud unusable: {err}", throttle_duration_sec=10.0)
 
     # ---- geometry ---------------------------------------------------------------------------------------
     def optical_pose(self) -> Transform | None:

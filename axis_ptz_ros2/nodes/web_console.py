@@ -44,6 +44,7 @@ from axis_ptz_interfaces.msg import PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoParams
 from axis_ptz_ros2.config import RobotConfig, load_robot
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import panorama_ray, point_along_ray
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.web.server import (
@@ -130,34 +131,6 @@ class RateMeter:
             n = len(self._events) - 1
             nbytes = sum(b for _, b in list(self._events)[1:])
         return n / span, nbytes * 8.0 / 1000.0 / span
-
-
-def cloud_xyz(msg: PointCloud2) -> np.ndarray[Any, np.dtype[np.float64]]:
-    """The x, y, z columns (N, 3) of a PointCloud2 with float32 x/y/z fields; NaN rows dropped."""
-    fields = {f.name: f for f in msg.fields}
-    if not all(k in fields for k in ("x", "y", "z")):
-        raise ValueError("point cloud has no x/y/z fields")
-    if any(fields[k].datatype != 7 for k in ("x", "y", "z")):  # 7 = FLOAT32
-        raise ValueError("point cloud x/y/z fields are not float32")
-    n = msg.width * msg.height
-    if n == 0:
-        return np.zeros((0, 3))
-    endian = ">" if msg.is_bigendian else "<"
-    dtype = np.dtype(
-        {
-            "names": ["x", "y", "z"],
-            "formats": [endian + "f4"] * 3,
-            "offsets": [fields["x"].offset, fields["y"].offset, fields["z"].offset],
-            "itemsize": msg.point_step,
-        }
-    )
-    data = bytes(msg.data)
-    row = msg.width * msg.point_step
-    if msg.row_step != row:  # padded rows: keep the points of each row only
-        data = b"".join(data[r * msg.row_step : r * msg.row_step + row] for r in range(msg.height))
-    rows = np.frombuffer(data, dtype=dtype, count=n)
-    xyz = np.stack([rows["x"], rows["y"], rows["z"]], axis=1).astype(np.float64)
-    return xyz[np.all(np.isfinite(xyz), axis=1)]
 
 
 class ServiceError(Exception):
@@ -532,7 +505,7 @@ class WebConsole(Node):
             return None, "no laser data"
         frame = msg.header.frame_id.lstrip("/")
         try:
-            xyz = cloud_xyz(msg)
+            xyz = decode_cloud_msg(msg)[:, :3]
         except ValueError as err:
             return None, f"laser cloud unusable: {err}"
         if frame in ("", self.robot.base_frame):

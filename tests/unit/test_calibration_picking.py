@@ -14,9 +14,7 @@ import pytest
 
 from axis_ptz_ros2.calibration.capture import (
     CapturedView,
-    CloudField,
     cloud_path,
-    decode_cloud,
     parse_pose6,
     parse_poses,
     store_view,
@@ -36,6 +34,7 @@ from axis_ptz_ros2.calibration.picking import (
 )
 from axis_ptz_ros2.config import CameraModel, load_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
+from axis_ptz_ros2.pointcloud import CloudField, decode_cloud
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import load_world, shared_scene
