@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -24,7 +25,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo
 
-from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion
+from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
 from axis_ptz_ros2.vapix import CameraConfig
 
 # ---------------------------------------------------------------------------------------------------------
@@ -220,6 +221,12 @@ def transform_msg(T: Transform, parent: str, child: str, stamp: Time) -> Transfo
     m.transform.rotation.x, m.transform.rotation.y = qx, qy
     m.transform.rotation.z, m.transform.rotation.w = qz, qw
     return m
+
+
+def transform_from_msg(msg: TransformStamped) -> Transform:
+    """Inverse of :func:`transform_msg`: ``TransformStamped`` → :class:`Transform` ``T_parent_child``."""
+    q, t = msg.transform.rotation, msg.transform.translation
+    return Transform(quaternion_to_matrix(q.x, q.y, q.z, q.w), np.array([t.x, t.y, t.z], dtype=np.float64))
 
 
 def diagnostic(

@@ -485,27 +485,22 @@ class PtzNode(Node):
             self.get_logger().warn(f"{what}: {reason}", throttle_duration_sec=2.0)
 
     def _on_absolute(self, msg: PtzCommand) -> None:
-        c = msg
-        _, _, reason = self._move(
-            "absolute",
-            finite_or_none(c.pan),
-            finite_or_none(c.tilt),
-            finite_or_none(c.zoom),
-            speed=finite_or_none(c.speed),
-        )
-        self._log_refusal("ptz/cmd/absolute", reason)
+        self._on_command("absolute", msg, relative=False)
 
     def _on_relative(self, msg: PtzCommand) -> None:
-        c = msg
+        self._on_command("relative", msg, relative=True)
+
+    def _on_command(self, kind: str, c: PtzCommand, *, relative: bool) -> None:
+        """ptz/cmd/absolute and ptz/cmd/relative: NaN = keep that axis; refusals are logged (throttled)."""
         _, _, reason = self._move(
-            "relative",
+            kind,
             finite_or_none(c.pan),
             finite_or_none(c.tilt),
             finite_or_none(c.zoom),
-            relative=True,
+            relative=relative,
             speed=finite_or_none(c.speed),
         )
-        self._log_refusal("ptz/cmd/relative", reason)
+        self._log_refusal(f"ptz/cmd/{kind}", reason)
 
     def _on_velocity(self, msg: PtzVelocity) -> None:
         self._velocity(msg.pan_rate, msg.tilt_rate, msg.zoom_rate)

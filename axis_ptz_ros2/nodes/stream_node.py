@@ -405,7 +405,7 @@ class StreamNode(Node):
     def _on_ptz_state(self, msg: PtzState) -> None:
         self._zoom_ptz = float(msg.zoom)
 
-    # -- activity, watchdog, budget (10 Hz) ------------------------------------------------------------------
+    # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------
     def _want_active(self) -> bool:
         # Cached for the hot path (no rmw call per frame); refreshed on matched events and at 1 Hz.
         self._image_wanted = self._image_pub.get_subscription_count() > 0

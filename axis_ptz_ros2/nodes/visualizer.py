@@ -29,8 +29,15 @@ from sensor_msgs.msg import CompressedImage, PointCloud2
 
 from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot
-from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform, quaternion_to_matrix
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
+from axis_ptz_ros2.nodes.common import (
+    LATCHED_QOS,
+    STREAM_QOS,
+    ParamSpec,
+    declare_params,
+    run_nodes,
+    transform_from_msg,
+)
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import footprint_on_panorama, point_along_ray, project_to_panorama
 
@@ -57,12 +64,6 @@ PARAMS: tuple[ParamSpec, ...] = (
 
 MARKER_BGR = (0, 0, 255)  # red, as in the thesis
 FOOTPRINT_BGR = (0, 255, 255)  # yellow
-
-
-def tf_to_transform(msg: TransformStamped) -> Transform:
-    """TransformStamped → :class:`Transform` ``T_parent_child``."""
-    q, t = msg.transform.rotation, msg.transform.translation
-    return Transform(quaternion_to_matrix(q.x, q.y, q.z, q.w), np.array([t.x, t.y, t.z], dtype=np.float64))
 
 
 def footprint_polylines(pts: FloatArray, width: int) -> tuple[list[FloatArray], bool]:
@@ -126,13 +127,13 @@ class Visualizer(Node):
         self._state, self._dirty = msg, True
 
     def _on_ptz_tf(self, msg: TransformStamped) -> None:
-        self._ptz_tf, self._dirty = (time.monotonic(), tf_to_transform(msg)), True
+        self._ptz_tf, self._dirty = (time.monotonic(), transform_from_msg(msg)), True
 
     def _on_pano_tf(self, msg: TransformStamped) -> None:
-        self._T_base_pano, self._dirty = tf_to_transform(msg), True
+        self._T_base_pano, self._dirty = transform_from_msg(msg), True
 
     def _on_laser_tf(self, msg: TransformStamped) -> None:
-        self._T_base_laser = tf_to_transform(msg)
+        self._T_base_laser = transform_from_msg(msg)
 
     def _on_cloud(self, msg: PointCloud2) -> None:
         try:
