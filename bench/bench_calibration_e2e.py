@@ -23,17 +23,12 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 import argparse  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
-import threading  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-import rclpy  # noqa: E402
 import yaml  # noqa: E402
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
@@ -51,6 +46,7 @@ from axis_ptz_ros2.calibration.picking import pick_view, picking_noise  # noqa: 
 from axis_ptz_ros2.calibration.solver import CalibrationRefused, calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import matrix_to_rpy  # noqa: E402
+from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
@@ -77,40 +73,6 @@ POSES_EXTRA = (
 )
 
 SPEED = 300.0
-
-
-class Harness:
-    """A private rclpy context with a multi-threaded executor in a background thread."""
-
-    def __init__(self) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
-        self.nodes: list[Any] = []
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - context shut down under us at exit
-                if not self.context.ok():
-                    return
-                raise
-
-    def add(self, node: Any) -> Any:
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def close(self) -> None:
-        for n in reversed(self.nodes):
-            self.executor.remove_node(n)
-            n.destroy_node()
-        self.executor.shutdown(timeout_sec=2.0)
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
 
 
 def _world_file(tmp: Path, extra: bool) -> Path:
@@ -151,7 +113,7 @@ def main() -> int:
 
     t0 = time.monotonic()
     cam = SimulatedCamera(world, port=0, speeds=Speeds(SPEED, SPEED, 0.5, 0.5)).start()
-    h = Harness()
+    h = RosHarness()
     try:
         ptz = h.add(
             PtzNode(

@@ -1,0 +1,76 @@
+"""An in-process ROS graph: a private rclpy context with a multi-threaded executor spinning in a background
+thread. Used by the ROS test tier and by benchmarks that run nodes in one process."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+
+
+class RosHarness:
+    """A private rclpy context with a multi-threaded executor spinning in a background thread."""
+
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
+        self.nodes: list[Node] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok() and not self._stop.is_set():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - context shut down under us at teardown
+                if not self.context.ok():
+                    return
+                raise
+
+    def add(self, node: Node) -> Node:
+        """Spin ``node`` (created with ``context=harness.context``) and destroy it at teardown."""
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def probe(self, name: str = "probe") -> Node:
+        """A plain node for subscribing/calling in tests."""
+        return self.add(Node(name, context=self.context))
+
+    @staticmethod
+    def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, period: float = 0.01) -> Any:
+        """Poll until ``predicate()`` is truthy; return its value or raise AssertionError on timeout."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            v = predicate()
+            if v:
+                return v
+            time.sleep(period)
+        raise AssertionError(f"timed out after {timeout:.1f} s waiting for {predicate}")
+
+    def call(self, client: Any, request: Any, timeout: float = 10.0) -> Any:
+        """Call a service from the test thread while the executor spins in the background."""
+        assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
+        fut = client.call_async(request)
+        self.wait_for(fut.done, timeout)
+        return fut.result()
+
+    def close(self) -> None:
+        self._stop.set()  # stop spinning before anything is destroyed (no callback on a destroyed handle)
+        self._thread.join(timeout=2.0)
+        for n in reversed(self.nodes):
+            try:
+                self.executor.remove_node(n)
+            finally:
+                n.destroy_node()
+        self.executor.shutdown(timeout_sec=2.0)
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
