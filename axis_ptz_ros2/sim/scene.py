@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from axis_ptz_ros2.config import default_config_path
 from axis_ptz_ros2.geometry import (
     AXIS_214_ZOOM,
     FloatArray,
@@ -42,7 +43,6 @@ HIT_SKYLINE = -3  #: ``hit_index`` of a ray that hits the distant skyline
 SKYLINE_RADIUS = 400.0  #: metres from the base_link origin
 BACKGROUND_VERSION = 2  #: bump when the procedural background changes (invalidates the disk cache)
 
-DEFAULT_WORLD_PATH = Path(__file__).resolve().parents[2] / "config" / "sim_world.yaml"
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -161,12 +161,8 @@ def world_from_dict(cfg: dict[str, Any]) -> SimWorld:
 
 def load_world(path: str | Path | None = None) -> SimWorld:
     """Load the world from a YAML file (default: the repository's ``config/sim_world.yaml``)."""
-    if path is not None:
-        p = Path(path)
-    else:  # the repository's file, or the installed share/axis_ptz_ros2/config copy (colcon)
-        from axis_ptz_ros2.config import default_config_path
-
-        p = DEFAULT_WORLD_PATH if DEFAULT_WORLD_PATH.exists() else default_config_path("sim_world.yaml")
+    # default: the repository's file, or the installed share/axis_ptz_ros2/config copy (colcon)
+    p = Path(path) if path is not None else default_config_path("sim_world.yaml")
     with p.open(encoding="utf-8") as fh:
         cfg = yaml.safe_load(fh) or {}
     return world_from_dict(cfg)
