@@ -427,9 +427,12 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     kbps = sum(len(f.data) for f in got[1:]) * 8 / 1000 / (got[-1].t_rx - got[0].t_rx)
     print(f"budget {budget} kbit/s (full {full_kbps:.0f}): held {kbps:.0f} kbit/s with {params_seen[-1]}")
     assert kbps <= budget * 1.1, f"{kbps:.0f} kbit/s over the budget {budget}"
-    assert kbps >= budget * 0.2, "stuck far below the budget"
     last = params_seen[-1]
     assert (last.compression, last.fps, last.resolution) != (0, 20, "704x576")
+    # not stuck far below: 40 % of the full bitrate is reachable by compression alone, so the controller must
+    # keep the frame rate and the resolution (the delivered rate of this in-process simulator depends on the
+    # load, so the choice is checked, not a lower bound on the measured bitrate; bench_stream measures that)
+    assert (last.fps, last.resolution) == (20, "704x576"), f"stepped too far: {last}"
     # switched off: back to the request
     (res,) = set_params(ros, probe, max_bitrate_kbps=0)
     assert res.successful
