@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import importlib
 import math
-import os
 import re
 import threading
 import time
@@ -537,11 +536,10 @@ def capture_views(
 class RosCapture:
     """A private rclpy context, node and executor thread for a :class:`CaptureSession` (CLI use).
 
-    Sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless the environment already chooses a range.
+    DDS discovery follows the environment like every ROS 2 node (it must reach the robot's driver).
     """
 
     def __init__(self, namespace: str = "", **session_kwargs: Any) -> None:
-        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self._rclpy: Any = importlib.import_module("rclpy")
         executors: Any = importlib.import_module("rclpy.executors")
         context_mod: Any = importlib.import_module("rclpy.context")

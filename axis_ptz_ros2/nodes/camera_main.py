@@ -7,7 +7,6 @@ Parameters given with ``--ros-args -p name:=value`` apply to both nodes (``hostn
 
 from __future__ import annotations
 
-import os
 import sys
 
 from axis_ptz_ros2.nodes.common import run_nodes
@@ -15,7 +14,6 @@ from axis_ptz_ros2.nodes.common import run_nodes
 
 def main(args: list[str] | None = None) -> int:
     """Run the stream node and the PTZ node together until Ctrl-C."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     from axis_ptz_ros2.nodes.ptz_node import PtzNode
     from axis_ptz_ros2.nodes.stream_node import StreamNode
 

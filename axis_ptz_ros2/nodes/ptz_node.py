@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -683,7 +682,6 @@ class PtzNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``axis_ptz``: the PTZ node on its own."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return run_nodes([PtzNode], args)
 
 

@@ -8,7 +8,6 @@ compressed one, so it belongs next to its consumer, not on the robot's link). Th
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 import cv2
@@ -78,7 +77,6 @@ class RepublishNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``axis_republish``: the decoder on its own."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return run_nodes([RepublishNode], args)
 
 

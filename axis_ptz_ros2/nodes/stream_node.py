@@ -17,7 +17,6 @@ Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/c
 
 from __future__ import annotations
 
-import os
 import socket
 import threading
 import time
@@ -516,7 +515,6 @@ class StreamNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``axis_stream``: the stream node on its own."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return run_nodes([StreamNode], args)
 
 

@@ -24,7 +24,6 @@ subscriber. Images are stamped with the render time (the pose they show; ``ptz/t
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -344,7 +343,6 @@ class VirtualCameraNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``axis_virtual_camera``: the render node and its PTZ node in one process."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     nodes: list[VirtualCameraNode] = []
 
     def render_node() -> VirtualCameraNode:

@@ -35,7 +35,7 @@ def test_every_declared_parameter_has_a_description_and_unit_where_numeric():
         "axis_ptz_ros2.nodes.panorama_sim",
         "axis_ptz_ros2.nodes.laser_sim",
         "axis_ptz_ros2.nodes.republish",
-        "axis_ptz_ros2.teleop.keyboard",
+        "axis_ptz_ros2.nodes.keyboard_teleop",
     ):
         for spec in importlib.import_module(mod).PARAMS:
             assert spec.description.strip(), f"{mod}: {spec.name} has no description"

@@ -1,0 +1,47 @@
+"""ROS-free machinery of the MJPEG stream node, one concern per module.
+
+* :mod:`.jpeg` — cheap JPEG header readers (:func:`jpeg_size`, :func:`jpeg_comments`, :func:`sim_stamp`).
+* :mod:`.meter` — :class:`Backoff` (capped exponential) and :class:`BitrateMeter` (frames/s, kbit/s).
+* :mod:`.reader` — :class:`StreamReader`, the one justified thread (open, read, reconnect, watchdog).
+* :mod:`.budget` — :class:`BandwidthController`, keeps the bitrate under a budget.
+
+Nothing here imports ``rclpy`` or ROS messages.
+"""
+
+from __future__ import annotations
+
+from axis_ptz_ros2.streaming.budget import (
+    AXIS214_PAL_RESOLUTIONS,
+    BandwidthController,
+    BudgetConfig,
+    compression_size_factor,
+)
+from axis_ptz_ros2.streaming.jpeg import jpeg_comments, jpeg_size, sim_stamp
+from axis_ptz_ros2.streaming.meter import Backoff, BitrateMeter, Rate
+from axis_ptz_ros2.streaming.reader import (
+    FrameSource,
+    ReaderConfig,
+    ReaderStats,
+    StreamOpener,
+    StreamReader,
+    StreamState,
+)
+
+__all__ = [
+    "AXIS214_PAL_RESOLUTIONS",
+    "Backoff",
+    "BandwidthController",
+    "BitrateMeter",
+    "BudgetConfig",
+    "FrameSource",
+    "Rate",
+    "ReaderConfig",
+    "ReaderStats",
+    "StreamOpener",
+    "StreamReader",
+    "StreamState",
+    "compression_size_factor",
+    "jpeg_comments",
+    "jpeg_size",
+    "sim_stamp",
+]
