@@ -17,6 +17,7 @@ import base64
 import collections
 import contextlib
 import copy
+import dataclasses
 import hashlib
 import hmac
 import json
@@ -24,6 +25,7 @@ import os
 import re
 import secrets
 import socket
+import ssl
 import sys
 import threading
 import time
@@ -42,13 +44,15 @@ from axis_ptz_ros2.sim.persona import (
     NOT_FOUND_HTML,
     READ_ONLY_PREFIXES,
     UNAUTHORIZED_HTML,
+    Persona,
     list_params,
-    parameter_tree,
-    parse_resolution,
+    persona,
+    preset_params,
 )
 from axis_ptz_ros2.sim.ptz import PtzCommandError, PtzState, Speeds
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
 from axis_ptz_ros2.sim.scene import PtzLimits, SimWorld, load_world
+from axis_ptz_ros2.sim.tls import SelfSignedCertificate
 
 AUTH_MODES = ("none", "basic", "digest", "basic_digest")
 BOUNDARY = "myboundary"
@@ -111,6 +115,19 @@ class _Server(ThreadingHTTPServer):
     block_on_close = False
     allow_reuse_address = True
     camera: SimulatedCamera
+    tls: ssl.SSLContext | None = None
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        """With HTTPS, the TLS handshake runs here, on the connection's own thread (never the accept loop)."""
+        if self.tls is not None:
+            try:
+                request.settimeout(10.0)
+                request = self.tls.wrap_socket(request, server_side=True)
+                request.settimeout(None)
+            except (OSError, ssl.SSLError):
+                self.shutdown_request(request)
+                return
+        super().process_request_thread(request, client_address)
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         """A client that hangs up mid-stream is normal for a camera; anything else is printed."""
@@ -121,9 +138,12 @@ class _Server(ThreadingHTTPServer):
 
 
 class SimulatedCamera:
-    """The simulated Axis 214 PTZ: ``start()`` it, talk VAPIX to ``base_url``, ``stop()`` it.
+    """A simulated Axis PTZ camera: ``start()`` it, talk VAPIX to ``base_url``, ``stop()`` it.
 
-    ``auth`` is one of ``none`` (anonymous, the thesis' set-up), ``basic``, ``digest``, ``basic_digest``.
+    ``model`` picks the persona (:mod:`axis_ptz_ros2.sim.persona`): ``axis214`` (default) or ``q6075``.
+    ``auth`` is one of ``none`` (anonymous, the thesis' set-up), ``basic``, ``digest``, ``basic_digest``;
+    None = the persona's default (214: none; q6075: digest). ``https`` None = the persona's default (214: off;
+    q6075: on, with a self-signed certificate generated at start-up whose path is :attr:`ca_file`).
     The password is never logged or shown in reprs.
     """
 
@@ -132,7 +152,7 @@ class SimulatedCamera:
         world: SimWorld | None = None,
         host: str = "127.0.0.1",
         port: int = 0,
-        auth: str = "none",
+        auth: str | None = None,
         user: str = "root",
         password: str = "pass",
         faults: FaultConfig | None = None,
@@ -141,13 +161,27 @@ class SimulatedCamera:
         default_fps: int = MAX_FPS,
         nonce_lifetime_s: float = NONCE_LIFETIME_S,
         challenge_style: str = "current",
+        model: str | Persona | None = None,
+        https: bool | None = None,
     ) -> None:
+        self.persona = persona(model)
+        auth = self.persona.default_auth if auth is None else auth
         if auth not in AUTH_MODES:
             raise ValueError(f"auth must be one of {AUTH_MODES}")
         self.set_auth_options(nonce_lifetime_s=nonce_lifetime_s, challenge_style=challenge_style)
         if not re.fullmatch(r"[0-9A-Fa-f]{12}", mac):
             raise ValueError("mac must be 12 hex digits")
-        self.world = world if world is not None else load_world()
+        world = world if world is not None else load_world()
+        if self.persona.limits is not None or self.persona.zoom_model is not None:
+            world = dataclasses.replace(
+                world,
+                limits=self.persona.limits or world.limits,
+                zoom_model=self.persona.zoom_model or world.zoom_model,
+                kinematics=self.persona.kinematics or world.kinematics,
+            )
+        self.world = world
+        self.https = self.persona.https if https is None else https
+        self._cert: SelfSignedCertificate | None = None
         self.host = host
         self._port = port
         self.auth = auth
@@ -158,9 +192,17 @@ class SimulatedCamera:
         self.default_fps = default_fps
         self.faults = faults if faults is not None else FaultConfig()
         self.state = PtzState(
-            limits=self.world.limits, zoom_model=self.world.zoom_model, speeds=speeds or Speeds()
+            limits=self.world.limits,
+            zoom_model=self.world.zoom_model,
+            speeds=speeds or self.persona.speeds,
+            default_image_size=self.persona.resolutions[self.persona.default_resolution],
+            move_step_fov=self.persona.move_step_fov,
+            attributes=self.persona.attributes,
+            whoami=self.persona.whoami,
         )
-        self.params = parameter_tree(self.world.limits, self.world.zoom_model, self.mac, auth)
+        self.params = self.persona.parameter_tree(self.world.limits, self.world.zoom_model, self.mac, auth)
+        if self.persona.key != "axis214":
+            self.params["HTTPS.Enabled"] = "yes" if self.https else "no"
         self._renderer: PtzRenderer | None = None
         self._counts = RequestCounts()
         self._counts_lock = threading.Lock()
@@ -181,7 +223,7 @@ class SimulatedCamera:
 
     def __repr__(self) -> str:
         url = self.base_url if self._port else None
-        return f"SimulatedCamera(url={url!r}, auth={self.auth!r}, user={self.user!r})"
+        return f"SimulatedCamera(model={self.persona.key!r}, url={url!r}, auth={self.auth!r}, user={self.user!r})"
 
     # ---- lifecycle ------------------------------------------------------------------------------------
     @property
@@ -202,6 +244,10 @@ class SimulatedCamera:
     def _listen(self) -> None:
         server = _Server((self.host, self._port), _Handler)
         server.camera = self
+        if self.https:
+            if self._cert is None:
+                self._cert = SelfSignedCertificate.generate(self.host, self.mac)
+            server.tls = self._cert.server_context()
         self._port = server.server_address[1]
         self._server = server
         self._thread = threading.Thread(
@@ -224,12 +270,15 @@ class SimulatedCamera:
             self._thread = None
 
     def stop(self) -> None:
-        """Stop serving and close every connection (fast)."""
+        """Stop serving and close every connection (fast); removes the generated certificate."""
         with self._lifecycle:
             self._stopping.set()
             self._reboot_gen += 1
             self._rebooting.clear()
             self._close_all()
+            if self._cert is not None:
+                self._cert.cleanup()
+                self._cert = None
 
     def __enter__(self) -> SimulatedCamera:
         return self.start()
@@ -246,8 +295,22 @@ class SimulatedCamera:
 
     @property
     def base_url(self) -> str:
-        """``http://host:port``."""
-        return f"http://{self.host}:{self._port}"
+        """``http://host:port`` (``https://`` when serving HTTPS)."""
+        return f"{'https' if self.https else 'http'}://{self.host}:{self._port}"
+
+    @property
+    def ca_file(self) -> str | None:
+        """PEM file of the self-signed certificate served over HTTPS (a client's CA bundle), else None."""
+        return str(self._cert.cert_file) if self._cert is not None else None
+
+    def current_params(self) -> dict[str, str]:
+        """The parameter tree as listed now (a modern camera's presets appear under ``PTZ.Preset.P0``)."""
+        if not self.persona.preset_params:
+            return self.params
+        presets = [(p.number, p.name, p.pan, p.tilt, p.zoom) for p in self.state.presets_snapshot()]
+        tree = dict(self.params)
+        tree.update(preset_params(presets, self.state.home))
+        return tree
 
     @property
     def rebooting(self) -> bool:
@@ -528,6 +591,10 @@ class _Handler(BaseHTTPRequestHandler):
     def cam(self) -> SimulatedCamera:
         return self.server.camera
 
+    def version_string(self) -> str:
+        """``Server:`` header of the persona (Boa on the 214's firmware 4.x)."""
+        return self.cam.persona.server_header
+
     def _write(self, data: bytes) -> None:
         """Write honouring the bandwidth cap fault."""
         kbps = self.cam.faults.bandwidth_kbps
@@ -675,7 +742,7 @@ class _Handler(BaseHTTPRequestHandler):
         action = next((v for k, v in args if k == "action"), "")
         if action == "list":
             groups = [g for k, v in args if k == "group" for g in v.split(",") if g]
-            self._reply(200, list_params(cam.params, groups))
+            self._reply(200, list_params(cam.current_params(), groups))
         elif action == "update":
             lines: list[str] = []
             limits_changed = False
@@ -717,7 +784,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._reply(200, f"<!-- Camera {camera} not available. -->\n")
             return
         try:
-            w, h = parse_resolution(
+            w, h = self.cam.persona.parse_resolution(
                 a.get("resolution", self.cam.params["Image.I0.Appearance.Resolution"]),
                 a.get("squarepixel") == "1",
             )
@@ -751,7 +818,9 @@ class _Handler(BaseHTTPRequestHandler):
         if a.get("camera", "1") != "1":
             raise ValueError(f"Camera {a['camera']} not available")
         squarepixel = integer("squarepixel", 0, 1, 0)
-        w, h = parse_resolution(a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1)
+        w, h = self.cam.persona.parse_resolution(
+            a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1
+        )
         compression = integer("compression", 0, 100, int(p["Image.I0.Appearance.Compression"]))
         integer("rotation", 0, 0, 0)
         opts = {"fps": self.cam.default_fps, "duration": 0, "nbrofframes": 0}

@@ -300,6 +300,11 @@ class VapixClient:
             raise ResponseParseError(f"query=speed: no 'speed' in reply (keys: {sorted(values)})")
         return parse_int(values["speed"], key="speed")
 
+    def query_attributes(self) -> dict[str, str]:
+        """``query=attributes`` (newer firmware only, §4.4): ``maxOpticalZoomMag``, ``maxDigitalZoomMag``,
+        ``zoomSteps``, ``speeds`` as raw text values. Raises :class:`CommandRejected` where unsupported."""
+        return parse_key_values(self._query(PtzQuery.ATTRIBUTES))
+
     # -- parameters -----------------------------------------------------------------------------
 
     def _list_at(self, path: str, group: str) -> dict[str, str]:
