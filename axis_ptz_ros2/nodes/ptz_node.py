@@ -206,6 +206,9 @@ class PtzNode(Node):
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
             f"{self._base_frame} -> {self._ptz_base_frame} -> {self._optical_frame}"
         )
+        fixed = getattr(self._backend, "fixed_camera_reason", lambda: "")()
+        if fixed:
+            self.get_logger().error(f"this camera has no PTZ head: {fixed}; pan/tilt/zoom commands will not move it")
 
     # ------------------------------------------------------------------------------------------------
     # Parameters
