@@ -366,6 +366,9 @@ class PtzNode(Node):
             "last_command_latency_s": cs.last_latency_s,
             "limits_source": getattr(self._backend, "limits_source", "backend"),
         }
+        counters = getattr(self._backend, "auth_counters", None)
+        if counters is not None:
+            values.update(counters.as_dict())
         name = f"{self.get_name()}: PTZ"
         self._diag_pub.publish(diagnostic(self, name, level, msg, values, hardware_id=repr(self._backend)))
 

@@ -58,7 +58,8 @@ class AxisBackend:
         self._conv = model.convention
         self._cmd = command_client or VapixClient(config)
         state_cfg = config if state_timeout_s is None else replace(config, timeout_s=state_timeout_s)
-        self._state = state_client or VapixClient(state_cfg)
+        self._state = state_client or VapixClient(state_cfg, auth_counters=self._cmd.auth_counters)
+        self.auth_counters = self._cmd.auth_counters  #: Digest re-challenges etc. (for /diagnostics)
         self._lock = threading.Lock()
         self._limits: PtzLimitsRos | None = None
         self._limits_from_camera = False

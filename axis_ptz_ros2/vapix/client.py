@@ -29,7 +29,7 @@ from urllib.parse import quote
 import httpx
 
 from axis_ptz_ros2 import __version__
-from axis_ptz_ros2.vapix.auth import AuthMode, NegotiatingAuth
+from axis_ptz_ros2.vapix.auth import AuthCounters, AuthMode, NegotiatingAuth
 from axis_ptz_ros2.vapix.errors import (
     AxisPtzError,
     CommandRejected,
@@ -161,11 +161,20 @@ class CameraConfig:
 class VapixClient:
     """Typed access to one Axis camera over one kept-alive ``httpx.Client``."""
 
-    def __init__(self, config: CameraConfig, *, transport: httpx.BaseTransport | None = None) -> None:
-        """``transport`` is injected by tests (``httpx.MockTransport``); default: a real HTTP transport."""
+    def __init__(
+        self,
+        config: CameraConfig,
+        *,
+        transport: httpx.BaseTransport | None = None,
+        auth_counters: AuthCounters | None = None,
+    ) -> None:
+        """``transport`` is injected by tests (``httpx.MockTransport``); default: a real HTTP transport.
+        ``auth_counters`` may be shared by several clients of one camera (diagnostics add them up once)."""
         self._config = config
         self._transport = transport
-        self._auth = NegotiatingAuth(config.username, config.password, config.auth)
+        #: re-challenges, refusals (this client and its streams)
+        self.auth_counters = auth_counters if auth_counters is not None else AuthCounters()
+        self._auth = NegotiatingAuth(config.username, config.password, config.auth, counters=self.auth_counters)
         self._verify = config.ssl_verify() if config.use_https else True
         self._http = self._new_http(self._auth, config.timeout())
         self._lock = threading.RLock()
@@ -290,6 +299,11 @@ class VapixClient:
         if "speed" not in values:
             raise ResponseParseError(f"query=speed: no 'speed' in reply (keys: {sorted(values)})")
         return parse_int(values["speed"], key="speed")
+
+    def query_attributes(self) -> dict[str, str]:
+        """``query=attributes`` (newer firmware only, §4.4): ``maxOpticalZoomMag``, ``maxDigitalZoomMag``,
+        ``zoomSteps``, ``speeds`` as raw text values. Raises :class:`CommandRejected` where unsupported."""
+        return parse_key_values(self._query(PtzQuery.ATTRIBUTES))
 
     # -- parameters -----------------------------------------------------------------------------
 
@@ -434,7 +448,11 @@ class VapixClient:
         if read_timeout_s <= 0:
             raise InvalidArgument(f"read timeout must be positive, got {read_timeout_s}")
         auth = NegotiatingAuth(
-            self._config.username, self._config.password, self._config.auth, initial_scheme=self._auth.scheme
+            self._config.username,
+            self._config.password,
+            self._config.auth,
+            initial_scheme=self._auth.scheme,
+            counters=self.auth_counters,
         )
         http = self._new_http(auth, self._config.timeout(read_timeout_s))
         stream = MjpegStream(http, self.video_path(params), auth, self._secrets())
