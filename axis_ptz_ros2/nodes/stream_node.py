@@ -491,6 +491,7 @@ class StreamNode(Node):
             "max_bitrate_kbps": int(self._budget.budget_kbps),
             "budget level": self._budget.level,
             "last error": s.last_error,
+            **self._client.auth_counters.as_dict(),
         }
         level = _STATE_LEVEL[s.state]
         message = s.state.value
