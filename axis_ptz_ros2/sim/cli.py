@@ -14,7 +14,7 @@ from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import PERSONAS, persona
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import AUTH_MODES, SimulatedCamera
+from axis_ptz_ros2.sim.server import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIME_S, SimulatedCamera
 
 
 def _is_loopback(host: str) -> bool:
@@ -47,6 +47,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--auth", choices=AUTH_MODES, default=None, help="HTTP authentication policy (default: the model's)")
     p.add_argument("--user", default="root", help="user name for basic/digest auth")
     p.add_argument("--password", default=None, help="password (default: $AXIS_SIM_PASSWORD, else 'pass')")
+    p.add_argument(
+        "--nonce-lifetime", type=float, default=NONCE_LIFETIME_S, help="Digest nonce lifetime (s); then stale=true"
+    )
+    p.add_argument(
+        "--challenge-style",
+        choices=CHALLENGE_STYLES,
+        default="current",
+        help="401 form: current (algorithm=MD5, HTML body) or legacy (empty body, stale=FALSE, no algorithm)",
+    )
     p.add_argument("--world", default=None, help="world YAML (default: config/sim_world.yaml)")
     p.add_argument("--pan-speed", type=float, default=None, help="max pan speed (deg/s; default: the model's)")
     p.add_argument("--tilt-speed", type=float, default=None, help="max tilt speed (deg/s; default: the model's)")
@@ -93,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
         faults=faults,
         speeds=speeds,
         default_fps=args.default_fps,
+        nonce_lifetime_s=args.nonce_lifetime,
+        challenge_style=args.challenge_style,
         model=model,
         https=args.https,
     )

@@ -142,6 +142,7 @@ def test_ptz_node_learns_limits_and_pans_across_the_seam(ros: Any, cam: Simulate
     reply = _move(ros, probe, absolute, math.radians(170.0))
     if cam.persona.key == "axis214":  # end stops at +-170: 170 is reachable, but only the long way round
         assert reply.success, reply.message
+        _wait_still(cam)
         assert cam.position()[0] == pytest.approx(-170.0, abs=0.01)
         beyond = _move(ros, probe, absolute, math.radians(175.0))
         assert not beyond.success
