@@ -65,6 +65,18 @@ def log_dir(text: str) -> Path:
     return Path(m.group(1))
 
 
+def stop(proc: subprocess.Popen[str]) -> None:
+    """After a failed check: SIGTERM first, so the demo stops its children (each in its own session, so a
+    SIGKILL of the demo alone would leave them running, and on this DDS domain for the tests after)."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
 def refused(url: str) -> bool:
     host, port = url.removeprefix("http://").split(":")
     conn = http.client.HTTPConnection(host, int(port), timeout=2)
@@ -96,9 +108,7 @@ def test_scripts_demo_serves_live_video_and_stops_after_duration(tmp_path: Path)
         assert count_mjpeg_frames(url, "/video/panorama.mjpg", 1, 15.0) == 1
         code = proc.wait(60.0)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)
     text = out.join()
     assert code == 0, text[-3000:]
     assert "all processes stopped cleanly" in text
@@ -127,9 +137,7 @@ def test_demo_stops_everything_on_sigterm(tmp_path: Path) -> None:
         code = proc.wait(30.0)
         stop_s = time.monotonic() - t0
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)
     text = out.join()
     assert code == 0, text[-3000:]
     assert "all processes stopped cleanly" in text
