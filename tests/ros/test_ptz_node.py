@@ -554,14 +554,17 @@ def test_preset_goto_reports_where_the_head_stopped(ros: Any, node: PtzNode, cam
     assert ros.call(preset, Preset.Request(action="set", name="start")).success  # at (0, 0, 1)
     cam.teleport(-120.0, 10.0, 1)
     ros.wait_for(lambda: abs(cam.position()[0] + 120.0) < 1e-6)
-    cam.set_faults(latency_ms=0.0)
+    assert node.commander.preset_pose("start") is not None  # stored by this node: its pose is known
+    cam.state.speed = 10  # 30 deg/s: the move takes 4 s, so "part-way" does not depend on the test's timing
     fut = preset.call_async(Preset.Request(action="goto", name="start", wait=True, timeout_s=10.0))
     ros.wait_for(lambda: cam.state.moving(), 5.0)
     cam.teleport(*cam.position())  # another client stops the head part-way
     stopped = cam.position()
+    assert stopped[0] < -10.0
+    cam.state.speed = 100
     ros.wait_for(fut.done, 15.0)
     r = fut.result()
-    assert not r.success
+    assert not r.success, r.message
     assert "stopped at" in r.message, r.message
     assert f"{-stopped[0]:.1f}" in r.message  # where it stopped, REP-103 degrees
     # a preset the node never saw stored: arrival = the head settled there; its pose is learned
