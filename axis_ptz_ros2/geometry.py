@@ -336,6 +336,13 @@ class ZoomModel:
     ``table`` (optional) is a monotone list of ``(zoom_units, magnification)`` pairs (e.g. from a camera's
     ``zoomSteps`` attribute or a measurement); it is interpolated in log-magnification. Without a table the
     ``curve`` model with ``max_magnification`` at ``max_zoom`` is used.
+
+    Digital zoom (modern Axis PTZ, ``PTZ.Support.S1.DigitalZoom=true``, ``MaxZoom=19999``): with
+    ``optical_max_zoom`` set (e.g. 9999), the curve reaches ``max_magnification`` there and the units above it
+    add ``digital_max_magnification``× linearly (vapix.md §8.3). Pixel aspect: ``square_pixels=False`` (the
+    214) stretches the physical ``image_aspect`` frame onto any stream size (PAL 704×576 → fy = fx·12/11);
+    ``square_pixels=True`` (a digital sensor of aspect ``image_aspect``) keeps fx = fy and uses the full
+    width for streams at least as wide as the sensor, else the full height (sides cropped).
     """
 
     hfov_wide_deg: float = 47.98
@@ -345,9 +352,18 @@ class ZoomModel:
     curve: ZoomCurve = ZoomCurve.LINEAR
     image_aspect: float = 4.0 / 3.0  # physical width/height of the full image (4:3 analogue for the 214)
     table: tuple[tuple[float, float], ...] = ()
+    square_pixels: bool = False
+    optical_max_zoom: int = 0  # 0: no digital zoom (max_zoom is the optical tele end)
+    digital_max_magnification: float = 1.0
 
     def __post_init__(self) -> None:
         """Validate the configuration."""
+        if self.optical_max_zoom and not self.min_zoom < self.optical_max_zoom <= self.max_zoom:
+            raise ValueError("optical_max_zoom must lie in (min_zoom, max_zoom]")
+        if self.digital_max_magnification < 1.0:
+            raise ValueError(f"digital_max_magnification must be >= 1, got {self.digital_max_magnification}")
+        if self.image_aspect <= 0.0:
+            raise ValueError(f"image_aspect must be positive, got {self.image_aspect}")
         if not 0.0 < self.hfov_wide_deg < 180.0:
             raise ValueError(f"hfov_wide_deg must be in (0, 180), got {self.hfov_wide_deg}")
         if self.max_magnification < 1.0:
@@ -385,7 +401,12 @@ class ZoomModel:
             zs = np.array([p[0] for p in self.table])
             lm = np.log(np.array([p[1] for p in self.table]))
             return float(np.exp(np.interp(z, zs, lm)))
-        t = (z - self.min_zoom) / (self.max_zoom - self.min_zoom)
+        zo = self._optical_end
+        if z > zo:  # digital zoom: linear in magnification on top of the optical tele end
+            return self.max_magnification * (
+                1.0 + (self.digital_max_magnification - 1.0) * (z - zo) / (self.max_zoom - zo)
+            )
+        t = (z - self.min_zoom) / (zo - self.min_zoom)
         if self.curve is ZoomCurve.LOG:
             return float(self.max_magnification**t)
         return 1.0 + (self.max_magnification - 1.0) * t
@@ -397,11 +418,20 @@ class ZoomModel:
             zs = np.array([p[0] for p in self.table])
             lm = np.log(np.array([p[1] for p in self.table]))
             return float(np.interp(math.log(m), lm, zs))
+        zo = self._optical_end
+        if m > self.max_magnification and zo < self.max_zoom and self.digital_max_magnification > 1.0:
+            frac = (m / self.max_magnification - 1.0) / (self.digital_max_magnification - 1.0)
+            return zo + frac * (self.max_zoom - zo)
         if self.curve is ZoomCurve.LOG:
             t = math.log(m) / math.log(self.max_magnification) if self.max_magnification > 1 else 0.0
         else:
             t = (m - 1.0) / (self.max_magnification - 1.0) if self.max_magnification > 1 else 0.0
-        return self.min_zoom + t * (self.max_zoom - self.min_zoom)
+        return self.min_zoom + t * (zo - self.min_zoom)
+
+    @property
+    def _optical_end(self) -> int:
+        """Zoom units of the optical tele end (``max_zoom`` without digital zoom)."""
+        return self.optical_max_zoom if self.optical_max_zoom else self.max_zoom
 
     def hfov(self, zoom: float) -> float:
         """Horizontal field of view (rad) at ``zoom`` units."""
@@ -415,8 +445,16 @@ class ZoomModel:
 
     def intrinsics(self, zoom: float, width: int, height: int) -> Intrinsics:
         """Pinhole intrinsics of a ``width``×``height`` stream at ``zoom`` units."""
-        fx = (width / 2.0) / math.tan(self.hfov(zoom) / 2.0)
-        fy = fx * (height / width) * self.image_aspect
+        half = math.tan(self.hfov(zoom) / 2.0)
+        if self.square_pixels:
+            if width / height >= self.image_aspect - 1e-9:
+                fx = (width / 2.0) / half
+            else:  # narrower than the sensor: full height, sides cropped
+                fx = (height / 2.0) / (half / self.image_aspect)
+            fy = fx
+        else:
+            fx = (width / 2.0) / half
+            fy = fx * (height / width) * self.image_aspect
         return Intrinsics(width, height, fx, fy, (width - 1) / 2.0, (height - 1) / 2.0)
 
 

@@ -279,6 +279,9 @@ class PtzNode(Node):
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
             f"{self._base_frame} -> {self._ptz_base_frame} -> {self._optical_frame}"
         )
+        fixed = getattr(self._backend, "fixed_camera_reason", lambda: "")()
+        if fixed:
+            self.get_logger().error(f"this camera has no PTZ head: {fixed}; pan/tilt/zoom commands will not move it")
 
     # ------------------------------------------------------------------------------------------------
     # Parameters
@@ -472,6 +475,9 @@ class PtzNode(Node):
             "last_command_latency_s": cs.last_latency_s,
             "limits_source": getattr(self._backend, "limits_source", "backend"),
         }
+        counters = getattr(self._backend, "auth_counters", None)
+        if counters is not None:
+            values.update(counters.as_dict())
         name = f"{self.get_name()}: PTZ"
         self._diag_pub.publish(diagnostic(self, name, level, msg, values, hardware_id=repr(self._backend)))
 

@@ -58,12 +58,24 @@ class AxisBackend:
         self._conv = model.convention
         self._cmd = command_client or VapixClient(config)
         state_cfg = config if state_timeout_s is None else replace(config, timeout_s=state_timeout_s)
-        self._state = state_client or VapixClient(state_cfg)
+        self._state = state_client or VapixClient(state_cfg, auth_counters=self._cmd.auth_counters)
+        self.auth_counters = self._cmd.auth_counters  #: Digest re-challenges etc. (for /diagnostics)
         self._lock = threading.Lock()
         self._limits: PtzLimitsRos | None = None
         self._limits_from_camera = False
         self._limits_tried = -math.inf
         self.limits_source = "none"
+
+    def fixed_camera_reason(self) -> str:
+        """Non-empty when the camera says it has no mechanical PTZ (``PTZ.ImageSource.I0.PTZEnabled=false``)."""
+        try:
+            enabled = self._cmd.mechanical_ptz()
+        except AxisPtzError:
+            return ""
+        if enabled is False:
+            key = f"PTZ.ImageSource.I{self._cmd.config.camera - 1}.PTZEnabled"
+            return f"the camera reports {key}=false (a fixed camera; digital PTZ only)"
+        return ""
 
     def __repr__(self) -> str:
         """No credentials (the client's repr hides them)."""

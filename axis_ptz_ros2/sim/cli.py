@@ -1,4 +1,5 @@
-"""``axis_camera_sim``: run the simulated Axis 214 PTZ camera from the command line."""
+"""``axis_camera_sim``: run a simulated Axis PTZ camera (the 214 by default, ``--model q6075``) from the command
+line."""
 
 from __future__ import annotations
 
@@ -10,9 +11,10 @@ import sys
 import threading
 
 from axis_ptz_ros2.sim.faults import FaultConfig
+from axis_ptz_ros2.sim.persona import PERSONAS, persona
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import AUTH_MODES, SimulatedCamera
+from axis_ptz_ros2.sim.server import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIME_S, SimulatedCamera
 
 
 def _is_loopback(host: str) -> bool:
@@ -27,18 +29,37 @@ def _is_loopback(host: str) -> bool:
 def build_parser() -> argparse.ArgumentParser:
     """The CLI definition."""
     p = argparse.ArgumentParser(
-        prog="axis_camera_sim", description="Simulated Axis 214 PTZ network camera (VAPIX v2)."
+        prog="axis_camera_sim",
+        description="Simulated Axis PTZ network camera: the Axis 214 PTZ (VAPIX 2, default) or a current "
+        "1080p PTZ dome (--model q6075: VAPIX 3, Digest, HTTPS).",
     )
+    p.add_argument(
+        "--model",
+        default="axis214",
+        help=f"camera persona: {', '.join(PERSONAS)} (aliases 214, q6075-e, modern)",
+    )
+    https = p.add_mutually_exclusive_group()
+    https.add_argument("--https", dest="https", action="store_true", default=None, help="serve HTTPS")
+    https.add_argument("--no-https", dest="https", action="store_false", help="serve plain HTTP")
     p.add_argument("--host", default="127.0.0.1", help="bind address (loopback only unless --allow-remote)")
     p.add_argument("--port", type=int, default=8080, help="TCP port (0 = pick a free one)")
     p.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
-    p.add_argument("--auth", choices=AUTH_MODES, default="none", help="HTTP authentication policy")
+    p.add_argument("--auth", choices=AUTH_MODES, default=None, help="HTTP authentication policy (default: the model's)")
     p.add_argument("--user", default="root", help="user name for basic/digest auth")
     p.add_argument("--password", default=None, help="password (default: $AXIS_SIM_PASSWORD, else 'pass')")
+    p.add_argument(
+        "--nonce-lifetime", type=float, default=NONCE_LIFETIME_S, help="Digest nonce lifetime (s); then stale=true"
+    )
+    p.add_argument(
+        "--challenge-style",
+        choices=CHALLENGE_STYLES,
+        default="current",
+        help="401 form: current (algorithm=MD5, HTML body) or legacy (empty body, stale=FALSE, no algorithm)",
+    )
     p.add_argument("--world", default=None, help="world YAML (default: config/sim_world.yaml)")
-    p.add_argument("--pan-speed", type=float, default=100.0, help="max pan speed (deg/s)")
-    p.add_argument("--tilt-speed", type=float, default=90.0, help="max tilt speed (deg/s)")
-    p.add_argument("--zoom-time", type=float, default=3.5, help="full zoom travel time (s)")
+    p.add_argument("--pan-speed", type=float, default=None, help="max pan speed (deg/s; default: the model's)")
+    p.add_argument("--tilt-speed", type=float, default=None, help="max tilt speed (deg/s; default: the model's)")
+    p.add_argument("--zoom-time", type=float, default=None, help="full zoom travel time (s; default: the model's)")
     p.add_argument("--default-fps", type=int, default=30, help="frame rate when a client gives no fps=")
     g = p.add_argument_group("faults")
     for name in FaultConfig.field_names():
@@ -57,7 +78,19 @@ def main(argv: list[str] | None = None) -> int:
     if not _is_loopback(args.host) and not args.allow_remote:
         print(f"refusing to bind non-loopback address {args.host!r} without --allow-remote", file=sys.stderr)
         return 2
+    try:
+        model = persona(args.model)
+    except ValueError as err:
+        print(str(err), file=sys.stderr)
+        return 2
     password = args.password if args.password is not None else os.environ.get("AXIS_SIM_PASSWORD", "pass")
+    base = model.speeds
+    speeds = Speeds(
+        base.pan_deg_s if args.pan_speed is None else args.pan_speed,
+        base.tilt_deg_s if args.tilt_speed is None else args.tilt_speed,
+        base.zoom_full_travel_s if args.zoom_time is None else args.zoom_time,
+        base.focus_full_travel_s,
+    )
     faults = FaultConfig(**{n: getattr(args, f"fault_{n}") for n in FaultConfig.field_names()})
     cam = SimulatedCamera(
         world=load_world(args.world),
@@ -67,13 +100,18 @@ def main(argv: list[str] | None = None) -> int:
         user=args.user,
         password=password,
         faults=faults,
-        speeds=Speeds(args.pan_speed, args.tilt_speed, args.zoom_time),
+        speeds=speeds,
         default_fps=args.default_fps,
+        nonce_lifetime_s=args.nonce_lifetime,
+        challenge_style=args.challenge_style,
+        model=model,
+        https=args.https,
     )
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     cam.start()
-    print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (auth={args.auth}); Ctrl-C to stop", flush=True)
+    tls = f"; CA certificate {cam.ca_file}" if cam.ca_file else ""
+    print(f"Simulated {model.product} at {cam.base_url}/ (auth={cam.auth}{tls}); Ctrl-C to stop", flush=True)
     try:
         while not done.wait(0.5):
             pass

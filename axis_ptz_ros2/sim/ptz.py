@@ -13,6 +13,7 @@ so ``elevation_rad = +radians(tilt_deg)``.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import threading
@@ -100,7 +101,7 @@ _MOVES = {
     "downleft": (-1.0, -1.0),
     "downright": (1.0, -1.0),
 }
-_QUERIES = ("position", "limits", "speed", "presetposcam", "presetposall")
+_QUERIES = ("position", "limits", "speed", "presetposcam", "presetposall", "attributes")
 _PRESET_NAME = re.compile(r'^[^"<>~:]{1,31}$')
 
 
@@ -181,6 +182,9 @@ class PtzState:
     speeds: Speeds = field(default_factory=Speeds)
     default_image_size: tuple[int, int] = (704, 576)
     clock: Callable[[], float] = time.monotonic
+    move_step_fov: float = 0.0  # move=<dir>: 0 → 5° (VAPIX v2), else this fraction of the current HFOV (v3)
+    attributes: bool = False  # query=attributes answered (newer firmware only)
+    whoami: str = "Sony_camblock"
 
     def __post_init__(self) -> None:
         self._lock = threading.RLock()
@@ -208,7 +212,15 @@ class PtzState:
             return
         s = self.speed / 100.0
         L = self.limits
-        self._pan.step(dt, self.speeds.pan_deg_s * s, L.min_pan, L.max_pan)
+        if self.pan_wraps:  # endless pan: no end stops; keep the reading in [-180, 180)
+            self._pan.step(dt, self.speeds.pan_deg_s * s, -math.inf, math.inf)
+            shift = 360.0 * math.floor((self._pan.pos + 180.0) / 360.0)
+            if shift:
+                self._pan.pos -= shift
+                if self._pan.target is not None:
+                    self._pan.target -= shift
+        else:
+            self._pan.step(dt, self.speeds.pan_deg_s * s, L.min_pan, L.max_pan)
         self._tilt.step(dt, self.speeds.tilt_deg_s * s, L.min_tilt, L.max_tilt)
         zrate = (L.max_zoom - L.min_zoom) / self.speeds.zoom_full_travel_s
         self._zoom.step(dt, zrate, float(L.min_zoom), float(L.max_zoom))
@@ -242,7 +254,14 @@ class PtzState:
             self._tilt.pos = self._clamp_tilt(self._tilt.pos)
             self._zoom.pos = self._clamp_zoom(self._zoom.pos)
 
+    @property
+    def pan_wraps(self) -> bool:
+        """Endless pan: the limits span the full circle (MinPan=-180, MaxPan=180 on a modern dome)."""
+        return self.limits.max_pan - self.limits.min_pan >= 360.0 - 1e-9
+
     def _clamp_pan(self, v: float) -> float:
+        if self.pan_wraps:
+            return v - 360.0 * math.floor((v + 180.0) / 360.0)
         return min(max(v, self.limits.min_pan), self.limits.max_pan)
 
     def _clamp_tilt(self, v: float) -> float:
@@ -319,8 +338,12 @@ class PtzState:
             elif key in ("imagewidth", "imageheight"):
                 plan[key] = _int(key, value, 1, 100000)
             elif key == "query":
-                if value not in _QUERIES:
+                if value not in _QUERIES or (value == "attributes" and not self.attributes):
                     raise PtzCommandError(f"query: unknown value: {value}")
+                plan[key] = value
+            elif key == "format" and self.attributes:
+                if value not in ("json", "text"):
+                    raise PtzCommandError(f"format: invalid value: {value}")
                 plan[key] = value
             elif key in ("info", "whoami"):
                 if value not in ("1", "yes"):
@@ -355,7 +378,9 @@ class PtzState:
 
     def _goto(self, pan: float | None, tilt: float | None, zoom: float | None) -> None:
         self._cancel_continuous()
-        if pan is not None:
+        if pan is not None and self.pan_wraps:  # the short way round, across ±180 if that is shorter
+            self._pan.target = self._pan.pos + math.remainder(pan - self._pan.pos, 360.0)
+        elif pan is not None:
             self._pan.target = self._clamp_pan(pan)
         if tilt is not None:
             self._tilt.target = self._clamp_tilt(tilt)
@@ -415,10 +440,13 @@ class PtzState:
                 new_pan, new_tilt, new_zoom = p.pan, p.tilt, p.zoom
             else:
                 dx, dy = _MOVES[mv]
+                step = MOVE_STEP_DEG
+                if self.move_step_fov > 0.0:  # v3: "moves the image 25 % of the image field width"
+                    step = self.move_step_fov * math.degrees(self.zoom_model.hfov(zoom))
                 if dx:
-                    new_pan = pan + dx * MOVE_STEP_DEG
+                    new_pan = pan + dx * step
                 if dy:
-                    new_tilt = tilt + dy * MOVE_STEP_DEG
+                    new_tilt = tilt + dy * step
         for key in ("gotoserverpresetname", "gotoserverpresetno"):
             if key in plan:
                 pre = (
@@ -454,11 +482,15 @@ class PtzState:
         self._apply_presets(plan, pan, tilt, zoom)
         # Replies.
         if "query" in plan:
+            if plan["query"] == "attributes":
+                return self._attributes(plan.get("format") == "json")
             return self._query(str(plan["query"]))
         if "info" in plan:
+            if self.attributes:
+                return INFO_TEXT.replace("presetposall }", "presetposall | attributes }")
             return INFO_TEXT
         if "whoami" in plan:
-            return "Sony_camblock\n"
+            return self.whoami + "\n"
         return None
 
     def _apply_presets(self, plan: dict[str, Any], pan: float, tilt: float, zoom: float) -> None:
@@ -564,6 +596,45 @@ class PtzState:
         else:  # presetposcam / presetposall
             lines = ["Preset Positions for camera 1"]
             lines += [f"presetposno{n}={p.name}" for n, p in sorted(self.presets.items())]
+        return "\n".join(lines) + "\n"
+
+    def zoom_steps(self) -> list[tuple[int, float]]:
+        """``zoomSteps`` of ``query=attributes``: (zoom units, magnification) at whole magnifications of the
+        optical range, the optical end and the digital end."""
+        zm, L = self.zoom_model, self.limits
+        top = zm.magnification(L.max_zoom)
+        optical_end = zm.optical_max_zoom or L.max_zoom
+        steps = {L.min_zoom: zm.magnification(L.min_zoom), optical_end: zm.magnification(optical_end)}
+        for m in range(2, int(zm.magnification(optical_end)) + 1):
+            steps[int(round(zm.zoom_for_magnification(float(m))))] = float(m)
+        steps[L.max_zoom] = top
+        return sorted(steps.items())
+
+    def _attributes(self, as_json: bool) -> str:
+        zm = self.zoom_model
+        optical_end = zm.optical_max_zoom or self.limits.max_zoom
+        optical = zm.magnification(optical_end)
+        digital = zm.magnification(self.limits.max_zoom) / optical
+        steps = self.zoom_steps()
+        # VAPIX speed value → deg/s of this head (linear in the simulator).
+        speeds = [(v, self.speeds.pan_deg_s * v / 100.0) for v in (1, 10, 25, 50, 75, 100)]
+        if as_json:
+            cam: dict[str, Any] = {
+                "maxOpticalZoomMag": format_number(optical),
+                "zoomSteps": [{"value": str(z), "zoom": format_number(m)} for z, m in steps],
+                "speeds": [{"value": str(v), "speed": format_number(sp)} for v, sp in speeds],
+            }
+            if digital > 1.0 + 1e-9:
+                cam["maxDigitalZoomMag"] = format_number(digital)
+            return json.dumps({"Camera 1": cam}) + "\n"
+        lines = [
+            "Attributes for camera 1",
+            "speeds=" + ",".join(f"value={v} | speed={format_number(sp)}" for v, sp in speeds),
+            f"maxOpticalZoomMag={format_number(optical)}",
+        ]
+        if digital > 1.0 + 1e-9:
+            lines.append(f"maxDigitalZoomMag={format_number(digital)}")
+        lines.append("zoomSteps=" + ",".join(f"value={z} | zoom={format_number(m)}" for z, m in steps))
         return "\n".join(lines) + "\n"
 
     def presets_snapshot(self) -> list[Preset]:

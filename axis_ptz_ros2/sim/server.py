@@ -17,6 +17,7 @@ import base64
 import collections
 import contextlib
 import copy
+import dataclasses
 import hashlib
 import hmac
 import json
@@ -24,6 +25,7 @@ import os
 import re
 import secrets
 import socket
+import ssl
 import sys
 import threading
 import time
@@ -31,7 +33,7 @@ from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from types import TracebackType
 from typing import Any
-from urllib.parse import parse_qsl, urlsplit
+from urllib.parse import parse_qsl
 
 import cv2
 import numpy as np
@@ -42,18 +44,21 @@ from axis_ptz_ros2.sim.persona import (
     NOT_FOUND_HTML,
     READ_ONLY_PREFIXES,
     UNAUTHORIZED_HTML,
+    Persona,
     list_params,
-    parameter_tree,
-    parse_resolution,
+    persona,
+    preset_params,
 )
 from axis_ptz_ros2.sim.ptz import PtzCommandError, PtzState, Speeds
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
 from axis_ptz_ros2.sim.scene import PtzLimits, SimWorld, load_world
+from axis_ptz_ros2.sim.tls import SelfSignedCertificate
 
 AUTH_MODES = ("none", "basic", "digest", "basic_digest")
 BOUNDARY = "myboundary"
 MAX_FPS = 30
-NONCE_LIFETIME_S = 600.0
+NONCE_LIFETIME_S = 600.0  #: default Digest nonce lifetime (a guess: real Axis lifetimes are not documented)
+CHALLENGE_STYLES = ("current", "legacy")
 
 _VIDEO_PATHS = ("/axis-cgi/mjpg/video.cgi", "/mjpg/video.mjpg")
 _ENDPOINTS: dict[str, str] = {
@@ -110,6 +115,19 @@ class _Server(ThreadingHTTPServer):
     block_on_close = False
     allow_reuse_address = True
     camera: SimulatedCamera
+    tls: ssl.SSLContext | None = None
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        """With HTTPS, the TLS handshake runs here, on the connection's own thread (never the accept loop)."""
+        if self.tls is not None:
+            try:
+                request.settimeout(10.0)
+                request = self.tls.wrap_socket(request, server_side=True)
+                request.settimeout(None)
+            except (OSError, ssl.SSLError):
+                self.shutdown_request(request)
+                return
+        super().process_request_thread(request, client_address)
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         """A client that hangs up mid-stream is normal for a camera; anything else is printed."""
@@ -120,9 +138,12 @@ class _Server(ThreadingHTTPServer):
 
 
 class SimulatedCamera:
-    """The simulated Axis 214 PTZ: ``start()`` it, talk VAPIX to ``base_url``, ``stop()`` it.
+    """A simulated Axis PTZ camera: ``start()`` it, talk VAPIX to ``base_url``, ``stop()`` it.
 
-    ``auth`` is one of ``none`` (anonymous, the thesis' set-up), ``basic``, ``digest``, ``basic_digest``.
+    ``model`` picks the persona (:mod:`axis_ptz_ros2.sim.persona`): ``axis214`` (default) or ``q6075``.
+    ``auth`` is one of ``none`` (anonymous, the thesis' set-up), ``basic``, ``digest``, ``basic_digest``;
+    None = the persona's default (214: none; q6075: digest). ``https`` None = the persona's default (214: off;
+    q6075: on, with a self-signed certificate generated at start-up whose path is :attr:`ca_file`).
     The password is never logged or shown in reprs.
     """
 
@@ -131,19 +152,36 @@ class SimulatedCamera:
         world: SimWorld | None = None,
         host: str = "127.0.0.1",
         port: int = 0,
-        auth: str = "none",
+        auth: str | None = None,
         user: str = "root",
         password: str = "pass",
         faults: FaultConfig | None = None,
         speeds: Speeds | None = None,
         mac: str = "00408C1A2B3C",
         default_fps: int = MAX_FPS,
+        nonce_lifetime_s: float = NONCE_LIFETIME_S,
+        challenge_style: str = "current",
+        model: str | Persona | None = None,
+        https: bool | None = None,
     ) -> None:
+        self.persona = persona(model)
+        auth = self.persona.default_auth if auth is None else auth
         if auth not in AUTH_MODES:
             raise ValueError(f"auth must be one of {AUTH_MODES}")
+        self.set_auth_options(nonce_lifetime_s=nonce_lifetime_s, challenge_style=challenge_style)
         if not re.fullmatch(r"[0-9A-Fa-f]{12}", mac):
             raise ValueError("mac must be 12 hex digits")
-        self.world = world if world is not None else load_world()
+        world = world if world is not None else load_world()
+        if self.persona.limits is not None or self.persona.zoom_model is not None:
+            world = dataclasses.replace(
+                world,
+                limits=self.persona.limits or world.limits,
+                zoom_model=self.persona.zoom_model or world.zoom_model,
+                kinematics=self.persona.kinematics or world.kinematics,
+            )
+        self.world = world
+        self.https = self.persona.https if https is None else https
+        self._cert: SelfSignedCertificate | None = None
         self.host = host
         self._port = port
         self.auth = auth
@@ -154,9 +192,17 @@ class SimulatedCamera:
         self.default_fps = default_fps
         self.faults = faults if faults is not None else FaultConfig()
         self.state = PtzState(
-            limits=self.world.limits, zoom_model=self.world.zoom_model, speeds=speeds or Speeds()
+            limits=self.world.limits,
+            zoom_model=self.world.zoom_model,
+            speeds=speeds or self.persona.speeds,
+            default_image_size=self.persona.resolutions[self.persona.default_resolution],
+            move_step_fov=self.persona.move_step_fov,
+            attributes=self.persona.attributes,
+            whoami=self.persona.whoami,
         )
-        self.params = parameter_tree(self.world.limits, self.world.zoom_model, self.mac, auth)
+        self.params = self.persona.parameter_tree(self.world.limits, self.world.zoom_model, self.mac, auth)
+        if self.persona.key != "axis214":
+            self.params["HTTPS.Enabled"] = "yes" if self.https else "no"
         self._renderer: PtzRenderer | None = None
         self._counts = RequestCounts()
         self._counts_lock = threading.Lock()
@@ -177,7 +223,7 @@ class SimulatedCamera:
 
     def __repr__(self) -> str:
         url = self.base_url if self._port else None
-        return f"SimulatedCamera(url={url!r}, auth={self.auth!r}, user={self.user!r})"
+        return f"SimulatedCamera(model={self.persona.key!r}, url={url!r}, auth={self.auth!r}, user={self.user!r})"
 
     # ---- lifecycle ------------------------------------------------------------------------------------
     @property
@@ -191,12 +237,17 @@ class SimulatedCamera:
         """Build the scene and start serving (returns self)."""
         _ = self.renderer
         self._stopping.clear()
+        self.forget_nonces()
         self._listen()
         return self
 
     def _listen(self) -> None:
         server = _Server((self.host, self._port), _Handler)
         server.camera = self
+        if self.https:
+            if self._cert is None:
+                self._cert = SelfSignedCertificate.generate(self.host, self.mac)
+            server.tls = self._cert.server_context()
         self._port = server.server_address[1]
         self._server = server
         self._thread = threading.Thread(
@@ -219,12 +270,15 @@ class SimulatedCamera:
             self._thread = None
 
     def stop(self) -> None:
-        """Stop serving and close every connection (fast)."""
+        """Stop serving and close every connection (fast); removes the generated certificate."""
         with self._lifecycle:
             self._stopping.set()
             self._reboot_gen += 1
             self._rebooting.clear()
             self._close_all()
+            if self._cert is not None:
+                self._cert.cleanup()
+                self._cert = None
 
     def __enter__(self) -> SimulatedCamera:
         return self.start()
@@ -241,8 +295,22 @@ class SimulatedCamera:
 
     @property
     def base_url(self) -> str:
-        """``http://host:port``."""
-        return f"http://{self.host}:{self._port}"
+        """``http://host:port`` (``https://`` when serving HTTPS)."""
+        return f"{'https' if self.https else 'http'}://{self.host}:{self._port}"
+
+    @property
+    def ca_file(self) -> str | None:
+        """PEM file of the self-signed certificate served over HTTPS (a client's CA bundle), else None."""
+        return str(self._cert.cert_file) if self._cert is not None else None
+
+    def current_params(self) -> dict[str, str]:
+        """The parameter tree as listed now (a modern camera's presets appear under ``PTZ.Preset.P0``)."""
+        if not self.persona.preset_params:
+            return self.params
+        presets = [(p.number, p.name, p.pan, p.tilt, p.zoom) for p in self.state.presets_snapshot()]
+        tree = dict(self.params)
+        tree.update(preset_params(presets, self.state.home))
+        return tree
 
     @property
     def rebooting(self) -> bool:
@@ -269,6 +337,7 @@ class SimulatedCamera:
                 if gen != self._reboot_gen or self._stopping.is_set():
                     return
                 self.state.reset()
+                self.forget_nonces()
                 for _ in range(100):
                     try:
                         self._listen()
@@ -329,6 +398,8 @@ class SimulatedCamera:
             "speed": self.state.speed,
             "faults": self.faults.as_dict(),
             "rebooting": self.rebooting,
+            "nonce_lifetime_s": self.nonce_lifetime_s,
+            "challenge_style": self.challenge_style,
             "frames_sent": self.frames_sent,
             "snapshots_sent": self.snapshots_sent,
             "renders": self.renderer.renders,
@@ -336,6 +407,24 @@ class SimulatedCamera:
         }
 
     # ---- auth ------------------------------------------------------------------------------------------
+    def set_auth_options(self, *, nonce_lifetime_s: float | None = None, challenge_style: str | None = None) -> None:
+        """Digest nonce lifetime (seconds, > 0) and the 401 form: ``current`` (``algorithm=MD5, qop="auth"``,
+        HTML body, ``stale=true`` only for an expired nonce) or ``legacy`` (older firmware: empty body,
+        ``stale=FALSE`` or ``stale=TRUE`` always present, ``qop="auth"``, no ``algorithm``)."""
+        if nonce_lifetime_s is not None:
+            if not nonce_lifetime_s > 0:
+                raise ValueError("nonce_lifetime_s must be > 0")
+            self.nonce_lifetime_s = float(nonce_lifetime_s)
+        if challenge_style is not None:
+            if challenge_style not in CHALLENGE_STYLES:
+                raise ValueError(f"challenge_style must be one of {CHALLENGE_STYLES}")
+            self.challenge_style = challenge_style
+
+    def forget_nonces(self) -> None:
+        """What a restart does: every nonce handed out so far becomes unknown."""
+        with self._nonce_lock:
+            self._nonces.clear()
+
     def _new_nonce(self) -> str:
         nonce = (
             base64.b64encode(secrets.token_bytes(12)).decode()
@@ -344,48 +433,58 @@ class SimulatedCamera:
         now = time.monotonic()
         with self._nonce_lock:
             if len(self._nonces) > 2000:
-                for k in [k for k, t in self._nonces.items() if now - t > NONCE_LIFETIME_S]:
+                for k in [k for k, t in self._nonces.items() if now - t > self.nonce_lifetime_s]:
                     del self._nonces[k]
             self._nonces[nonce] = now
         return nonce
 
-    def challenges(self) -> list[str]:
-        """``WWW-Authenticate`` values for the current auth mode."""
+    def challenges(self, stale: bool = False) -> list[str]:
+        """``WWW-Authenticate`` values for the current auth mode (``stale``: the nonce sent had expired)."""
         out = []
         if self.auth in ("digest", "basic_digest"):
-            out.append(f'Digest realm="{self.realm}", nonce="{self._new_nonce()}", algorithm=MD5, qop="auth"')
+            nonce = self._new_nonce()
+            if self.challenge_style == "legacy":
+                flag = "TRUE" if stale else "FALSE"
+                out.append(f'Digest realm="{self.realm}", nonce="{nonce}", stale={flag}, qop="auth"')
+            else:
+                tail = ", stale=true" if stale else ""
+                out.append(f'Digest realm="{self.realm}", nonce="{nonce}", algorithm=MD5, qop="auth"{tail}')
         if self.auth in ("basic", "basic_digest"):
             out.append(f'Basic realm="{self.realm}"')
         return out
 
     def check_auth(self, header: str | None, method: str, uri: str) -> bool:
-        """Whether an ``Authorization`` header is valid for this request."""
+        """Whether an ``Authorization`` header is valid for this request (``uri``: the raw request target)."""
+        return self.auth_result(header, method, uri) == "ok"
+
+    def auth_result(self, header: str | None, method: str, uri: str) -> str:
+        """``ok``, ``stale`` (a correct Digest response to an expired nonce) or ``fail``."""
         if self.auth == "none":
-            return True
+            return "ok"
         if not header:
-            return False
+            return "fail"
         scheme, _, rest = header.partition(" ")
         scheme = scheme.lower()
         if scheme == "basic" and self.auth in ("basic", "basic_digest"):
             try:
                 user, _, pw = base64.b64decode(rest.strip(), validate=True).decode("utf-8").partition(":")
             except (ValueError, UnicodeDecodeError):
-                return False
-            return hmac.compare_digest(user, self.user) and hmac.compare_digest(
-                pw.encode(), self._password.encode()
-            )
+                return "fail"
+            good = hmac.compare_digest(user, self.user) and hmac.compare_digest(pw.encode(), self._password.encode())
+            return "ok" if good else "fail"
         if scheme == "digest" and self.auth in ("digest", "basic_digest"):
             f = {
                 m.group(1).lower(): m.group(3) if m.group(3) is not None else m.group(4)
                 for m in _DIGEST_FIELD.finditer(rest)
             }
             nonce = f.get("nonce", "")
-            with self._nonce_lock:
-                issued = self._nonces.get(nonce)
-            if issued is None or time.monotonic() - issued > NONCE_LIFETIME_S:
-                return False
+            # The signed uri must be the request target as sent (e.g. "//axis-cgi/com/ptz.cgi?…"), not a
+            # normalised path: that is what the client hashed.
             if f.get("username") != self.user or f.get("realm") != self.realm or f.get("uri") != uri:
-                return False
+                return "fail"
+            algorithm = (f.get("algorithm") or "MD5").upper()
+            if algorithm != "MD5":
+                return "fail"
             ha1 = _md5(f"{self.user}:{self.realm}:{self._password}")
             ha2 = _md5(f"{method}:{uri}")
             qop = f.get("qop")
@@ -394,9 +493,17 @@ class SimulatedCamera:
             elif qop is None:
                 expected = _md5(f"{ha1}:{nonce}:{ha2}")
             else:
-                return False
-            return hmac.compare_digest(expected, f.get("response", "").lower())
-        return False
+                return "fail"
+            if not hmac.compare_digest(expected, f.get("response", "").lower()):
+                return "fail"
+            with self._nonce_lock:
+                issued = self._nonces.get(nonce)
+            if issued is None:
+                return "fail"  # never issued, or forgotten by a restart
+            if time.monotonic() - issued > self.nonce_lifetime_s:
+                return "stale"
+            return "ok"
+        return "fail"
 
     # ---- frames ----------------------------------------------------------------------------------------
     def frame_jpeg(self, width: int, height: int, compression: int, overlay: str = "") -> bytes:
@@ -484,6 +591,10 @@ class _Handler(BaseHTTPRequestHandler):
     def cam(self) -> SimulatedCamera:
         return self.server.camera
 
+    def version_string(self) -> str:
+        """``Server:`` header of the persona (Boa on the 214's firmware 4.x)."""
+        return self.cam.persona.server_header
+
     def _write(self, data: bytes) -> None:
         """Write honouring the bandwidth cap fault."""
         kbps = self.cam.faults.bandwidth_kbps
@@ -527,13 +638,12 @@ class _Handler(BaseHTTPRequestHandler):
             self._write(data)
         self.cam._count("", status)
 
-    def _unauthorized(self, path: str) -> None:
-        self._reply(
-            401,
-            UNAUTHORIZED_HTML.format(path=path),
-            "text/html; charset=ISO-8859-1",
-            extra=[("WWW-Authenticate", c) for c in self.cam.challenges()],
-        )
+    def _unauthorized(self, path: str, stale: bool = False) -> None:
+        challenges = [("WWW-Authenticate", c) for c in self.cam.challenges(stale)]
+        if self.cam.challenge_style == "legacy":
+            self._reply(401, b"", "text/html", extra=challenges)
+            return
+        self._reply(401, UNAUTHORIZED_HTML.format(path=path), "text/html; charset=ISO-8859-1", extra=challenges)
 
     # ---- dispatch -------------------------------------------------------------------------------------
     def do_GET(self) -> None:  # noqa: N802 - stdlib name
@@ -544,11 +654,21 @@ class _Handler(BaseHTTPRequestHandler):
         body = self.rfile.read(n).decode("utf-8", "replace") if n > 0 else ""
         self._dispatch(body)
 
+    def _raw_target(self) -> str:
+        """The request target exactly as on the request line (the stdlib rewrites a leading "//" in
+        ``self.path``; Digest clients sign the target they sent)."""
+        parts = self.requestline.split()
+        return parts[1] if len(parts) >= 2 else self.path
+
     def _dispatch(self, body: str) -> None:
         cam = self.cam
-        split = urlsplit(self.path)
-        path = split.path
-        query = split.query + ("&" if split.query and body else "") + body
+        # Route on the path with repeated slashes collapsed ("//axis-cgi/…" is sloppy but valid and a released
+        # ROS driver sends it); authenticate against the raw request target, which is what the client signed.
+        raw_target = self._raw_target()
+        target = raw_target.partition("#")[0]
+        raw_path, _, raw_query = target.partition("?")
+        path = re.sub(r"/{2,}", "/", raw_path)
+        query = raw_query + ("&" if raw_query and body else "") + body
         try:
             args = parse_qsl(query, keep_blank_values=True, strict_parsing=False)
         except ValueError:
@@ -576,8 +696,9 @@ class _Handler(BaseHTTPRequestHandler):
                     code, ERROR_HTML.format(code=code, reason=reason), "text/html; charset=ISO-8859-1"
                 )
             return
-        if not cam.check_auth(self.headers.get("Authorization"), self.command, self.path):
-            self._unauthorized(path)
+        verdict = cam.auth_result(self.headers.get("Authorization"), self.command, raw_target)
+        if verdict != "ok":
+            self._unauthorized(path, stale=verdict == "stale")
             return
         handler = {
             "ptz": self._ptz,
@@ -621,7 +742,7 @@ class _Handler(BaseHTTPRequestHandler):
         action = next((v for k, v in args if k == "action"), "")
         if action == "list":
             groups = [g for k, v in args if k == "group" for g in v.split(",") if g]
-            self._reply(200, list_params(cam.params, groups))
+            self._reply(200, list_params(cam.current_params(), groups))
         elif action == "update":
             lines: list[str] = []
             limits_changed = False
@@ -663,7 +784,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._reply(200, f"<!-- Camera {camera} not available. -->\n")
             return
         try:
-            w, h = parse_resolution(
+            w, h = self.cam.persona.parse_resolution(
                 a.get("resolution", self.cam.params["Image.I0.Appearance.Resolution"]),
                 a.get("squarepixel") == "1",
             )
@@ -697,7 +818,9 @@ class _Handler(BaseHTTPRequestHandler):
         if a.get("camera", "1") != "1":
             raise ValueError(f"Camera {a['camera']} not available")
         squarepixel = integer("squarepixel", 0, 1, 0)
-        w, h = parse_resolution(a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1)
+        w, h = self.cam.persona.parse_resolution(
+            a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1
+        )
         compression = integer("compression", 0, 100, int(p["Image.I0.Appearance.Compression"]))
         integer("rotation", 0, 0, 0)
         opts = {"fps": self.cam.default_fps, "duration": 0, "nbrofframes": 0}
@@ -847,6 +970,10 @@ class _Handler(BaseHTTPRequestHandler):
                     cam.reset_counts()
                 elif k == "reboot":
                     reboot = float(v)
+                elif k == "nonce_lifetime":
+                    cam.set_auth_options(nonce_lifetime_s=float(v))
+                elif k == "challenge_style":
+                    cam.set_auth_options(challenge_style=v)
                 elif k == "teleport":
                     p, t, z = (float(x) for x in v.split(","))
                     cam.teleport(p, t, z)

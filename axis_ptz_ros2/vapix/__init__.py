@@ -6,7 +6,7 @@ multipart parser), :mod:`.auth` (Digest/Basic negotiation), :mod:`.client` (``Va
 Nothing here imports ``rclpy`` or ROS messages.
 """
 
-from axis_ptz_ros2.vapix.auth import AuthMode, AuthScheme, NegotiatingAuth
+from axis_ptz_ros2.vapix.auth import AuthCounters, AuthMode, AuthScheme, NegotiatingAuth
 from axis_ptz_ros2.vapix.client import CameraConfig, MjpegStream, VapixClient
 from axis_ptz_ros2.vapix.errors import (
     AuthError,
@@ -39,6 +39,7 @@ from axis_ptz_ros2.vapix.requests import (
 __all__ = [
     "AbsoluteMove",
     "AreaZoom",
+    "AuthCounters",
     "AuthError",
     "AuthMode",
     "AuthScheme",

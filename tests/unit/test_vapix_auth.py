@@ -78,12 +78,48 @@ def test_digest_only_camera():
     assert camera.schemes_sent == ["none", "Digest"]
 
 
-def test_basic_fallback_when_only_basic_offered_then_preemptive():
+def test_auto_never_sends_basic_over_plain_http():
     camera = Camera("basic")
     with client(camera) as vapix:
+        for _ in range(2):
+            with pytest.raises(AuthError) as excinfo:
+                vapix.query_position()
+            message = str(excinfo.value)
+            assert "offers only Basic" in message
+            assert "auth: basic" in message
+            assert "HTTPS" in message
+            assert PASSWORD not in message
+        assert vapix.auth_counters.basic_refused == 2
+    # Basic was never sent, and nothing was "remembered" between the two calls.
+    assert camera.schemes_sent == ["none", "none"]
+
+
+def test_explicit_basic_mode_over_http_then_preemptive():
+    camera = Camera("basic")
+    with client(camera, auth="basic") as vapix:
         vapix.query_position()
         vapix.query_position()
     assert camera.schemes_sent == ["none", "Basic", "Basic"]
+
+
+def test_auto_uses_basic_over_https():
+    camera = Camera("basic")
+    config = CameraConfig(username=USER, password=PASSWORD, use_https=True, verify_tls=False)
+    with VapixClient(config, transport=httpx.MockTransport(camera)) as vapix:
+        vapix.query_position()
+        vapix.query_position()
+    assert camera.schemes_sent == ["none", "Basic", "Basic"]
+
+
+def test_auto_does_not_downgrade_from_digest_to_basic():
+    """A Digest camera that suddenly offers only Basic (e.g. an impostor on the link) gets no password."""
+    camera = Camera("digest")
+    with client(camera) as vapix:
+        vapix.query_position()
+        camera.policy = "basic"
+        with pytest.raises(AuthError):
+            vapix.query_position()
+    assert camera.schemes_sent == ["none", "Digest", "Digest"]
 
 
 def test_basic_mode_uses_basic_even_if_digest_offered():
@@ -123,7 +159,10 @@ def test_wrong_password_exactly_one_credentialed_try_and_no_secret_leak():
 
 def test_wrong_password_basic_one_try():
     camera = Camera("basic", password="other")
-    with client(camera) as vapix, pytest.raises(AuthError, match="Basic credentials rejected") as excinfo:
+    with (
+        client(camera, auth="basic") as vapix,
+        pytest.raises(AuthError, match="Basic credentials rejected") as excinfo,
+    ):
         vapix.query_position()
     assert camera.schemes_sent == ["none", "Basic"]
     assert PASSWORD not in str(excinfo.value)
