@@ -33,6 +33,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage
 from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
 from axis_ptz_interfaces.srv import SetVideoParams
+from axis_ptz_ros2.camera_info import fill_camera_info_msg
 from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.nodes.common import (
     CONNECTION_PARAMS,
@@ -398,8 +399,8 @@ class StreamNode(Node):
             if info is None:
                 if len(self._info_cache) > 64:
                     self._info_cache.clear()
-                intr = self._model.zoom.intrinsics(zoom, size[0], size[1])
-                info = camera_info_msg(intr, self._frame_id, stamp)
+                calib = self._model.camera_info_at(zoom, size[0], size[1])  # measured K, D, P if configured
+                info = fill_camera_info_msg(camera_info_msg(calib.intrinsics(), self._frame_id, stamp), calib)
                 self._info_cache[key] = info
             info.header.stamp = stamp
             self._info_pub.publish(info)

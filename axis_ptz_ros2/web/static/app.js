@@ -234,6 +234,10 @@ async function poll() {
   const link = $("link");
   try {
     const res = await fetch("/api/state", { credentials: "same-origin", cache: "no-store" });
+    if (res.status === 401) {
+      location.reload(); // token changed or cookie gone: the server answers the page with its sign-in form
+      return;
+    }
     if (!res.ok) throw new Error(`HTTP ${res.status}`);
     render(await res.json());
     link.textContent = "connected";
