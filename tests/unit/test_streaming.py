@@ -217,8 +217,11 @@ def test_controller_off_returns_request_and_never_exceeds_it():
     cam = FakeCamera()
     c = BandwidthController(P704, 500.0)
     run_controller(c, cam, 8.0)
-    assert c.level > 0
-    assert c.update(100.0, 5000, 30, 1000, 10) is None or c.level > 0
+    degraded = c.level
+    assert 0 < degraded < len(c.ladder) - 1
+    # while on, a measurement far over budget degrades further (and says so); switching off restores the request
+    assert c.update(100.0, 5000, 30, 1000, 10) == c.current
+    assert c.level > degraded
     assert c.configure(budget_kbps=0.0, now=101.0) == P704
     assert c.update(102.0, 99999.0, 30.0, 20000.0, 10) is None
     assert c.current == P704
