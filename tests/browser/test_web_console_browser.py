@@ -1,7 +1,9 @@
 """The web console in real headless Chromium against the whole simulated suite (scripts/demo's processes).
 
 Every check goes through the simulator's ground truth (``/sim/state``, its own JPEG snapshots) or through
-ROS (``video/params``), never through the console's own report of itself. Screenshots go to artifacts/.
+ROS (``video/params``), never through the console's own report of itself. Screenshots go to artifacts/; with
+``AXIS_WRITE_DOCS_IMAGES=1`` the layout test also writes the user guide's pictures (docs/images/console.png at
+1280x800, docs/images/console_1080p.png at 1920x1080).
 """
 
 from __future__ import annotations
@@ -26,6 +28,9 @@ from axis_ptz_ros2.sim.scene import load_world
 pytestmark = pytest.mark.browser
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
+DOCS_IMAGES = Path(__file__).resolve().parents[2] / "docs" / "images"
+#: the screens the console must fit (width, height in CSS px) and the guide's picture of each
+SCREENS = {(1280, 800): "console.png", (1920, 1080): "console_1080p.png"}
 CHROMIUM_ARGS = [
     "--headless",
     "--no-sandbox",
@@ -143,7 +148,7 @@ def browser() -> Iterator[Any]:
 
 @pytest.fixture
 def page(browser: Any, demo: Demo) -> Iterator[Any]:
-    ctx = browser.new_context(viewport={"width": 1500, "height": 1000})
+    ctx = browser.new_context(viewport={"width": 1280, "height": 800})  # a laptop screen: the tightest layout
     pg = ctx.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda e: errors.append(str(e)))
@@ -315,6 +320,77 @@ def test_quality_controls_change_the_stream(demo: Demo, page: Any) -> None:
     page.select_option("#q-res", f"{W}x{H}")
     page.click("#q-apply")
     wait_for(lambda: latest_video_params().width == W, 10.0, "the stream back at full size")
+
+
+LAYOUT_JS = """() => {
+  const r = (sel) => { const b = document.querySelector(sel).getBoundingClientRect();
+    return {x: b.left, y: b.top, w: b.width, h: b.height}; };
+  const img = document.getElementById('ptz');
+  return {
+    vw: innerWidth, vh: innerHeight,
+    doc_w: document.documentElement.scrollWidth, doc_h: document.documentElement.scrollHeight,
+    ptz: r('#ptz'), pano: r('#pano'), panel: r('.panel'), home: r('#home'), apply: r('#q-apply'),
+    natural: [img.naturalWidth, img.naturalHeight],
+  };
+}"""
+
+
+def layout(page: Any) -> dict[str, Any]:
+    return dict(page.evaluate(LAYOUT_JS))
+
+
+def test_live_image_gets_most_of_one_screen(demo: Demo, browser: Any) -> None:
+    """At 1280x800 and 1920x1080: the page fits the window, the live image dominates at its own aspect."""
+    for (vw, vh), picture in SCREENS.items():
+        ctx = browser.new_context(viewport={"width": vw, "height": vh})
+        pg = ctx.new_page()
+        try:
+            pg.goto(demo.console_url + "/")
+            pg.wait_for_function("document.getElementById('ptz').naturalWidth > 0", timeout=30_000)
+            pg.wait_for_function("document.getElementById('r-pan').textContent !== '–'", timeout=30_000)
+            # the stage follows the stream's own aspect once app.js has seen a frame
+            pg.wait_for_function(
+                "document.getElementById('ptz-frame').style.getPropertyValue('--ptz-aspect') !== ''", timeout=10_000
+            )
+            g = layout(pg)
+            screen = vw * vh
+            ptz_area = g["ptz"]["w"] * g["ptz"]["h"]
+            # one screen: nothing to scroll on the page itself
+            assert g["doc_w"] <= vw, g
+            assert g["doc_h"] <= vh, g
+            # the live image is wholly on screen and takes most of it; the panorama is much smaller
+            p = g["ptz"]
+            assert min(p["x"], p["y"]) >= 0, g
+            assert p["x"] + p["w"] <= vw + 0.5, g
+            assert p["y"] + p["h"] <= vh + 0.5, g
+            assert ptz_area / screen > 0.5, f"{vw}x{vh}: live image {ptz_area / screen:.0%} of the screen"
+            assert g["pano"]["w"] * g["pano"]["h"] < ptz_area / 4, g
+            # drawn at the image's real aspect (natural pixels), not a fixed 4:3 / PAL box
+            nw, nh = g["natural"]
+            assert (nw, nh) == (W, H)
+            assert p["w"] / p["h"] == pytest.approx(nw / nh, rel=0.01), g
+            # the controls are on the same screen, beside the image (not under it)
+            for key in ("home", "apply"):
+                b = g[key]
+                assert b["x"] >= p["x"] + p["w"], (key, g)
+                assert b["y"] + b["h"] <= vh, (key, g)
+            # ... and the key map still opens with "?"
+            pg.locator("#ptz").focus()
+            pg.keyboard.press("?")
+            assert pg.locator("#keys-details").get_attribute("open") is not None
+            pg.keyboard.press("?")
+            time.sleep(1.0)  # a few live frames behind the readouts
+            pg.screenshot(path=str(shot_path(f"layout_{vw}x{vh}")))
+            if os.environ.get("AXIS_WRITE_DOCS_IMAGES") == "1":
+                DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
+                pg.screenshot(path=str(DOCS_IMAGES / picture))
+        finally:
+            ctx.close()
+
+
+def shot_path(name: str) -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    return ARTIFACTS / f"web_console_{name}.png"
 
 
 def latest_video_params() -> Any:
