@@ -143,6 +143,7 @@ CAMERA_MODEL_KEYS: dict[str, set[str] | None] = {
     "camera_info": None,  # path (relative to the model file) or an inline ROS camera calibration mapping
     "camera_info_zoom": None,
     "dynamics": None,  # read by the virtual head only (config/virtual_camera.yaml)
+    "products": None,  # Brand.ProdNbr / ProdShortName list for automatic selection (camera_models.py)
 }
 
 

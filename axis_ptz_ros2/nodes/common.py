@@ -148,8 +148,20 @@ CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
 )
 
 
+_INSECURE_TLS_WARNED: list[bool] = []  # once per process (axis_camera composes two nodes)
+
+
 def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraConfig:
-    """A :class:`CameraConfig` from the CONNECTION_PARAMS values, credentials from the environment or file."""
+    """A :class:`CameraConfig` from the CONNECTION_PARAMS values, credentials from the environment or file.
+
+    ``use_https`` with ``verify_tls`` false logs one warning per process: the camera is then not authenticated.
+    """
+    if bool(p["use_https"]) and not bool(p["verify_tls"]) and not _INSECURE_TLS_WARNED:
+        _INSECURE_TLS_WARNED.append(True)
+        rclpy.logging.get_logger("axis_ptz_ros2").warning(
+            f"verify_tls is false: the certificate of the camera at {p['hostname']} is NOT checked, so anyone "
+            "on the path can impersonate it (set ca_file to the camera's certificate instead)"
+        )
     user, password = load_credentials(str(p["password_file"]))
     verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
     return CameraConfig(

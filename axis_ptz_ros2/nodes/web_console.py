@@ -35,6 +35,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.client import Client
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import CompressedImage, PointCloud2
@@ -306,6 +307,10 @@ class WebConsole(Node):
                     self._frame_callback(name),
                     STREAM_QOS,
                     callback_group=self._img_group,
+                    # no QoS-event waitables: rclpy's executor crashes (InvalidHandle) when a subscription's
+                    # event handler is destroyed while another thread builds the wait set, as happens here
+                    # whenever the last viewer leaves
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                 )
             elif have and not want:
                 self.destroy_subscription(self._image_subs.pop(name))

@@ -586,7 +586,7 @@ class PtzState:
                 "MaxIris=9999",
                 "MinFocus=1",
                 "MaxFocus=9999",
-                f"MinFieldAngle={int(round(math.degrees(zm.hfov(L.max_zoom)) * 10))}",
+                f"MinFieldAngle={max(1, int(round(math.degrees(zm.hfov(zm.optical_max_zoom or L.max_zoom)) * 10)))}",
                 f"MaxFieldAngle={int(round(math.degrees(zm.hfov(L.min_zoom)) * 10))}",
                 "MinBrightness=1",
                 "MaxBrightness=9999",
