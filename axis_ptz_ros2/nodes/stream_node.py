@@ -119,7 +119,14 @@ PARAMS: tuple[ParamSpec, ...] = (
         read_only=True,
     ),
     ParamSpec("backoff_initial", 0.1, "first reconnect delay", "s", float_range=(0.001, 60.0), read_only=True),
-    ParamSpec("backoff_max", 2.0, "reconnect delay cap", "s", float_range=(0.001, 600.0), read_only=True),
+    ParamSpec(
+        "backoff_max",
+        1.0,
+        "reconnect delay cap, counted from the start of the failed attempt",
+        "s",
+        float_range=(0.001, 600.0),
+        read_only=True,
+    ),
     ParamSpec(
         "auth_retry",
         10.0,

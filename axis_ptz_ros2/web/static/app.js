@@ -68,8 +68,8 @@ function updateAspect() {
   const h = img.naturalHeight;
   if (!w || !h) return;
   const aspect = String(w / h);
-  const frame = $("ptz-frame");
-  if (frame.style.getPropertyValue("--ptz-aspect") !== aspect) frame.style.setProperty("--ptz-aspect", aspect);
+  const root = document.documentElement.style; // the stage and the side panel's width both follow it
+  if (root.getPropertyValue("--ptz-aspect") !== aspect) root.setProperty("--ptz-aspect", aspect);
 }
 
 // ------------------------------------------------------------------------------------------------------
