@@ -15,6 +15,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PKG}"]),
         (f"share/{PKG}", ["package.xml"]),
         (f"share/{PKG}/config", glob("config/*.yaml") + glob("config/*.xml")),
-        (f"share/{PKG}/launch", glob("launch/*.py")),
+        (f"share/{PKG}/launch", glob("launch/*.launch.py")),
+        (f"share/{PKG}/urdf", glob("urdf/*.urdf") + glob("urdf/*.xacro")),
     ],
 )

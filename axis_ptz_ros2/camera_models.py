@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from axis_ptz_ros2.config import CONFIG_DIR, CameraModel, _share_config_dir, camera_model_from_dict
+from axis_ptz_ros2.config import CONFIG_DIR, CameraModel, _share_config_dir, load_camera_model
 from axis_ptz_ros2.geometry import ZoomModel
 from axis_ptz_ros2.vapix import AxisPtzError, CameraConfig, PtzLimits, VapixClient
 from axis_ptz_ros2.vapix.models import CIF_NTSC, CIF_PAL, Resolution
@@ -142,7 +142,7 @@ def load_generic_base() -> CameraModel:
     for d in model_dirs():
         path = d / GENERIC_MODEL_FILE
         if path.exists():
-            return camera_model_from_dict(_read(path))
+            return load_camera_model(path)
     return CameraModel(name="generic Axis PTZ")
 
 
@@ -150,7 +150,7 @@ def select_camera_model(prod_nbr: str, short_name: str, optics: Optics) -> tuple
     """The shipped model of this product, else the generic one built from ``optics``; (model, source)."""
     path = find_model_file(prod_nbr, short_name)
     if path is not None:
-        return camera_model_from_dict(_read(path)), str(path.name)
+        return load_camera_model(path), str(path.name)
     return generic_model(optics, load_generic_base()), "generic (optics from the camera)"
 
 
@@ -252,8 +252,6 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
         max_digital_mag=max_dig,
     )
     if model_file:
-        from axis_ptz_ros2.config import load_camera_model
-
         model, source = load_camera_model(model_file), Path(model_file).name
     else:
         model, source = select_camera_model(prod_nbr, short, optics)
@@ -280,8 +278,6 @@ def learn_camera_model(
         with VapixClient(config) as client:
             profile = discover(client, model_file)
     except AxisPtzError as err:
-        from axis_ptz_ros2.config import load_camera_model
-
         model = load_camera_model(model_file) if model_file else load_generic_base()
         return model, None, str(err)
     return profile.model, profile, None

@@ -4,7 +4,10 @@ Formats (YAML, versioned by a ``format`` key):
 
 * ``axis_ptz_ros2/camera_model/v1`` — ``config/axis214.yaml``: ``convention`` (pan_direction, mount),
   ``zoom`` (a :class:`~axis_ptz_ros2.geometry.ZoomModel`), ``head`` (h_tilt, d_opt in metres), ``limits``
-  (fallback limits in VAPIX degrees/units when the camera cannot report them), ``max_speed`` (deg/s).
+  (fallback limits in VAPIX degrees/units when the camera cannot report them), ``max_speed`` (deg/s), and
+  optionally ``camera_info`` — a measured calibration in the ROS camera calibration YAML format, as a path
+  (relative to the model file) or inline — with ``camera_info_zoom`` (VAPIX units it was measured at; default
+  the wide end). Unknown fields, duplicate keys and broken YAML are refused with the file and field named.
 * ``axis_ptz_ros2/mount/v1`` — ``config/mount.yaml``: the fixed ``parent_frame → child_frame`` transform
   (``xyz`` metres, ``rpy`` radians, REP-103), optional pan/tilt encoder offsets (rad) and a 6×6 covariance
   (x, y, z, rotX, rotY, rotZ). Written by ``axis_calibrate``, loaded by the PTZ node.
@@ -13,15 +16,23 @@ Formats (YAML, versioned by a ``format`` key):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
+from axis_ptz_ros2.camera_info import (
+    CameraInfoData,
+    CameraInfoError,
+    camera_info_from_dict,
+    load_camera_info,
+    nominal_camera_info,
+)
 from axis_ptz_ros2.geometry import (
     AXIS_214_ZOOM,
+    Intrinsics,
     Mount,
     PanDirection,
     PtzKinematics,
@@ -29,6 +40,7 @@ from axis_ptz_ros2.geometry import (
     VapixConvention,
     ZoomModel,
 )
+from axis_ptz_ros2.strict_yaml import YamlError, load_strict
 
 CAMERA_MODEL_FORMAT = "axis_ptz_ros2/camera_model/v1"
 MOUNT_FORMAT = "axis_ptz_ros2/mount/v1"
@@ -75,7 +87,13 @@ class FallbackLimits:
 
 @dataclass(frozen=True, slots=True)
 class CameraModel:
-    """Everything about a camera model that is not read from the device."""
+    """Everything about a camera model that is not read from the device.
+
+    ``camera_info`` (optional) is a measured calibration (ROS camera calibration YAML, e.g. from the
+    ``camera_calibration`` tool) taken at zoom ``camera_info_zoom``: when present it replaces the nominal
+    wide-end intrinsics — principal point and distortion kept, focal length scaled with the zoom curve
+    (:meth:`camera_info_at`).
+    """
 
     name: str = "AXIS 214 PTZ"
     convention: VapixConvention = field(default_factory=VapixConvention)
@@ -84,37 +102,138 @@ class CameraModel:
     limits: FallbackLimits = field(default_factory=FallbackLimits)
     max_pan_speed_dps: float = 100.0
     max_tilt_speed_dps: float = 90.0
+    camera_info: CameraInfoData | None = None
+    camera_info_zoom: float | None = None  # zoom units of the measurement (None: the wide end, zoom.min_zoom)
+
+    def camera_info_at(self, zoom: float, width: int, height: int) -> CameraInfoData:
+        """The calibration of a ``width``×``height`` stream at ``zoom`` units: the measured one adapted
+        (focal × magnification ratio, principal point and distortion kept, scaled with the image size), or
+        the nominal distortion-free pinhole of the zoom curve. A stream whose aspect ratio differs from the
+        measured one (another crop of the sensor) cannot be derived from it and gets the nominal values."""
+        ci = self.camera_info
+        if ci is None or abs(width * ci.height - height * ci.width) > 0.01 * width * ci.height:
+            return nominal_camera_info(self.zoom.intrinsics(zoom, width, height))
+        z0 = self.zoom.min_zoom if self.camera_info_zoom is None else self.camera_info_zoom
+        m = self.zoom.magnification(zoom) / self.zoom.magnification(z0)
+        return ci.adapted(width, height, m)
+
+    def intrinsics(self, zoom: float, width: int, height: int) -> Intrinsics:
+        """Pinhole K at ``zoom`` for a ``width``×``height`` stream (measured if available; see
+        :meth:`camera_info_at` for the distortion that goes with it)."""
+        return self.camera_info_at(zoom, width, height).intrinsics()
+
+    def with_camera_info(self, ci: CameraInfoData | None, zoom: float | None = None) -> CameraModel:
+        """A copy with another measured calibration (``None`` removes it)."""
+        return replace(self, camera_info=ci, camera_info_zoom=zoom)
 
 
-def camera_model_from_dict(d: dict[str, Any]) -> CameraModel:
-    """Parse a camera-model mapping (see module docstring)."""
+class CameraModelError(ValueError):
+    """A camera-model file is malformed; the message names the file and the field."""
+
+
+#: Allowed keys of a camera-model file (a typo is refused, not ignored). Extend when adding fields.
+CAMERA_MODEL_KEYS: dict[str, set[str] | None] = {
+    "format": None,
+    "name": None,
+    "convention": {"pan_direction", "mount"},
+    "zoom": {f for f in ZoomModel.__dataclass_fields__},
+    "head": {"h_tilt", "d_opt"},
+    "limits": {f for f in FallbackLimits.__dataclass_fields__},
+    "max_speed": {"pan_dps", "tilt_dps"},
+    "camera_info": None,  # path (relative to the model file) or an inline ROS camera calibration mapping
+    "camera_info_zoom": None,
+    "dynamics": None,  # read by the virtual head only (config/virtual_camera.yaml)
+    "products": None,  # Brand.ProdNbr / ProdShortName list for automatic selection (camera_models.py)
+}
+
+
+def _check_model_keys(d: dict[str, Any], source: str) -> None:
+    unknown = sorted(str(k) for k in d if k not in CAMERA_MODEL_KEYS)
+    if unknown:
+        raise CameraModelError(f"{source}: unknown field(s) {unknown}; allowed: {sorted(CAMERA_MODEL_KEYS)}")
+    for key, allowed in CAMERA_MODEL_KEYS.items():
+        if allowed is None or key not in d or d[key] is None:
+            continue
+        sub = d[key]
+        if not isinstance(sub, dict):
+            raise CameraModelError(f"{source}: {key}: expected a mapping, got {sub!r}")
+        bad = sorted(str(k) for k in sub if k not in allowed)
+        if bad:
+            raise CameraModelError(f"{source}: {key}.{bad[0]}: unknown field(s) {bad}; allowed: {sorted(allowed)}")
+
+
+def camera_model_from_dict(
+    d: dict[str, Any], source: str = "<camera model>", base_dir: Path | None = None
+) -> CameraModel:
+    """Parse a camera-model mapping (see module docstring); raises :class:`CameraModelError` naming the field.
+
+    ``camera_info`` may be a path (relative to ``base_dir``, the model file's folder) or an inline mapping.
+    """
+    if not isinstance(d, dict):
+        raise CameraModelError(f"{source}: expected a mapping, got {type(d).__name__}")
+    _check_model_keys(d, source)
     fmt = d.get("format", CAMERA_MODEL_FORMAT)
     if fmt != CAMERA_MODEL_FORMAT:
-        raise ValueError(f"unsupported camera model format {fmt!r}, expected {CAMERA_MODEL_FORMAT!r}")
-    conv = d.get("convention", {})
-    head = d.get("head", {})
-    speed = d.get("max_speed", {})
+        raise CameraModelError(f"{source}: unsupported camera model format {fmt!r}, expected {CAMERA_MODEL_FORMAT!r}")
+    conv = d.get("convention") or {}
+    head = d.get("head") or {}
+    speed = d.get("max_speed") or {}
+    where = "convention"
+    try:
+        convention = VapixConvention(PanDirection(conv.get("pan_direction", "cw")), Mount(conv.get("mount", "upright")))
+        where = "zoom"
+        zoom = ZoomModel.from_dict(d.get("zoom") or {})
+        where = "head"
+        d_opt = tuple(float(v) for v in head.get("d_opt", (0.0, 0.0, 0.0)))
+        if len(d_opt) != 3:
+            raise ValueError(f"d_opt needs three values [x, y, z] (m), got {list(d_opt)}")
+        kin = PtzKinematics(h_tilt=float(head.get("h_tilt", 0.0687)), d_opt=(d_opt[0], d_opt[1], d_opt[2]))
+        where = "limits"
+        limits = FallbackLimits(**(d.get("limits") or {}))
+        where = "max_speed"
+        pan_dps, tilt_dps = float(speed.get("pan_dps", 100.0)), float(speed.get("tilt_dps", 90.0))
+        where = "camera_info_zoom"
+        ci_zoom = d.get("camera_info_zoom")
+        ci_zoom_f = None if ci_zoom is None else float(ci_zoom)
+    except (TypeError, ValueError) as err:
+        raise CameraModelError(f"{source}: {where}: {err}") from err
+    ci = None
+    ref = d.get("camera_info")
+    try:
+        if isinstance(ref, str):
+            path = Path(ref).expanduser()
+            if not path.is_absolute() and base_dir is not None:
+                path = base_dir / path
+            ci = load_camera_info(path)
+        elif ref is not None:
+            ci = camera_info_from_dict(ref, f"{source}: camera_info")
+    except CameraInfoError as err:
+        raise CameraModelError(f"{source}: camera_info: {err}") from err
     return CameraModel(
         name=str(d.get("name", "AXIS 214 PTZ")),
-        convention=VapixConvention(
-            PanDirection(conv.get("pan_direction", "cw")), Mount(conv.get("mount", "upright"))
-        ),
-        zoom=ZoomModel.from_dict(d.get("zoom", {})),
-        head=PtzKinematics(
-            h_tilt=float(head.get("h_tilt", 0.0687)),
-            d_opt=tuple(float(v) for v in head.get("d_opt", (0.0, 0.0, 0.0))),  # type: ignore[arg-type]
-        ),
-        limits=FallbackLimits(**d.get("limits", {})),
-        max_pan_speed_dps=float(speed.get("pan_dps", 100.0)),
-        max_tilt_speed_dps=float(speed.get("tilt_dps", 90.0)),
+        convention=convention,
+        zoom=zoom,
+        head=kin,
+        limits=limits,
+        max_pan_speed_dps=pan_dps,
+        max_tilt_speed_dps=tilt_dps,
+        camera_info=ci,
+        camera_info_zoom=ci_zoom_f,
     )
 
 
 def load_camera_model(path: str | Path | None = None) -> CameraModel:
-    """Load ``config/axis214.yaml`` (default) or another camera-model file."""
+    """Load ``config/axis214.yaml`` (default) or another camera-model file.
+
+    Raises :class:`CameraModelError` (a ``ValueError``) for an unreadable file, broken YAML, duplicate keys,
+    unknown fields and bad values, with the file (and line, for YAML errors) in the message.
+    """
     p = Path(path) if path else default_config_path("axis214.yaml")
-    with open(p, encoding="utf-8") as f:
-        return camera_model_from_dict(yaml.safe_load(f) or {})
+    try:
+        data = load_strict(p)
+    except YamlError as err:
+        raise CameraModelError(str(err)) from err
+    return camera_model_from_dict(data or {}, str(p), p.parent)
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,6 +12,8 @@ import argparse
 import os
 import time
 
+from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+
 from axis_ptz_ros2.vapix.mjpeg import MjpegParser
 
 
@@ -64,10 +66,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0)
     args = ap.parse_args()
+    inputs("axis_ptz_ros2/vapix/mjpeg.py", "bench/bench_mjpeg_parser.py")
     print(f"{'frame':>8} {'chunk':>8} {'frames/s':>12} {'MB/s':>8}")
+    rates = {}
     for frame_size, chunk_size in ((3 * 1024, 64 * 1024), (50 * 1024, 64 * 1024), (3 * 1024, 4 * 1024)):
         fps, mbps = run(frame_size, chunk_size, args.seconds)
+        rates[(frame_size, chunk_size)] = fps
         print(f"{frame_size:>8} {chunk_size:>8} {fps:>12,.0f} {mbps:>8.1f}")
+    row(
+        "MJPEG parser (pure Python), 3 KB / 50 KB frames",
+        f"{rates[(3072, 65536)]:,.0f} / {rates[(51200, 65536)]:,.0f} frames/s",
+    )
 
 
 if __name__ == "__main__":

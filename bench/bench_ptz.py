@@ -31,6 +31,7 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(150 + random.randrange(50)))
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
+from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
@@ -101,6 +102,8 @@ def main() -> int:
             ex.spin_once(timeout_sec=min(0.01, max(0.0, end - time.monotonic())))
 
     ok = True
+    inputs("axis_ptz_ros2/ptz", "axis_ptz_ros2/nodes/ptz_node.py", "axis_ptz_ros2/nodes/common.py",
+           "axis_ptz_ros2/vapix", "axis_ptz_ros2/sim", "bench/bench_ptz.py")  # fmt: skip
     try:
         deadline = time.monotonic() + 20.0
         while (
@@ -135,6 +138,7 @@ def main() -> int:
             f"median {med:.2f} ms, p99 {p99:.2f} ms, max {max(lat):.2f} ms  "
             f"[target median <= 5 ms: {'PASS' if lat_ok else 'FAIL'}]"
         )
+        row("PTZ command → camera request (median / p99)", f"{med:.2f} / {p99:.1f} ms", "≤ 5 ms median", lat_ok)
 
         # ---- 2. state rate and CPU -----------------------------------------------------------------
         spin_for(1.0)
@@ -151,6 +155,7 @@ def main() -> int:
             f"over {t1 - t0:.1f} s  [target >= 20 Hz at <= 5 %: {'PASS' if st_ok else 'FAIL'}]"
             f"  (sim TCP_NODELAY: {'on' if nodelay else 'off'})"
         )
+        row("PTZ state rate and node CPU", f"{rate:.1f} Hz at {cpu:.1f} % of a core", "≥ 20 Hz at ≤ 5 %", st_ok)
 
         # ---- 3. burst of relative commands against a slow camera -----------------------------------
         pub_abs.publish(PtzCommand(pan=0.0, tilt=0.0, zoom=NAN, speed=NAN))
@@ -180,6 +185,13 @@ def main() -> int:
             f"burst: 300 relative steps at 30 Hz, camera reply delay {rtt:g} ms -> {len(log)} camera requests, "
             f"final pan error {err_deg:.4f} deg, last command -> its request {delay_ms:.0f} ms "
             f"(<= in-flight request + its own)  [{'PASS' if burst_ok else 'FAIL'}]"
+        )
+        row(
+            f"300 relative commands at 30 Hz (camera answers in {rtt:g} ms)",
+            f"{len(log)} camera requests, final error {err_deg:.4f}°, last command's request {delay_ms:.0f} ms "
+            "after it",
+            "no backlog, exact",
+            burst_ok,
         )
         cam.set_faults(FaultConfig())
     finally:

@@ -18,6 +18,7 @@ import time
 
 import httpx
 import numpy as np
+from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.sim.testing import parts
 
@@ -72,7 +73,9 @@ def main() -> int:
             return 1
         base = m.group(1)
         q = "resolution=704x576&fps=30"
+        inputs("axis_ptz_ros2/sim", "axis_ptz_ros2/geometry.py", "config", "bench/bench_sim.py")
         fps, ms, pct = measure(base, proc.pid, q, args.seconds)
+        still = (fps, pct)
         report("static camera, 704x576 requested 30 fps", fps, ms, pct)
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"pan": "-170"})
         time.sleep(3.5)
@@ -80,6 +83,12 @@ def main() -> int:
         fps, ms, pct = measure(base, proc.pid, q, min(args.seconds, 8.0))
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "0,0"})
         report("panning camera,  704x576 requested 30 fps", fps, ms, pct)
+        row(
+            "simulator, 704×576 @ 30 fps, still / panning camera",
+            f"{still[0]:.1f} fps at {still[1]:.1f} % / {fps:.1f} fps at {pct:.1f} % of a core",
+            "30 fps, most of a core free",
+            min(still[0], fps) >= 29.0 and max(still[1], pct) < 50.0,
+        )
         fps, ms, pct = measure(base, proc.pid, "resolution=704x576&fps=0", min(args.seconds, 5.0))
         report("fps=0 (as fast as possible), 704x576", fps, ms, pct)
     finally:

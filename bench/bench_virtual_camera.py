@@ -32,6 +32,7 @@ from collections.abc import Callable  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2 import geometry as g  # noqa: E402
 from axis_ptz_ros2.virtual import ViewSpec, VirtualCameraRenderer  # noqa: E402
@@ -77,6 +78,7 @@ def main() -> None:
     w, h = (int(s) for s in args.view.split("x"))
 
     print("command:", shlex.join([os.path.relpath(sys.executable), *sys.argv]))
+    inputs("axis_ptz_ros2/virtual", "axis_ptz_ros2/geometry.py", "bench/bench_virtual_camera.py")
     print(
         f"python {platform.python_version()}, numpy {np.__version__}, opencv {cv2.__version__}, "
         f"cv2 threads {cv2.getNumThreads()}, cpu {platform.processor() or platform.machine()}"
@@ -86,18 +88,14 @@ def main() -> None:
 
     hfov = math.radians(47.98)
     view = ViewSpec(w, h, math.radians(40.0), math.radians(10.0), hfov)  # Axis 214 wide end
-    print(
-        f"view: pan 40°, tilt 10°, hfov {math.degrees(hfov):.2f}° (pan/tilt in base_link, panorama yawed 54°)"
-    )
+    print(f"view: pan 40°, tilt 10°, hfov {math.degrees(hfov):.2f}° (pan/tilt in base_link, panorama yawed 54°)")
     yaw = math.radians(54.0)  # TRADR panorama frame yawed against base_link
     r = VirtualCameraRenderer(PW, PH, g.rot_z(yaw))
     out = np.empty((h, w, 3), np.uint8)
 
     results: dict[str, float] = {}
     results["render, cached maps"] = median_ms(lambda i: r.render(pano, view), args.runs)
-    results["render, cached maps, out= buffer"] = median_ms(
-        lambda i: r.render(pano, view, out=out), args.runs
-    )
+    results["render, cached maps, out= buffer"] = median_ms(lambda i: r.render(pano, view, out=out), args.runs)
 
     def new_tilt_zoom(i: int) -> ViewSpec:
         j = i % 1000  # every run a tilt and zoom not in the cache
@@ -125,9 +123,7 @@ def main() -> None:
     for tilt_deg in (-30.0, 0.0, 30.0, 60.0, 89.0):
         for hfov_deg in (2.7, 20.0, 47.98, 90.0):
             v = ViewSpec(w, h, view.pan, math.radians(tilt_deg), math.radians(hfov_deg))
-            grid.append(
-                (median_ms(lambda i, v=v: r.render(pano, v), max(20, args.runs // 10)), tilt_deg, hfov_deg)
-            )
+            grid.append((median_ms(lambda i, v=v: r.render(pano, v), max(20, args.runs // 10)), tilt_deg, hfov_deg))
     grid.sort()
     mid = grid[len(grid) // 2][0]
     print(
@@ -140,6 +136,13 @@ def main() -> None:
         import py360convert  # noqa: PLC0415
     except ImportError:
         print("py360convert not installed: .venv/bin/pip install py360convert  (comparison skipped)")
+        row(
+            f"virtual camera: {w}×{h} view from {PW}×{PH}, cached maps / map rebuild / py360convert `e2p`",
+            f"{results['render, cached maps']:.2f} ms / {results['map rebuild, view change (tilt+zoom)']:.2f} ms"
+            " / not measured (py360convert missing)",
+            "≤ 2.5 ms / ≤ 5 ms / ≥ 10×",
+            False,
+        )
         return
 
     # py360convert puts its outer pixel *centres* on ±tan(fov/2); ours puts the outer pixel *edges* there.
@@ -147,9 +150,7 @@ def main() -> None:
     fov = (math.degrees(2 * math.atan((w - 1) / 2 / k.fx)), math.degrees(2 * math.atan((h - 1) / 2 / k.fy)))
 
     def e2p(pan: float, tilt: float) -> np.ndarray:
-        return np.asarray(
-            py360convert.e2p(pano, fov, -math.degrees(pan), math.degrees(tilt), (h, w), mode="bilinear")
-        )
+        return np.asarray(py360convert.e2p(pano, fov, -math.degrees(pan), math.degrees(tilt), (h, w), mode="bilinear"))
 
     # Same picture? (render in base_link with an unrotated panorama so both use the same frame)
     plain = VirtualCameraRenderer(PW, PH)
@@ -170,6 +171,13 @@ def main() -> None:
     ours_new = results["render of a new view (rebuild + remap, tilt -30..70°)"]
     print(f"  speed-up, same view: {e2p_cached / ours_cached:6.1f}x   (target >= 10x)")
     print(f"  speed-up, new view:  {e2p_new / ours_new:6.1f}x")
+    rebuild = results["map rebuild, view change (tilt+zoom)"]
+    row(
+        f"virtual camera: {w}×{h} view from {PW}×{PH}, cached maps / map rebuild / py360convert `e2p`",
+        f"{ours_cached:.2f} ms / {rebuild:.2f} ms / {e2p_cached:.1f} ms ({e2p_cached / ours_cached:.1f}× faster)",
+        "≤ 2.5 ms / ≤ 5 ms / ≥ 10×",
+        ours_cached <= 2.5 and rebuild <= 5.0 and e2p_cached / ours_cached >= 10.0,
+    )
 
 
 if __name__ == "__main__":

@@ -1,8 +1,22 @@
-"""Test-suite wide settings: DDS on loopback, and no silently skipped tier."""
+"""Test-suite wide settings: DDS on loopback, and no silently skipped tier.
+
+With ``AXIS_REQUIRE_ALL_TIERS=1`` (``scripts/test``, CI) nothing may quietly drop out of the run:
+
+- a skipped test fails (setup, call or teardown);
+- a skip while *collecting* fails: ``pytest.importorskip("rclpy")`` at the top of a module or of a tier's
+  ``conftest.py`` skips the whole module or tier before any test exists, so the per-test rule never sees it;
+- every test module the run was asked to collect must contribute at least one test (counted before ``-k`` /
+  ``-m`` deselection), so a module that defines its tests conditionally cannot vanish either.
+
+The terminal summary lists the tests collected per tier (the directories under ``tests/``).
+Without the variable a skip stays a skip (a developer without a browser can still run the rest).
+"""
 
 from __future__ import annotations
 
 import os
+from collections import Counter
+from pathlib import Path
 
 import pytest
 
@@ -12,13 +26,90 @@ os.environ.pop("ROS_LOCALHOST_ONLY", None)
 # One DDS domain per test session (several sessions may run at once on a machine; they must not cross-talk).
 os.environ["ROS_DOMAIN_ID"] = os.environ.get("AXIS_TEST_DOMAIN_ID", str(100 + os.getpid() % 100))
 
+TESTS = Path(__file__).resolve().parent
+REQUIRE = "AXIS_REQUIRE_ALL_TIERS"
+_collected: Counter[Path] = Counter()  # test module -> tests collected (before deselection)
+_problems: list[str] = []
+
+
+def _required() -> bool:
+    return os.environ.get(REQUIRE) == "1"
+
+
+def _skip_reason(longrepr: object) -> str:
+    return str(longrepr[2]) if isinstance(longrepr, tuple) and len(longrepr) == 3 else str(longrepr)
+
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):  # noqa: ANN001, ANN201
-    """With AXIS_REQUIRE_ALL_TIERS=1 (scripts/test, CI) a skipped test is a failure, not a silent pass."""
+    """A skipped test is a failure while AXIS_REQUIRE_ALL_TIERS=1."""
     outcome = yield
     report = outcome.get_result()
-    if os.environ.get("AXIS_REQUIRE_ALL_TIERS") == "1" and report.skipped and not hasattr(report, "wasxfail"):
+    if _required() and report.skipped and not hasattr(report, "wasxfail"):
         report.outcome = "failed"
-        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
-        report.longrepr = f"skipped while AXIS_REQUIRE_ALL_TIERS=1 (every tier must run): {reason}"
+        reason = _skip_reason(report.longrepr)
+        report.longrepr = f"skipped while {REQUIRE}=1 (every tier must run): {reason}"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):  # noqa: ANN001, ANN201
+    """A module or tier skipped at collection (importorskip at import) is a collection error while required."""
+    outcome = yield
+    report = outcome.get_result()
+    if _required() and report.skipped:
+        reason = _skip_reason(report.longrepr)
+        report.outcome = "failed"
+        report.longrepr = (
+            f"{collector.nodeid or collector}: skipped at collection while {REQUIRE}=1 (a tier is missing): {reason}"
+        )
+        _problems.append(f"{collector.nodeid}: skipped at collection: {reason}")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(session, config, items):  # noqa: ANN001, ANN201
+    """Count tests per module before -k/-m deselect any (runs before the deselecting hooks)."""
+    for item in items:
+        _collected[Path(str(item.path)).resolve()] += 1
+
+
+def _requested_modules(config: pytest.Config) -> set[Path]:
+    """Every test module under the paths this run was asked to collect."""
+    out: set[Path] = set()
+    for arg in config.args:
+        p = Path(arg.split("::")[0])
+        p = (p if p.is_absolute() else Path(config.invocation_params.dir) / p).resolve()
+        if p.is_dir():
+            out.update(q.resolve() for q in p.rglob("test_*.py") if ".venv" not in q.parts)
+        elif p.is_file() and p.name.startswith("test_") and p.suffix == ".py":
+            out.add(p)
+    return {p for p in out if TESTS in p.parents}
+
+
+def _tier(path: Path) -> str:
+    rel = path.relative_to(TESTS)
+    return rel.parts[0] if len(rel.parts) > 1 else "(top level)"
+
+
+def pytest_sessionfinish(session, exitstatus):  # noqa: ANN001, ANN201
+    if not _required():
+        return
+    empty = sorted(m for m in _requested_modules(session.config) if _collected[m] == 0)
+    for m in empty:
+        _problems.append(f"{m.relative_to(TESTS.parent)}: collected no test (tier '{_tier(m)}' incomplete)")
+    if empty and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ANN001, ANN201
+    tiers: Counter[str] = Counter()
+    for module, n in _collected.items():
+        if TESTS in module.parents:
+            tiers[_tier(module)] += n
+    if tiers:
+        terminalreporter.write_line(
+            "tests collected per tier: " + ", ".join(f"{t} {n}" for t, n in sorted(tiers.items()))
+        )
+    if _problems:
+        terminalreporter.section(f"missing tiers ({REQUIRE}=1)", red=True)
+        for p in _problems:
+            terminalreporter.write_line(p, red=True)

@@ -2,8 +2,9 @@
 
 Sub-commands::
 
-    axis_calibrate solve CORRESPONDENCES.yaml [--camera-model config/axis214.yaml] [--out mount.yaml]
-                   [--encoder-offsets] [--sigma-px 1.0] [--sigma-3d 0.02] [--no-robust] [--holdout auto]
+    axis_calibrate solve CORRESPONDENCES.yaml [--camera-model config/axis214.yaml] [--camera-info ost.yaml]
+                   [--fixed] [--out mount.yaml] [--report report.json] [--encoder-offsets] [--sigma-px 1.0]
+                   [--sigma-3d 0.02] [--max-sigma-cm X] [--max-sigma-deg Y] [--no-robust] [--holdout auto]
     axis_calibrate synth OUT.yaml [--seed 0] [--views 5] [--points 8] [--pixel-noise 1] [--point-noise 0.02]
 
     axis_calibrate capture OUT.yaml [--poses "pan_deg,tilt_deg[,zoom];..."] [--views N] [--pick none|auto]
@@ -12,6 +13,12 @@ Sub-commands::
 
 Exit codes: 0 success, 1 bad input (file or arguments), 2 calibration refused (the reason is printed),
 3 capture failed (ROS data missing, head did not arrive; the reason is printed).
+
+``solve`` takes the raw pixels the user clicked; with ``--camera-info`` (the ROS camera calibration YAML the
+``camera_calibration`` tool writes) they are modelled with the measured K and distortion. ``--fixed`` solves a
+fixed camera (no PTZ head): the result is the optical frame's pose in the reference (laser) frame. The solve
+refuses only when the data cannot determine the pose; ``--max-sigma-cm`` / ``--max-sigma-deg`` make it strict.
+``--report`` writes a JSON report (:mod:`~axis_ptz_ros2.calibration.report`), also for a refusal.
 
 ``capture`` records views from the running ROS system (``ptz/state``, ``image_raw/compressed``,
 ``laser/points``; see :mod:`axis_ptz_ros2.calibration.capture`) and appends them to OUT.yaml with
@@ -36,8 +43,10 @@ from axis_ptz_ros2.calibration.correspondences import (
     load_correspondences,
     save_correspondences,
 )
-from axis_ptz_ros2.calibration.solver import CalibrationRefused, CalibrationResult, calibrate
+from axis_ptz_ros2.calibration.report import report_dict, write_report
+from axis_ptz_ros2.calibration.solver import CalibrationInputError, CalibrationResult, calibrate
 from axis_ptz_ros2.calibration.synthetic import make_scene
+from axis_ptz_ros2.camera_info import CameraInfoError, load_camera_info
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot, save_mount
 
 
@@ -46,8 +55,9 @@ def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
     x, y, z, r, p, yw = result.xyz_rpy()
     st = result.sigma_translation_m * 100.0
     sr = np.degrees(result.sigma_rotation_rad)
+    name = "T_ref_optical" if result.fixed else "T_base_ptz"
     lines = [
-        f"T_base_ptz  xyz [m]   : {x:+.4f} {y:+.4f} {z:+.4f}",
+        f"{name:<11} xyz [m]   : {x:+.4f} {y:+.4f} {z:+.4f}",
         f"            rpy [deg] : {math.degrees(r):+.3f} {math.degrees(p):+.3f} {math.degrees(yw):+.3f}",
         f"σ translation [cm]    : x {st[0]:.2f}  y {st[1]:.2f}  z {st[2]:.2f}",
         f"σ rotation [deg]      : rotX {sr[0]:.3f}  rotY {sr[1]:.3f}  rotZ {sr[2]:.3f}  (about base axes)",
@@ -66,6 +76,19 @@ def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
         f"focal check           : {result.focal_check.message}",
     ]
     lines += [f"note                  : {n}" for n in result.notes]
+    lines += [f"WARNING               : {w}" for w in result.warnings]
+    if not result.fixed and result.views:
+        lines.append("")
+        lines.append(
+            f"{'view':<12} {'camera xyz in reference frame [m]':<34} {'σ xyz [cm]':<20} {'RMS px':>7} {'held-out':>8}"
+        )
+        for v in result.views:
+            t = v.T_reference_optical.t
+            s3 = np.asarray(v.sigma_translation_m) * 100.0
+            lines.append(
+                f"{v.name[:12]:<12} {t[0]:+9.4f} {t[1]:+9.4f} {t[2]:+9.4f}       "
+                f"{s3[0]:5.2f} {s3[1]:5.2f} {s3[2]:5.2f}    {v.rms_px:7.2f} {v.holdout_rms_px:8.2f}"
+            )
     lines.append("")
     lines.append(f"{'view':<12} {'#':>3} {'label':<16} {'u':>8} {'v':>8} {'du':>7} {'dv':>7} {'|e| px':>7} {'e/σ':>5}")
     for row in result.residuals[:max_rows]:
@@ -82,7 +105,34 @@ def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
     return "\n".join(lines)
 
 
+def _writable_target(path: Path, what: str) -> str | None:
+    """Why ``path`` cannot be written (checked before the solve, so no work is lost), or None."""
+    parent = path.expanduser().resolve().parent
+    if path.exists() and path.is_dir():
+        return f"{what} {path} is a directory"
+    if not parent.is_dir():
+        return f"{what} {path}: folder {parent} does not exist"
+    if not os.access(parent, os.W_OK):
+        return f"{what} {path}: folder {parent} is not writable"
+    return None
+
+
 def _cmd_solve(args: argparse.Namespace) -> int:
+    for target, what in ((args.out, "--out"), (args.report, "--report")):
+        if target is not None:
+            problem = _writable_target(target, what)
+            if problem:
+                print(f"error: {problem}", file=sys.stderr)
+                return 1
+    if args.max_sigma_cm is not None and not args.max_sigma_cm > 0:
+        print("error: --max-sigma-cm must be positive", file=sys.stderr)
+        return 1
+    if args.max_sigma_deg is not None and not args.max_sigma_deg > 0:
+        print("error: --max-sigma-deg must be positive", file=sys.stderr)
+        return 1
+    if not (args.sigma_px > 0 and args.sigma_3d >= 0):
+        print("error: --sigma-px must be positive and --sigma-3d non-negative", file=sys.stderr)
+        return 1
     try:
         cs = load_correspondences(args.correspondences)
     except CorrespondenceError as err:
@@ -91,30 +141,64 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     model_path = args.camera_model or cs.resolve_camera_model()
     try:
         cm = load_camera_model(model_path)
-    except (OSError, ValueError) as err:
-        print(f"error: camera model {model_path}: {err}", file=sys.stderr)
+    except ValueError as err:  # CameraModelError: broken YAML, duplicate or unknown keys, bad values
+        print(f"error: camera model: {err}", file=sys.stderr)
         return 1
+    if args.camera_info is not None:
+        try:
+            cm = cm.with_camera_info(load_camera_info(args.camera_info), args.camera_info_zoom)
+        except CameraInfoError as err:
+            print(f"error: camera info: {err}", file=sys.stderr)
+            return 1
+    if args.fixed and cm.camera_info is None:
+        print(
+            "warning: --fixed without --camera-info: using the camera model's nominal wide-end intrinsics "
+            "(no distortion); measure the camera with the ROS camera_calibration tool for real data",
+            file=sys.stderr,
+        )
+    child = args.child_frame or ("camera_optical_frame" if args.fixed else "axis_ptz_base")
+    source = str(args.correspondences)
+    refused: str | None = None
     try:
         result = calibrate(
             cs.views,
             cm,
+            fixed=args.fixed,
             estimate_encoder_offsets=args.encoder_offsets,
             sigma_px=args.sigma_px,
             sigma_3d_m=args.sigma_3d,
             robust=not args.no_robust,
             holdout_mode=args.holdout,
+            max_sigma_translation_m=args.max_sigma_cm / 100.0 if args.max_sigma_cm else math.inf,
+            max_sigma_rotation_deg=args.max_sigma_deg if args.max_sigma_deg else math.inf,
+            raise_on_refusal=False,
+            source=source,
         )
-    except CalibrationRefused as err:
-        if err.result is not None:
-            print(format_result(err.result))
-            print()
-        print(f"REFUSED: {err.reason}", file=sys.stderr)
+    except CalibrationInputError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    refused = result.refused_reason
+    if args.report is not None:
+        inputs = {
+            "correspondences": source,
+            "camera_model": str(model_path) if model_path else "built-in",
+            "camera_info": str(args.camera_info) if args.camera_info else None,
+            "fixed": bool(args.fixed),
+        }
+        write_report(report_dict(result, parent_frame=args.parent_frame, child_frame=child, inputs=inputs), args.report)
+    if result.solved:
+        print(format_result(result))
+    if refused is not None:
+        print(f"\nREFUSED: {refused}", file=sys.stderr)
+        if args.report is not None:
+            print(f"wrote {args.report}")
         return 2
-    print(format_result(result))
     if args.out:
-        mount = result.to_mount_config(args.parent_frame, args.child_frame)
+        mount = result.to_mount_config(args.parent_frame, child)
         save_mount(mount, args.out)
         print(f"\nwrote {args.out}")
+    if args.report is not None:
+        print(f"wrote {args.report}")
     return 0
 
 
@@ -227,14 +311,25 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("solve", help="calibrate base_link -> ptz_base from a correspondence file")
     s.add_argument("correspondences", type=Path, help="correspondence YAML (axis_ptz_ros2/correspondences/v1)")
     s.add_argument("--camera-model", type=Path, default=None, help="camera model YAML (default: file's or built-in)")
+    s.add_argument("--camera-info", type=Path, default=None, help="measured intrinsics: ROS camera calibration YAML")
+    s.add_argument(
+        "--camera-info-zoom",
+        type=float,
+        default=None,
+        help="VAPIX zoom units the camera info was measured at (default: the wide end)",
+    )
+    s.add_argument("--fixed", action="store_true", help="fixed camera: solve the optical frame in the laser frame")
     s.add_argument("--out", type=Path, default=None, help="write the mount file (axis_ptz_ros2/mount/v1) here")
+    s.add_argument("--report", type=Path, default=None, help="write a JSON report here (also when refused)")
+    s.add_argument("--max-sigma-cm", type=float, default=None, help="refuse if a translation σ exceeds this [cm]")
+    s.add_argument("--max-sigma-deg", type=float, default=None, help="refuse if a rotation σ exceeds this [deg]")
     s.add_argument("--encoder-offsets", action="store_true", help="also estimate the tilt encoder offset")
     s.add_argument("--sigma-px", type=float, default=1.0, help="pixel picking noise σ per axis [px] (1.0)")
     s.add_argument("--sigma-3d", type=float, default=0.02, help="3-D point picking noise σ per axis [m] (0.02)")
     s.add_argument("--no-robust", action="store_true", help="plain least squares, no outlier rejection")
     s.add_argument("--holdout", choices=["auto", "views", "points", "none"], default="auto")
     s.add_argument("--parent-frame", default="base_link")
-    s.add_argument("--child-frame", default="axis_ptz_base")
+    s.add_argument("--child-frame", default=None, help="default axis_ptz_base (PTZ) or camera_optical_frame (--fixed)")
     s.set_defaults(func=_cmd_solve)
     g = sub.add_parser("synth", help="write a synthetic correspondence file with known truth (for testing)")
     g.add_argument("out", type=Path)

@@ -18,6 +18,9 @@ File format ``axis_ptz_ros2/correspondences/v1`` (YAML)::
             point: [3.12, 1.05, 0.42]        #   top-left pixel; [x, y, z] m in base_link (the laser's frame)
             label: table corner              # optional
 
+A fixed camera's views (``axis_calibrate solve --fixed``) omit ``pan``, ``tilt`` and ``zoom`` (all three;
+stored as NaN, :attr:`View.has_ptz` is False). Duplicate keys are refused.
+
 Pan and tilt are the camera's *reported* position converted to REP-103 radians (``VapixConvention.to_ros``);
 the solver may estimate an encoder offset on top of them. Unknown keys are rejected (typos would otherwise be
 ignored silently); every error names the file, the line and the field.
@@ -32,6 +35,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from axis_ptz_ros2.strict_yaml import YamlError, loads_strict
 
 CORRESPONDENCES_FORMAT = "axis_ptz_ros2/correspondences/v1"
 
@@ -51,6 +56,7 @@ class Correspondence:
     pixel: tuple[float, float]
     point: tuple[float, float, float]
     label: str = ""
+    line: int = field(default=0, compare=False)  # line in the file it was read from (0: not from a file)
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +72,12 @@ class View:
     points: tuple[Correspondence, ...] = ()
     image: str | None = None
     comment: str = ""
+    line: int = field(default=0, compare=False)  # line in the file it was read from (0: not from a file)
+
+    @property
+    def has_ptz(self) -> bool:
+        """False for a fixed-camera view (pan, tilt and zoom all omitted, stored as NaN)."""
+        return math.isfinite(self.pan) and math.isfinite(self.tilt) and math.isfinite(self.zoom)
 
     def __post_init__(self) -> None:
         """Validate (raises :class:`CorrespondenceError`)."""
@@ -107,6 +119,9 @@ def _view_problem(name: str, pan: float, tilt: float, zoom: float, width: int, h
     """The first problem of a view's scalar fields as (field, message), or None."""
     if not name:
         return "name", "must be a non-empty string"
+    absent = [not _finite(v) for v in (pan, tilt, zoom)]
+    if all(absent):  # a fixed camera's view: no pan/tilt/zoom at all
+        return None if width > 0 and height > 0 else ("image_width", "must be positive integers")
     for key, val in (("pan", pan), ("tilt", tilt), ("zoom", zoom)):
         if not _finite(val):
             return key, f"must be finite, got {val}"
@@ -167,6 +182,11 @@ class _Ctx:
                 return None
         return node
 
+    def line(self, path: Sequence[str | int]) -> int:
+        """1-based line of the node at ``path`` (0 if unknown)."""
+        node = self._node(path)
+        return node.start_mark.line + 1 if node is not None else 0
+
     def error(self, path: Sequence[str | int], msg: str) -> CorrespondenceError:
         node = self._node(path)
         line = f":{node.start_mark.line + 1}" if node is not None else ""
@@ -225,9 +245,10 @@ def _parse_view(ctx: _Ctx, d: Any, path: list[str | int], names: set[str]) -> Vi
     if name in names:
         raise ctx.error([*path, "name"], f"duplicate view name {name!r}")
     names.add(name)
-    pan = _num(ctx, d, "pan", path)
-    tilt = _num(ctx, d, "tilt", path)
-    zoom = _num(ctx, d, "zoom", path)
+    fixed = not any(k in d for k in ("pan", "tilt", "zoom"))  # a fixed camera's view omits all three
+    pan = _num(ctx, d, "pan", path, required=not fixed)
+    tilt = _num(ctx, d, "tilt", path, required=not fixed)
+    zoom = _num(ctx, d, "zoom", path, required=not fixed)
     width = _int(ctx, d, "image_width", path)
     height = _int(ctx, d, "image_height", path)
     image = d.get("image")
@@ -250,7 +271,7 @@ def _parse_view(ctx: _Ctx, d: Any, path: list[str | int], names: set[str]) -> Vi
         label = p.get("label", "")
         if not isinstance(label, str | int | float):
             raise ctx.error([*pp, "label"], f"expected a string, got {label!r}")
-        c = Correspondence((pixel[0], pixel[1]), (point[0], point[1], point[2]), str(label))
+        c = Correspondence((pixel[0], pixel[1]), (point[0], point[1], point[2]), str(label), ctx.line(pp))
         try:
             _validate_point(c, width, height, "point")
         except CorrespondenceError as err:
@@ -259,14 +280,16 @@ def _parse_view(ctx: _Ctx, d: Any, path: list[str | int], names: set[str]) -> Vi
     problem = _view_problem(name, pan, tilt, zoom, width, height)  # checked here to name the line
     if problem is not None:
         raise ctx.error([*path, problem[0]], problem[1])
-    return View(name, pan, tilt, zoom, width, height, tuple(points), image, str(d.get("comment", "")))
+    return View(name, pan, tilt, zoom, width, height, tuple(points), image, str(d.get("comment", "")), ctx.line(path))
 
 
 def parse_correspondences(text: str, source: str = "<string>") -> CorrespondenceSet:
     """Parse the YAML text of a correspondence file (see the module docstring for the format)."""
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        data = loads_strict(text, source)  # refuses duplicate keys (naming both lines)
+    except YamlError as err:
+        raise CorrespondenceError(str(err)) from err
     except yaml.YAMLError as err:
         raise CorrespondenceError(f"{source}: not valid YAML: {err}") from err
     ctx = _Ctx(source, root)
@@ -305,14 +328,10 @@ def load_correspondences(path: str | Path) -> CorrespondenceSet:
 # --------------------------------------------------------------------------------------------------------
 def view_to_dict(v: View) -> dict[str, Any]:
     """Serialisable mapping of one view (pixels rounded to 0.001 px, points to 10 µm, angles to 1e-9 rad)."""
-    out: dict[str, Any] = {
-        "name": v.name,
-        "pan": round(float(v.pan), 9),
-        "tilt": round(float(v.tilt), 9),
-        "zoom": round(float(v.zoom), 3),
-        "image_width": int(v.image_width),
-        "image_height": int(v.image_height),
-    }
+    out: dict[str, Any] = {"name": v.name}
+    if v.has_ptz:
+        out.update(pan=round(float(v.pan), 9), tilt=round(float(v.tilt), 9), zoom=round(float(v.zoom), 3))
+    out.update(image_width=int(v.image_width), image_height=int(v.image_height))
     if v.image:
         out["image"] = v.image
     if v.comment:

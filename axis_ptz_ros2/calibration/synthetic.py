@@ -19,8 +19,9 @@ import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.calibration.correspondences import Correspondence, View
+from axis_ptz_ros2.camera_info import CameraInfoData, project, undistort_pixels
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Transform, rot_z
+from axis_ptz_ros2.geometry import PtzKinematics, Transform, rot_z
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -87,17 +88,22 @@ def make_view(
     pan_offset: float = 0.0,
     tilt_offset: float = 0.0,
     planar_relief_m: float | None = None,
+    fixed: bool = False,
 ) -> tuple[View, BoolArray, FloatArray]:
     """One view with ``n_points`` correspondences; returns (view, outlier flags, true 3-D points).
 
     ``planar_relief_m`` (thesis-like scenes): the points lie on one plane facing the camera at a random depth,
-    displaced off it by at most this many metres.
+    displaced off it by at most this many metres. With ``fixed`` the camera has no head: ``truth`` is the
+    optical frame's pose ``T_reference_optical`` and the view carries no pan/tilt/zoom. Pixels are raw: the
+    camera model's measured ``camera_info`` (distortion included) projects them when it has one.
     """
-    K = cm.zoom.intrinsics(zoom, width, height)
-    T = _true_camera(cm, truth, pan, tilt, pan_offset, tilt_offset)
+    ci = cm.camera_info_at(cm.zoom.min_zoom if fixed else zoom, width, height)
+    K = ci.intrinsics()
+    T = truth if fixed else _true_camera(cm, truth, pan, tilt, pan_offset, tilt_offset)
     mu, mv = 0.1 * width, 0.1 * height
     uv = np.column_stack([rng.uniform(mu, width - 1 - mu, n_points), rng.uniform(mv, height - 1 - mv, n_points)])
-    rays = K.ray(uv[:, 0], uv[:, 1])
+    ideal = undistort_pixels(uv, ci)
+    rays = K.ray(ideal[:, 0], ideal[:, 1])
     if planar_relief_m is not None:
         depth0 = rng.uniform(*depth_range)
         n = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0])
@@ -116,7 +122,7 @@ def make_view(
             P_opt[below] = rays[below] * rng.uniform(lo, np.maximum(depth[below] * 0.7, lo + 0.1))[:, None]
             depth[below] = P_opt[below, 2]
     X_true = T.apply(P_opt)
-    pix = K.project(P_opt)
+    pix = project(P_opt, ci)
     pix = pix + rng.normal(0.0, pixel_noise_px, pix.shape) if pixel_noise_px > 0 else pix
     X = X_true + rng.normal(0.0, point_noise_m, X_true.shape) if point_noise_m > 0 else X_true.copy()
     out = np.zeros(n_points, dtype=bool)
@@ -134,6 +140,8 @@ def make_view(
         Correspondence((float(pix[i, 0]), float(pix[i, 1])), (float(X[i, 0]), float(X[i, 1]), float(X[i, 2])), f"p{i}")
         for i in range(n_points)
     )
+    if fixed:
+        return View(name, math.nan, math.nan, math.nan, width, height, pts), out, X_true
     return View(name, pan, tilt, float(zoom), width, height, pts), out, X_true
 
 
@@ -190,6 +198,82 @@ def make_scene(
         outs.append(o)
         trues.append(X)
     return SyntheticScene(tuple(views), T, cm, pan_offset, tilt_offset, tuple(outs), tuple(trues))
+
+
+def real_like_camera_info(
+    model: str = "plumb_bob", width: int = 704, height: int = 576, fx: float = 791.0 * 0.97
+) -> CameraInfoData:
+    """A measured-looking calibration: principal point ~30 px off centre, fy from the PAL aspect, and a
+    distortion like a real wide-angle lens (plumb_bob k1 −0.20 as in the real-data report; or equidistant)."""
+    cx, cy = (width - 1) / 2.0 + 30.0, (height - 1) / 2.0 - 18.0
+    fy = fx * (height / width) * (4.0 / 3.0)
+    D: tuple[float, ...]
+    if model == "plumb_bob":
+        D = (-0.20, 0.08, 0.0012, -0.0008, -0.01)
+    elif model == "rational_polynomial":
+        D = (-0.20, 0.08, 0.0012, -0.0008, -0.01, 0.02, 0.01, 0.0)
+    elif model == "equidistant":
+        D = (-0.03, 0.012, -0.004, 0.0008)
+    else:
+        raise ValueError(f"unknown distortion model {model!r}")
+    K = (fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0)
+    return CameraInfoData(width, height, K, model, D, camera_name="synthetic")
+
+
+def fixed_truth(rng: np.random.Generator, around: Transform = THESIS_MOUNT) -> Transform:
+    """A fixed camera's optical frame in the reference frame: near ``around``, looking roughly forward
+    (±20° yaw, −15…+5° pitch, ±3° roll)."""
+    head = PtzKinematics(0.0, (0.0, 0.0, 0.0)).optical_in_ptz_base(
+        math.radians(float(rng.uniform(-20.0, 20.0))), math.radians(float(rng.uniform(-15.0, 5.0)))
+    )
+    roll = Transform.from_xyz_rpy(0.0, 0.0, 0.0, 0.0, 0.0, math.radians(float(rng.uniform(-3.0, 3.0))))
+    return random_mount(rng, around) @ head @ roll
+
+
+def make_fixed_scene(
+    seed: int | np.random.Generator,
+    camera_model: CameraModel,
+    *,
+    n_views: int = 1,
+    points_per_view: int = 16,
+    pixel_noise_px: float = 1.0,
+    point_noise_m: float = 0.0,
+    outlier_fraction: float = 0.0,
+    depth_range: tuple[float, float] = (2.0, 15.0),
+    width: int | None = None,
+    height: int | None = None,
+) -> SyntheticScene:
+    """A fixed camera (no head) seen in ``n_views`` captures (e.g. different moments of a moving target);
+    ``truth`` is ``T_reference_optical``. The image size defaults to the camera model's camera_info."""
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    ci = camera_model.camera_info
+    w = width or (ci.width if ci is not None else 704)
+    h = height or (ci.height if ci is not None else 576)
+    T = fixed_truth(rng)
+    views, outs, trues = [], [], []
+    for k in range(n_views):
+        v, o, X = make_view(
+            rng,
+            camera_model,
+            T,
+            f"capture{k}",
+            0.0,
+            0.0,
+            1.0,
+            points_per_view,
+            width=w,
+            height=h,
+            pixel_noise_px=pixel_noise_px,
+            point_noise_m=point_noise_m,
+            outlier_fraction=outlier_fraction,
+            depth_range=depth_range,
+            ground_z=-10.0,
+            fixed=True,
+        )
+        views.append(v)
+        outs.append(o)
+        trues.append(X)
+    return SyntheticScene(tuple(views), T, camera_model, 0.0, 0.0, tuple(outs), tuple(trues))
 
 
 def thesis_like_scene(
@@ -256,9 +340,9 @@ def prediction_errors(
             pan_offset=scene.pan_offset,
             tilt_offset=scene.tilt_offset,
         )
-        K = cm_est.zoom.intrinsics(zoom, v.image_width, v.image_height)
+        ci = cm_est.camera_info_at(zoom, v.image_width, v.image_height)
         T_est = estimate @ cm_est.head.optical_in_ptz_base(pan, tilt + tilt_offset)
-        pred = K.project(T_est.inverse().apply(X))
+        pred = project(T_est.inverse().apply(X), ci)
         true = np.array([c.pixel for c in v.points])
         errs.append(np.linalg.norm(pred - true, axis=1))
     return np.concatenate(errs)

@@ -139,7 +139,13 @@ CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
     ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
     ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
-    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
+    ParamSpec(
+        "auth",
+        "auto",
+        "HTTP authentication (auto: Digest; Basic only over HTTPS, else choose basic explicitly)",
+        choices=("auto", "none", "basic", "digest"),
+        read_only=True,
+    ),
     ParamSpec(
         "password_file",
         "",
@@ -150,8 +156,20 @@ CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
 )
 
 
+_INSECURE_TLS_WARNED: list[bool] = []  # once per process (axis_camera composes two nodes)
+
+
 def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraConfig:
-    """A :class:`CameraConfig` from the CONNECTION_PARAMS values, credentials from the environment or file."""
+    """A :class:`CameraConfig` from the CONNECTION_PARAMS values, credentials from the environment or file.
+
+    ``use_https`` with ``verify_tls`` false logs one warning per process: the camera is then not authenticated.
+    """
+    if bool(p["use_https"]) and not bool(p["verify_tls"]) and not _INSECURE_TLS_WARNED:
+        _INSECURE_TLS_WARNED.append(True)
+        rclpy.logging.get_logger("axis_ptz_ros2").warning(
+            f"verify_tls is false: the certificate of the camera at {p['hostname']} is NOT checked, so anyone "
+            "on the path can impersonate it (set ca_file to the camera's certificate instead)"
+        )
     user, password = load_credentials(str(p["password_file"]))
     verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
     return CameraConfig(

@@ -65,7 +65,13 @@ PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
     ParamSpec("timeout", 5.0, "command request timeout", "s", float_range=(0.1, 60.0), read_only=True),
     ParamSpec("state_timeout", 1.0, "timeout of one state poll", "s", float_range=(0.05, 30.0), read_only=True),
-    ParamSpec("camera_model", "", "camera-model YAML ('' = config/axis214.yaml)", read_only=True),
+    ParamSpec(
+        "camera_model",
+        "",
+        "camera-model YAML ('' = chosen by the camera's reported model, else config/generic.yaml with the "
+        "camera's own optics)",
+        read_only=True,
+    ),
     ParamSpec("mount_file", "", "mount YAML base_link -> PTZ base ('' = config/mount.yaml)", read_only=True),
     ParamSpec("state_rate", 20.0, "state polling/publishing rate", "Hz", float_range=(0.1, 100.0), read_only=True),
     ParamSpec(
@@ -114,6 +120,17 @@ def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
 class PtzNode(Node):
     """Pan-tilt-zoom control and state (see the module docstring and the README tables)."""
 
+    def _learn_model(self, p: dict[str, Any]) -> CameraModel:
+        from axis_ptz_ros2.camera_models import learn_camera_model
+
+        cfg = camera_config_from_params(p, timeout_s=float(p["timeout"]))
+        model, profile, error = learn_camera_model(cfg, str(p["camera_model"]))
+        if profile is not None:
+            self.get_logger().info(profile.summary())
+        else:
+            self.get_logger().warning(f"cannot ask the camera what it is ({error}); camera model {model.name!r}")
+        return model
+
     def __init__(
         self,
         *,
@@ -130,6 +147,8 @@ class PtzNode(Node):
         self.add_on_set_parameters_callback(lambda params: check_params(_SPECS, params))
         self.add_post_set_parameters_callback(self._post_set_params)  # applied only once every check passed
         p = self._p
+        if model is None and backend is None:
+            model = self._learn_model(p)  # from the camera (camera_models.discover), logged in one line
         self._model = model if model is not None else load_camera_model(p["camera_model"] or None)
         self._mount: MountConfig = mount if mount is not None else load_mount(p["mount_file"] or None)
         self._offsets = JointOffsets(self._mount.pan_offset, self._mount.tilt_offset)
@@ -206,6 +225,9 @@ class PtzNode(Node):
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
             f"{self._base_frame} -> {self._ptz_base_frame} -> {self._optical_frame}"
         )
+        fixed = getattr(self._backend, "fixed_camera_reason", lambda: "")()
+        if fixed:
+            self.get_logger().error(f"this camera has no PTZ head: {fixed}; pan/tilt/zoom commands will not move it")
 
     # ------------------------------------------------------------------------------------------------
     # Parameters

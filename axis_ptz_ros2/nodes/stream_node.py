@@ -33,6 +33,8 @@ from sensor_msgs.msg import CameraInfo, CompressedImage
 from axis_ptz_interfaces.msg import LinkFeedback, PtzState
 from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
 from axis_ptz_interfaces.srv import SetVideoParams
+from axis_ptz_ros2.camera_info import fill_camera_info_msg
+from axis_ptz_ros2.camera_models import discover, load_generic_base
 from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.nodes.common import (
     CONNECTION_PARAMS,
@@ -74,8 +76,9 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("fps", 15, "frames per second requested from the camera", "1/s", int_range=(1, 30)),
     ParamSpec(
         "resolution",
-        "704x576",
-        "image size 'WIDTHxHEIGHT' (or a CIF name), from the camera's list (Properties.Image.Resolution)",
+        "",
+        "image size 'WIDTHxHEIGHT' (or a CIF name), from the camera's list (Properties.Image.Resolution); "
+        "'' = the largest the camera lists",
         "px",
     ),
     ParamSpec("compression", 30, "JPEG compression (0 = best quality, 100 = smallest)", int_range=(0, 100)),
@@ -117,7 +120,13 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("lazy", True, "stream only while someone subscribes to image_raw/compressed or camera_info"),
     # -- frames and model (read-only) --
     ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
-    ParamSpec("camera_model", "", "camera-model YAML ('' = config/axis214.yaml)", read_only=True),
+    ParamSpec(
+        "camera_model",
+        "",
+        "camera-model YAML ('' = chosen by the camera's reported model, else config/generic.yaml with the "
+        "camera's own optics)",
+        read_only=True,
+    ),
     # -- connection (read-only) --
     *CONNECTION_PARAMS,
     ParamSpec("read_timeout", 5.0, "socket read timeout of the stream", "s", float_range=(0.05, 60.0), read_only=True),
@@ -131,7 +140,14 @@ PARAMS: tuple[ParamSpec, ...] = (
         read_only=True,
     ),
     ParamSpec("backoff_initial", 0.1, "first reconnect delay", "s", float_range=(0.001, 60.0), read_only=True),
-    ParamSpec("backoff_max", 2.0, "reconnect delay cap", "s", float_range=(0.001, 600.0), read_only=True),
+    ParamSpec(
+        "backoff_max",
+        1.0,
+        "reconnect delay cap, counted from the start of the failed attempt",
+        "s",
+        float_range=(0.001, 600.0),
+        read_only=True,
+    ),
     ParamSpec(
         "auth_retry",
         10.0,
@@ -142,6 +158,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
 )
 _SPECS = {s.name: s for s in PARAMS}
+_AUTO_PLACEHOLDER = Resolution(704, 576)  # resolution "" while the camera cannot list its sizes (retried)
 _VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps")
 # DiagnosticStatus.OK etc. are 1-byte ``bytes`` in rclpy; common.diagnostic wants the integer
 _OK, _WARN, _ERROR, _STALE = (
@@ -177,7 +194,10 @@ class StreamNode(Node):
         p = declare_params(self, PARAMS)
         self._lock = threading.Lock()
         self._frame_id = str(p["frame_id"])
-        self._model = load_camera_model(_camera_model_path(str(p["camera_model"])))
+        self._model_file = _camera_model_path(str(p["camera_model"])) or ""
+        # Until the camera has said what it is: the named file, else the generic model (replaced on discovery).
+        self._model = load_camera_model(self._model_file) if self._model_file else load_generic_base()
+        self._profile_logged = False
         self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
         self._params_source = "startup"  # cause of the video parameters in effect (VideoParams.source)
         self._resolutions_pending = False
@@ -252,12 +272,20 @@ class StreamNode(Node):
     def _known_resolutions(self) -> tuple[Resolution, ...]:
         return self._resolutions if self._resolutions else AXIS214_PAL_RESOLUTIONS
 
+    def _resolution_from(self, text: str) -> Resolution:
+        """The parameter's resolution; '' = the largest the camera lists (704x576 until it is known)."""
+        if text.strip():
+            return Resolution.parse(text)
+        if self._resolutions:
+            return max(self._resolutions, key=lambda r: (r.width * r.height, r.width))
+        return _AUTO_PLACEHOLDER
+
     def _requested_from(self, values: dict[str, Any]) -> VideoParams:
         """Validated VideoParams from parameter values; ValueError with the reason otherwise."""
         try:
-            res = Resolution.parse(str(values["resolution"]))
+            res = self._resolution_from(str(values["resolution"]))
             vp = VideoParams(res, int(values["fps"]), int(values["compression"]), camera=self._camera_index())
-            vp.validate(self._known_resolutions())
+            vp.validate(self._resolutions or ())  # the camera's own list once known (never assumed)
         except InvalidArgument as err:
             raise ValueError(str(err)) from err
         return vp
@@ -392,18 +420,37 @@ class StreamNode(Node):
 
     def _open_http(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
         if self._resolutions is None:
-            try:
-                listed = self._client.supported_resolutions()
-            except AuthError:
-                raise
-            except AxisPtzError as err:
-                if not isinstance(err, InvalidArgument):
-                    self._throttled_log("warn", "resolutions", f"cannot read the resolution list: {err}", 30.0)
-                listed = ()
+            listed = self._learn_camera()
             if listed:
-                self._resolutions = listed
-                self._resolutions_pending = True
+                with self._lock:
+                    self._resolutions = listed
+                    self._resolutions_pending = True
+                    if not str(self.get_parameter("resolution").value).strip():  # auto: the camera's largest
+                        auto = VideoParams(
+                            self._resolution_from(""), params.fps, params.compression, camera=params.camera
+                        )
+                        if auto.resolution != params.resolution:
+                            params = self._budget.configure(requested=auto, resolutions=listed, now=time.monotonic())
+                            self._reader.set_params(params)  # the reader adopts it; this stream already has it
         return self._client.open_mjpeg(params, read_timeout_s)
+
+    def _learn_camera(self) -> tuple[Resolution, ...]:
+        """Ask the camera what it is (once): resolutions, pixel aspect, model; one summary line in the log."""
+        try:
+            profile = discover(self._client, self._model_file)
+        except AuthError:
+            raise
+        except AxisPtzError as err:
+            if not isinstance(err, InvalidArgument):
+                self._throttled_log("warn", "resolutions", f"cannot ask the camera what it is: {err}", 30.0)
+            return ()
+        with self._lock:
+            self._model = profile.model
+            self._info_cache.clear()
+        if not self._profile_logged:
+            self._profile_logged = True
+            self.get_logger().info(profile.summary())
+        return profile.optics.resolutions
 
     def _on_frame(self, jpeg: bytes, arrival_ns: int) -> None:
         """Hot path (reader thread): publish the camera's bytes and a restamped CameraInfo."""
@@ -426,8 +473,8 @@ class StreamNode(Node):
             if info is None:
                 if len(self._info_cache) > 64:
                     self._info_cache.clear()
-                intr = self._model.zoom.intrinsics(zoom, size[0], size[1])
-                info = camera_info_msg(intr, self._frame_id, stamp)
+                calib = self._model.camera_info_at(zoom, size[0], size[1])  # measured K, D, P if configured
+                info = fill_camera_info_msg(camera_info_msg(calib.intrinsics(), self._frame_id, stamp), calib)
                 self._info_cache[key] = info
             info.header.stamp = stamp
             self._info_pub.publish(info)

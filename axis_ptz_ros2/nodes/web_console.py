@@ -35,6 +35,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.client import Client
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import CompressedImage, PointCloud2
@@ -48,18 +49,27 @@ from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import panorama_ray, point_along_ray
 from axis_ptz_ros2.teleop import keymap
+from axis_ptz_ros2.web.auth import AuthThrottle
 from axis_ptz_ros2.web.server import (
     BadRequest,
     CommandResult,
     ConsoleServer,
     FrameSlot,
     integer,
+    is_loopback,
+    needs_tls,
     number,
 )
+from axis_ptz_ros2.web.tls import TlsIdentity, load_identity
 
 PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("bind", "127.0.0.1", "HTTP bind address; any non-loopback address requires a token", read_only=True),
-    ParamSpec("port", 8090, "HTTP port (0 = pick a free one; the URL is logged)", "", True, (0, 65535)),
+    ParamSpec(
+        "bind",
+        "127.0.0.1",
+        "bind address; any non-loopback address requires a token and serves HTTPS",
+        read_only=True,
+    ),
+    ParamSpec("port", 8090, "HTTP(S) port (0 = pick a free one; the URL is logged)", "", True, (0, 65535)),
     ParamSpec(
         "token_file",
         "",
@@ -67,6 +77,38 @@ PARAMS: tuple[ParamSpec, ...] = (
         read_only=True,
     ),
     ParamSpec("url_file", "", "write the console URL into this file once serving ('' = don't)", read_only=True),
+    ParamSpec(
+        "tls_cert_file",
+        "",
+        "PEM certificate (chain) for HTTPS, with tls_key_file; '' = generate a self-signed one when HTTPS is used",
+        read_only=True,
+    ),
+    ParamSpec("tls_key_file", "", "PEM private key of tls_cert_file", read_only=True),
+    ParamSpec(
+        "tls_cert_dir",
+        "",
+        "keep a generated self-signed certificate here and reuse it (same fingerprint across restarts);"
+        " '' = a new one at every start",
+        read_only=True,
+    ),
+    ParamSpec(
+        "allow_plain_http",
+        False,
+        "off loopback, serve plain HTTP instead of HTTPS (the token then crosses the network in clear)",
+        read_only=True,
+    ),
+    ParamSpec("tls_on_loopback", False, "serve HTTPS on a loopback bind too", read_only=True),
+    ParamSpec(
+        "auth_max_failures",
+        5,
+        "wrong tokens a client address may present per auth_window before it gets HTTP 429",
+        "count",
+        True,
+        (1, 1000),
+    ),
+    ParamSpec(
+        "auth_window", 60.0, "sliding window of the wrong-token throttle", "s", True, None, (1.0, 86400.0)
+    ),  # fmt: skip
     ParamSpec("ptz_topic", "image_raw/compressed", "PTZ camera JPEG topic", read_only=True),
     ParamSpec("panorama_topic", "panorama/image_raw/compressed", "panorama JPEG topic", read_only=True),
     ParamSpec(
@@ -196,11 +238,32 @@ class WebConsole(Node):
 
         # --- HTTP
         token = self._load_token()
-        self.server = ConsoleServer(self, bind=self.p["bind"], port=int(self.p["port"]), token=token)
+        bind = str(self.p["bind"])
+        tls: TlsIdentity | None = None
+        if needs_tls(bind, bool(self.p["allow_plain_http"]), bool(self.p["tls_on_loopback"])):
+            tls = load_identity(self.p["tls_cert_file"], self.p["tls_key_file"], bind, self.p["tls_cert_dir"])
+        elif not is_loopback(bind):
+            self.get_logger().warning(
+                f"allow_plain_http: serving plain HTTP on {bind}: the token crosses the network unencrypted"
+            )
+        self.server = ConsoleServer(
+            self,
+            bind=bind,
+            port=int(self.p["port"]),
+            token=token,
+            tls=tls,
+            allow_plain_http=bool(self.p["allow_plain_http"]),
+            throttle=AuthThrottle(int(self.p["auth_max_failures"]), float(self.p["auth_window"])),
+            log=self.get_logger().error,
+        )
         self.server.start()
         self.url = self.server.url
         auth = "token required" if token else "no token (loopback only)"
         self.get_logger().info(f"web console at {self.url} ({auth})")
+        if tls is not None:
+            origin = "generated self-signed" if tls.generated else "given"
+            where = f", {tls.cert_path}" if tls.cert_path else ""
+            self.get_logger().info(f"HTTPS certificate ({origin}{where}) SHA-256 fingerprint {tls.fingerprint}")
         if self.p["url_file"]:
             tmp = Path(self.p["url_file"] + ".tmp")
             tmp.write_text(self.url.rstrip("/") + "\n", encoding="utf-8")
@@ -247,6 +310,10 @@ class WebConsole(Node):
                     self._frame_callback(name),
                     STREAM_QOS,
                     callback_group=self._img_group,
+                    # no QoS-event waitables: rclpy's executor crashes (InvalidHandle) when a subscription's
+                    # event handler is destroyed while another thread builds the wait set, as happens here
+                    # whenever the last viewer leaves
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                 )
                 if name == "ptz":
                     self._feedback.watch()

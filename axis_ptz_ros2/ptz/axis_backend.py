@@ -66,6 +66,17 @@ class AxisBackend:
         self._limits_tried = -math.inf
         self.limits_source = "none"
 
+    def fixed_camera_reason(self) -> str:
+        """Non-empty when the camera says it has no mechanical PTZ (``PTZ.ImageSource.I0.PTZEnabled=false``)."""
+        try:
+            enabled = self._cmd.mechanical_ptz()
+        except AxisPtzError:
+            return ""
+        if enabled is False:
+            key = f"PTZ.ImageSource.I{self._cmd.config.camera - 1}.PTZEnabled"
+            return f"the camera reports {key}=false (a fixed camera; digital PTZ only)"
+        return ""
+
     def __repr__(self) -> str:
         """No credentials (the client's repr hides them)."""
         return f"AxisBackend({self._cmd!r})"

@@ -20,6 +20,7 @@ import re
 import socket
 import ssl
 import threading
+import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -31,7 +32,9 @@ import httpx
 from axis_ptz_ros2 import __version__
 from axis_ptz_ros2.vapix.auth import AuthCounters, AuthMode, NegotiatingAuth
 from axis_ptz_ros2.vapix.errors import (
+    AuthError,
     AxisPtzError,
+    CameraTimeout,
     CommandRejected,
     HttpStatusError,
     InvalidArgument,
@@ -63,7 +66,13 @@ USER_AGENT = f"axis_ptz_ros2/{__version__}"
 PARAM_CGI_PATHS = ("/axis-cgi/param.cgi", "/axis-cgi/view/param.cgi")
 IMAGESIZE_CGI_PATHS = ("/axis-cgi/imagesize.cgi", "/axis-cgi/view/imagesize.cgi")
 VIDEO_CGI = "/axis-cgi/mjpg/video.cgi"
+MAX_REPLY_BYTES = 1 << 20  #: cap on a text reply (param listings of real cameras are < 200 kB)
+MAX_SNAPSHOT_BYTES = 32 << 20  #: cap on one snapshot JPEG
+MAX_ERROR_BODY_BYTES = 64 << 10  #: what we read of a non-2xx reply (the rest is dropped)
 IMAGE_CGI = "/axis-cgi/jpg/image.cgi"
+_NTSC_HEIGHTS = frozenset({480, 240, 120})
+_PAL_HEIGHTS = frozenset({576, 288, 144})
+_BODY_HEADERS = frozenset({"content-length", "content-encoding", "transfer-encoding"})
 _HTML_ERROR = re.compile(r"(?is)Error:\s*(.*?)\s*</body>")
 
 
@@ -183,6 +192,7 @@ class VapixClient:
         self._limits: PtzLimits | None = None
         self._resolutions: tuple[Resolution, ...] | None = None
         self._ntsc: bool | None = None
+        self.resolution_problem = ""  #: why some listed resolution names have no size (empty: none)
 
     def _new_http(self, auth: httpx.Auth, timeout: httpx.Timeout) -> httpx.Client:
         return httpx.Client(
@@ -231,15 +241,58 @@ class VapixClient:
     def _secrets(self) -> tuple[str | None, ...]:
         return (self._config.password,)
 
-    def _get(self, path_query: str) -> httpx.Response:
-        """GET, map transport errors and non-2xx statuses; returns a 2xx response."""
+    def _get(self, path_query: str, max_bytes: int = MAX_REPLY_BYTES) -> httpx.Response:
+        """GET, map transport errors and non-2xx statuses; returns a 2xx response with its body read.
+
+        The body is read with a size cap and a total-time cap (``timeout_s``): a port that serves a video
+        stream or an endless page gives a clear :class:`ResponseParseError`, never memory growth or a
+        thread blocked for ever.
+        """
         with self._lock:
             try:
-                response = self._http.get(path_query)
+                response = self._http.send(self._http.build_request("GET", path_query), stream=True)
+                try:
+                    ok = 200 <= response.status_code < 300
+                    body = self._read_capped(response, max_bytes if ok else MAX_ERROR_BODY_BYTES, strict=ok)
+                finally:
+                    response.close()
             except httpx.HTTPError as err:
                 raise map_httpx_error(err, self._secrets()) from err
-        self._check(response)
-        return response
+        headers = [(k, v) for k, v in response.headers.multi_items() if k.lower() not in _BODY_HEADERS]
+        read = httpx.Response(response.status_code, headers=headers, content=body, request=response.request)
+        self._check(read)
+        return read
+
+    def _read_capped(self, response: httpx.Response, max_bytes: int, *, strict: bool) -> bytes:
+        where = describe_request(response.request)
+        ctype = response.headers.get("content-type", "")
+        if strict and ctype.lower().startswith("multipart/"):
+            raise ResponseParseError(
+                f"{where}: the camera answers with a stream ({ctype!r}), not a reply: is this the camera's "
+                "VAPIX port, or a video/stream port?"
+            )
+        deadline = time.monotonic() + self._config.timeout_s
+        chunks: list[bytes] = []
+        size = 0
+        for chunk in response.iter_bytes():
+            size += len(chunk)
+            if size > max_bytes:
+                if not strict:
+                    chunks.append(chunk[: max(0, len(chunk) - (size - max_bytes))])
+                    break
+                raise ResponseParseError(
+                    f"{where}: reply larger than {max_bytes} bytes ({ctype or 'no content type'}): not a VAPIX "
+                    "reply (a stream or a huge page; check the port)"
+                )
+            chunks.append(chunk)
+            if time.monotonic() > deadline:
+                if not strict:
+                    break
+                raise CameraTimeout(
+                    f"{where}: reply still arriving after {self._config.timeout_s:g} s ({size} bytes): not a "
+                    "VAPIX reply (a stream or a trickling page; check the port)"
+                )
+        return b"".join(chunks)
 
     def _check(self, response: httpx.Response) -> None:
         hint = self._auth.failure_hint(response) if response.status_code in (401, 403) else ""
@@ -330,7 +383,7 @@ class VapixClient:
             raise InvalidArgument(f"bad parameter group {group!r}")
         if self._param_path is not None:
             return self._list_at(self._param_path, group)
-        first_error: HttpStatusError | None = None
+        first_error: HttpStatusError | AuthError | None = None
         for path in PARAM_CGI_PATHS:
             try:
                 values = self._list_at(path, group)
@@ -339,21 +392,35 @@ class VapixClient:
                     raise
                 first_error = first_error or err
                 continue
+            except AuthError as err:
+                # Firmware 5.0-5.6 answers the v3 path with 401 even to allowed users (vapix.md §2.2): the
+                # legacy path may still answer. A 401 there too is the real answer (reported first).
+                first_error = err if not isinstance(first_error, AuthError) else first_error
+                continue
             self._param_path = path
             return values
         assert first_error is not None  # noqa: S101 - loop ran at least once
         raise first_error
 
-    def _imagesize(self, name: str) -> Resolution | None:
-        """Resolve a resolution name with ``imagesize.cgi`` (§5.3); None if the camera cannot."""
-        args = {"resolution": name, "squarepixel": "0", **self._camera_args()}
+    def _imagesize(self, name: str | None) -> Resolution | None:
+        """Ask ``imagesize.cgi`` (§5.3) the size of ``name`` (None: the camera's default); None if it cannot."""
+        if self._imagesize_path == "":
+            return None  # neither path answered before
+        args = {"squarepixel": "0", **self._camera_args()}
+        if name is not None:
+            args = {"resolution": name, **args}
         paths = (self._imagesize_path,) if self._imagesize_path else IMAGESIZE_CGI_PATHS
+        answered = False
         for path in paths:
             assert path is not None  # noqa: S101
             try:
                 _, text = self._get_text(build_path(path, args))
-            except (HttpStatusError, CommandRejected):
+            except HttpStatusError:
                 continue
+            except CommandRejected:
+                answered = True
+                continue
+            answered = True
             values = {k.strip().lower(): v for k, v in parse_key_values(text).items()}
             try:
                 width = parse_int(values["image width"], key="image width")
@@ -362,26 +429,58 @@ class VapixClient:
                 continue
             self._imagesize_path = path
             return Resolution(width, height)
+        if not answered and self._imagesize_path is None:
+            self._imagesize_path = ""  # no imagesize.cgi on this camera: do not ask again for every name
         return None
 
+    def _video_standard(self) -> bool | None:
+        """NTSC (True) or PAL (False) from the camera's own default image size; None if it cannot say."""
+        if self._ntsc is None:
+            size = self._imagesize(None)
+            if size is not None and size.height in _NTSC_HEIGHTS:
+                self._ntsc = True
+            elif size is not None and size.height in _PAL_HEIGHTS:
+                self._ntsc = False
+        return self._ntsc
+
     def _resolutions_from(self, listing: str) -> tuple[Resolution, ...]:
+        """Sizes of the camera's resolution names. CIF/D1 names are sized by the camera itself: the first one
+        through ``imagesize.cgi`` (which tells PAL from NTSC), else the video standard of the camera's default
+        size; a name the camera cannot size is left out and reported in :attr:`resolution_problem`, never
+        guessed as PAL."""
         names = [n.strip() for n in listing.split(",") if n.strip()]
         result: list[Resolution] = []
+        unsized: list[str] = []
         for name in names:
             upper = name.upper()
-            if upper in CIF_PAL:
-                if self._ntsc is None:  # PAL or NTSC? ask the camera once (the TRADR way, §5.3)
-                    resolved = self._imagesize(upper)
-                    self._ntsc = resolved is not None and resolved == Resolution(*CIF_NTSC[upper])
-                size = (CIF_NTSC if self._ntsc else CIF_PAL)[upper]
-                resolution: Resolution | None = Resolution(*size)
-            else:
-                try:
-                    resolution = Resolution.parse(name)
-                except InvalidArgument:
-                    resolution = self._imagesize(name)
-            if resolution is not None and resolution not in result:
+            resolution: Resolution | None
+            try:
+                resolution = Resolution.parse(name) if upper not in CIF_PAL else None
+            except InvalidArgument:
+                resolution = None
+            if resolution is None and upper in CIF_PAL and self._ntsc is not None:
+                resolution = Resolution(*(CIF_NTSC if self._ntsc else CIF_PAL)[upper])  # standard known
+            if resolution is None:
+                resolution = self._imagesize(upper if upper in CIF_PAL else name)
+                if resolution is not None and upper in CIF_PAL and self._ntsc is None:
+                    if resolution == Resolution(*CIF_NTSC[upper]):
+                        self._ntsc = True
+                    elif resolution == Resolution(*CIF_PAL[upper]):
+                        self._ntsc = False
+            if resolution is None and upper in CIF_PAL:
+                ntsc = self._video_standard()
+                if ntsc is not None:
+                    resolution = Resolution(*(CIF_NTSC if ntsc else CIF_PAL)[upper])
+            if resolution is None:
+                unsized.append(name)
+            elif resolution not in result:
                 result.append(resolution)
+        self.resolution_problem = (
+            f"camera lists {', '.join(unsized)} but could not tell their size (imagesize.cgi unavailable and "
+            "no PAL/NTSC default size); configure resolution as WIDTHxHEIGHT"
+            if unsized
+            else ""
+        )
         return tuple(result)
 
     def supported_resolutions(self) -> tuple[Resolution, ...]:
@@ -414,14 +513,28 @@ class VapixClient:
                 for key, value in support.items()
                 if key.startswith(prefix) and value.strip().lower() in ("true", "yes", "on", "1")
             )
+        ptz = parse_bool(ptz_flag, key="Properties.PTZ.PTZ") if ptz_flag is not None else bool(supports)
+        if ptz and self.mechanical_ptz() is False:
+            ptz = False  # a fixed camera with digital PTZ only
         return DeviceInfo(
             product=product,
             firmware=props.get("Properties.Firmware.Version", "unknown"),
             api_version=parse_int(version, key="Properties.API.HTTP.Version") if version else None,
             resolutions=self._resolutions,
-            ptz=parse_bool(ptz_flag, key="Properties.PTZ.PTZ") if ptz_flag is not None else bool(supports),
+            ptz=ptz,
             supports=supports,
         )
+
+    def mechanical_ptz(self) -> bool | None:
+        """``PTZ.ImageSource.I<n>.PTZEnabled``: False on fixed cameras (digital PTZ only), True on PTZ heads,
+        None when the camera has no such parameter (e.g. the 214's firmware)."""
+        key = f"PTZ.ImageSource.I{self._config.camera - 1}.PTZEnabled"
+        try:
+            values = self.list_params("PTZ.ImageSource")
+        except (CommandRejected, HttpStatusError):
+            return None
+        value = values.get(key)
+        return None if value is None else parse_bool(value, key=key)
 
     # -- video ----------------------------------------------------------------------------------
 
@@ -432,7 +545,7 @@ class VapixClient:
     def snapshot(self, params: VideoParams) -> bytes:
         """One JPEG from ``jpg/image.cgi`` (``fps`` is not sent)."""
         params.validate(self._resolutions)
-        response = self._get(build_path(IMAGE_CGI, params.query(include_fps=False)))
+        response = self._get(build_path(IMAGE_CGI, params.query(include_fps=False)), MAX_SNAPSHOT_BYTES)
         body = response.content
         if not body.startswith(b"\xff\xd8"):
             message = parse_error_body(_text(response))

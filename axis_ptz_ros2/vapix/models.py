@@ -113,8 +113,9 @@ CIF_PAL: Mapping[str, tuple[int, int]] = {
     "2CIF": (704, 288),
     "CIF": (352, 288),
     "QCIF": (176, 144),
+    "D1": (720, 576),
 }
-"""CIF names of a PAL analogue camera block (the Axis 214 PTZ)."""
+"""CIF names of a PAL analogue camera block (the Axis 214 PTZ); ``D1`` is the full ITU-R BT.601 frame."""
 
 CIF_NTSC: Mapping[str, tuple[int, int]] = {
     "4CIF": (704, 480),
@@ -122,6 +123,7 @@ CIF_NTSC: Mapping[str, tuple[int, int]] = {
     "2CIF": (704, 240),
     "CIF": (352, 240),
     "QCIF": (176, 120),
+    "D1": (720, 480),
 }
 """CIF names of an NTSC analogue camera block (e.g. the AXIS P5512 recording)."""
 
@@ -142,7 +144,7 @@ class Resolution:
 
     @classmethod
     def parse(cls, text: str, *, ntsc: bool = False) -> Resolution:
-        """Parse ``704x576`` or a CIF name (``4CIF``, ``2CIFEXP``, ``2CIF``, ``CIF``, ``QCIF``)."""
+        """Parse ``704x576`` or a CIF name (``4CIF``, ``2CIFEXP``, ``2CIF``, ``CIF``, ``QCIF``, ``D1``)."""
         match = _WXH.match(text)
         if match:
             return cls(int(match.group(1)), int(match.group(2)))

@@ -1,7 +1,9 @@
 """The web console in real headless Chromium against the whole simulated suite (scripts/demo's processes).
 
 Every check goes through the simulator's ground truth (``/sim/state``, its own JPEG snapshots) or through
-ROS (``video/params``), never through the console's own report of itself. Screenshots go to artifacts/.
+ROS (``video/params``), never through the console's own report of itself. Screenshots go to artifacts/; with
+``AXIS_WRITE_DOCS_IMAGES=1`` the layout test also writes the user guide's pictures (docs/images/console.png at
+1280x800, docs/images/console_1080p.png at 1920x1080).
 """
 
 from __future__ import annotations
@@ -26,6 +28,9 @@ from axis_ptz_ros2.sim.scene import load_world
 pytestmark = pytest.mark.browser
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
+DOCS_IMAGES = Path(__file__).resolve().parents[2] / "docs" / "images"
+#: the screens the console must fit (width, height in CSS px) and the guide's picture of each
+SCREENS = {(1280, 800): "console.png", (1920, 1080): "console_1080p.png"}
 CHROMIUM_ARGS = [
     "--headless",
     "--no-sandbox",
@@ -143,7 +148,7 @@ def browser() -> Iterator[Any]:
 
 @pytest.fixture
 def page(browser: Any, demo: Demo) -> Iterator[Any]:
-    ctx = browser.new_context(viewport={"width": 1500, "height": 1000})
+    ctx = browser.new_context(viewport={"width": 1280, "height": 800})  # a laptop screen: the tightest layout
     pg = ctx.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda e: errors.append(str(e)))
@@ -315,6 +320,115 @@ def test_quality_controls_change_the_stream(demo: Demo, page: Any) -> None:
     page.select_option("#q-res", f"{W}x{H}")
     page.click("#q-apply")
     wait_for(lambda: latest_video_params().width == W, 10.0, "the stream back at full size")
+
+
+LAYOUT_JS = """() => {
+  const r = (sel) => { const b = document.querySelector(sel).getBoundingClientRect();
+    return {x: b.left, y: b.top, w: b.width, h: b.height}; };
+  const img = document.getElementById('ptz');
+  return {
+    vw: innerWidth, vh: innerHeight,
+    doc_w: document.documentElement.scrollWidth, doc_h: document.documentElement.scrollHeight,
+    ptz: r('#ptz'), pano: r('#pano'), panel: r('.panel'), home: r('#home'), apply: r('#q-apply'),
+    natural: [img.naturalWidth, img.naturalHeight],
+  };
+}"""
+
+
+def layout(page: Any) -> dict[str, Any]:
+    return dict(page.evaluate(LAYOUT_JS))
+
+
+def test_live_image_gets_most_of_one_screen(demo: Demo, browser: Any) -> None:
+    """At 1280x800 and 1920x1080: the page fits the window, the live image dominates at its own aspect."""
+    for (vw, vh), picture in SCREENS.items():
+        ctx = browser.new_context(viewport={"width": vw, "height": vh})
+        pg = ctx.new_page()
+        try:
+            pg.goto(demo.console_url + "/")
+            pg.wait_for_function("document.getElementById('ptz').naturalWidth > 0", timeout=30_000)
+            pg.wait_for_function("document.getElementById('r-pan').textContent !== '–'", timeout=30_000)
+            # the stage follows the stream's own aspect once app.js has seen a frame
+            pg.wait_for_function(
+                "document.documentElement.style.getPropertyValue('--ptz-aspect') !== ''", timeout=10_000
+            )
+            g = layout(pg)
+            screen = vw * vh
+            ptz_area = g["ptz"]["w"] * g["ptz"]["h"]
+            # one screen: nothing to scroll on the page itself
+            assert g["doc_w"] <= vw, g
+            assert g["doc_h"] <= vh, g
+            # the live image is wholly on screen and takes most of it; the panorama is much smaller
+            p = g["ptz"]
+            assert min(p["x"], p["y"]) >= 0, g
+            assert p["x"] + p["w"] <= vw + 0.5, g
+            assert p["y"] + p["h"] <= vh + 0.5, g
+            assert ptz_area / screen > 0.5, f"{vw}x{vh}: live image {ptz_area / screen:.0%} of the screen"
+            assert g["pano"]["w"] * g["pano"]["h"] < ptz_area / 4, g
+            # drawn at the image's real aspect (natural pixels), not a fixed 4:3 / PAL box
+            nw, nh = g["natural"]
+            assert (nw, nh) == (W, H)
+            assert p["w"] / p["h"] == pytest.approx(nw / nh, rel=0.01), g
+            # the controls are on the same screen, beside the image (not under it)
+            for key in ("home", "apply"):
+                b = g[key]
+                assert b["x"] >= p["x"] + p["w"], (key, g)
+                assert b["y"] + b["h"] <= vh, (key, g)
+            # ... and the key map still opens with "?"
+            pg.locator("#ptz").focus()
+            pg.keyboard.press("?")
+            assert pg.locator("#keys-details").get_attribute("open") is not None
+            pg.keyboard.press("?")
+            time.sleep(1.0)  # a few live frames behind the readouts
+            pg.screenshot(path=str(shot_path(f"layout_{vw}x{vh}")))
+            if os.environ.get("AXIS_WRITE_DOCS_IMAGES") == "1":
+                DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
+                pg.screenshot(path=str(DOCS_IMAGES / picture))
+        finally:
+            ctx.close()
+
+
+def test_wide_stream_keeps_its_aspect_and_click_still_centres(demo: Demo, page: Any) -> None:
+    """704x288 (2CIF, 2.44:1, a resolution the 214 offers): the stage follows it and a click still centres."""
+    page.select_option("#q-res", "704x288")
+    page.click("#q-apply")
+    wait_for(lambda: latest_video_params().height == 288, 10.0, "the stream at 704x288")
+    wait_for(lambda: page.evaluate("document.getElementById('ptz').naturalHeight") == 288, 15.0, "288-line video")
+    try:
+        time.sleep(1.0)  # the next state poll re-sizes the stage
+        g = layout(page)
+        p = g["ptz"]
+        assert g["natural"] == [704, 288]
+        assert p["w"] / p["h"] == pytest.approx(704 / 288, rel=0.01), g
+        # width-bound now: the image spans the stage and the side panel shrank to its minimum (16rem)
+        assert g["panel"]["w"] == pytest.approx(16 * 16, abs=2), g
+        assert g["doc_h"] <= g["vh"], g
+        shot(page, "wide_stream")
+        # click -> centre with the real 704x288 geometry (the camera's own 704x288 snapshot is the truth)
+        goto_pose(demo, page, -80.0, 3.0, 1.0)
+        snap = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution=704x288")
+        before = green_blob(cv2.imdecode(np.frombuffer(snap, np.uint8), cv2.IMREAD_COLOR))
+        assert before is not None, "the marker is not in view"
+        u, v, _ = before
+        assert abs(u - 703 / 2) > 40
+        page.mouse.click(*client_point(page, "#ptz", u, v))
+        wait_for(lambda: "centring" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
+        time.sleep(0.3)
+        wait_still(demo)
+        snap = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution=704x288")
+        after = green_blob(cv2.imdecode(np.frombuffer(snap, np.uint8), cv2.IMREAD_COLOR))
+        assert after is not None
+        du, dv = after[0] - 703 / 2, after[1] - 287 / 2
+        assert math.hypot(du, dv) < 4.0, f"marker at ({after[0]:.1f}, {after[1]:.1f}) after the click"
+    finally:
+        page.select_option("#q-res", f"{W}x{H}")
+        page.click("#q-apply")
+        wait_for(lambda: latest_video_params().height == H, 10.0, "the stream back at full size")
+
+
+def shot_path(name: str) -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    return ARTIFACTS / f"web_console_{name}.png"
 
 
 def latest_video_params() -> Any:

@@ -28,6 +28,9 @@ def test_colcon_builds_both_packages_and_installs_runnable_executables(tmp_path)
     # the working tree's current files (uncommitted edits included) are what we test
     for rel in ("package.xml", "setup.py", "setup.cfg", "pyproject.toml"):
         shutil.copy(ROOT / rel, src / rel)
+    for folder in ("config", "launch", "urdf"):
+        shutil.rmtree(src / folder, ignore_errors=True)
+        shutil.copytree(ROOT / folder, src / folder)
     env = dict(os.environ)
     env.update(
         AMENT_PREFIX_PATH=str(VENV),
@@ -56,6 +59,13 @@ def test_colcon_builds_both_packages_and_installs_runnable_executables(tmp_path)
     assert (share / "axis_ptz_ros2" / "package.xml").exists()
     for name in ("axis214.yaml", "mount.yaml", "robot.yaml", "sim_world.yaml"):
         assert (share / "axis_ptz_ros2" / "config" / name).exists(), name
+    # launch files, parameter files and the URDF where `ros2 launch` and FindPackageShare look for them
+    installed = {p.relative_to(share / "axis_ptz_ros2").as_posix() for p in (share / "axis_ptz_ros2").rglob("*")}
+    expected = {f"config/{p.name}" for p in (ROOT / "config").glob("*.yaml")}
+    expected |= {f"launch/{p.name}" for p in (ROOT / "launch").glob("*.launch.py")}
+    expected |= {f"urdf/{p.name}" for p in (ROOT / "urdf").iterdir() if p.suffix in (".urdf", ".xacro")}
+    assert {"launch/camera.launch.py", "config/axis_camera.params.yaml", "urdf/axis_214.urdf.xacro"} <= expected
+    assert expected <= installed, sorted(expected - installed)
     libexec = inst / "axis_ptz_ros2" / "lib" / "axis_ptz_ros2"
     exes = {p.name for p in libexec.iterdir()}
     for exe in (
@@ -69,6 +79,7 @@ def test_colcon_builds_both_packages_and_installs_runnable_executables(tmp_path)
         "axis_virtual_camera",
         "axis_calibrate",
         "axis_camera_sim",
+        "axis_joy_teleop",
     ):
         assert exe in exes, exe
     # the interface package's generated Python module is installed too

@@ -11,7 +11,12 @@ from __future__ import annotations
 import http.client
 import json
 import math
+import os
+import shutil
 import socket
+import ssl
+import subprocess
+import sys
 import threading
 import time
 from typing import Any
@@ -34,7 +39,8 @@ from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoPara
 from axis_ptz_ros2.config import load_robot  # noqa: E402
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
-from axis_ptz_ros2.web.server import ConsoleServer  # noqa: E402
+from axis_ptz_ros2.web.server import ConsoleServer, needs_tls  # noqa: E402
+from axis_ptz_ros2.web.tls import fingerprint_sha256, generate_self_signed  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -503,3 +509,345 @@ def test_host_origin_and_content_type_checks(ros: Any) -> None:
     # static files: no traversal
     assert request(console, "GET", "/static/../server.py")[0] == 404
     assert request(console, "GET", "/static/app.js")[0] == 200
+
+
+# ---------------------------------------------------------------------------------------------------------
+# off loopback: HTTPS, throttled guessing, a 4xx for every bad request (issue 11)
+# ---------------------------------------------------------------------------------------------------------
+TOKEN = "s3cret-token"
+
+
+def _token_console(ros: Any, tmp_path: Any, **params: Any) -> WebConsole:
+    token_file = tmp_path / "token"
+    token_file.write_text(TOKEN + "\n")
+    return make_console(ros, token_file=str(token_file), **params)
+
+
+def https_request(
+    port: int, ctx: ssl.SSLContext, method: str, path: str, headers: dict[str, str] | None = None, body: bytes = b""
+) -> tuple[int, dict[str, str], bytes]:
+    conn = http.client.HTTPSConnection("127.0.0.1", port, timeout=15, context=ctx)
+    try:
+        conn.request(method, path, body=body or None, headers=headers or {})
+        r = conn.getresponse()
+        return r.status, {k.lower(): v for k, v in r.getheaders()}, r.read()
+    finally:
+        conn.close()
+
+
+def test_https_with_a_generated_certificate_verified_against_itself(ros: Any, tmp_path: Any) -> None:
+    keep = tmp_path / "tls"
+    console = _token_console(ros, tmp_path, tls_on_loopback=True, tls_cert_dir=str(keep))
+    port = console.server.port
+    assert console.url.startswith("https://127.0.0.1:")
+    cert_pem = (keep / "console-cert.pem").read_bytes()
+    assert oct((keep / "console-key.pem").stat().st_mode & 0o777) == "0o600"
+    # the CA is the generated certificate itself; the host name (127.0.0.1) is checked too
+    ctx = ssl.create_default_context(cadata=cert_pem.decode("ascii"))
+    assert ctx.check_hostname
+    with (
+        socket.create_connection(("127.0.0.1", port), timeout=10) as raw,
+        ctx.wrap_socket(raw, server_hostname="127.0.0.1") as tls_sock,
+    ):
+        der = tls_sock.getpeercert(binary_form=True)
+    assert der is not None
+    assert fingerprint_sha256(der) == console.server.tls.fingerprint == fingerprint_sha256(cert_pem)
+    status, _, body = https_request(port, ctx, "GET", "/api/state", {"Authorization": f"Bearer {TOKEN}"})
+    assert status == 200
+    assert "stream" in json.loads(body)
+    assert https_request(port, ctx, "GET", "/api/state")[0] == 401
+    # the login cookie is Secure + HttpOnly + SameSite=Strict over HTTPS, and then works
+    status, headers, _ = https_request(
+        port,
+        ctx,
+        "POST",
+        "/login",
+        {"Content-Type": "application/x-www-form-urlencoded"},
+        f"token={TOKEN}".encode(),
+    )
+    assert status == 303
+    attrs = [a.strip().lower() for a in headers["set-cookie"].split(";")]
+    assert {"secure", "httponly", "samesite=strict", "path=/"} <= set(attrs), attrs
+    cookie = headers["set-cookie"].split(";")[0]
+    assert https_request(port, ctx, "GET", "/", {"Cookie": cookie})[0] == 200
+    # a client that trusts only the system's CAs refuses this certificate
+    with pytest.raises(ssl.SSLCertVerificationError):
+        https_request(port, ssl.create_default_context(), "GET", "/api/state")
+    # a plain HTTP request to the HTTPS port gets a 400 that says what to do, not a hang
+    status, _, body = request(console, "GET", "/api/state", headers={"Authorization": f"Bearer {TOKEN}"})
+    assert status == 400
+    assert b"https://" in body
+
+
+def test_generated_certificate_is_kept_and_a_given_one_is_used(ros: Any, tmp_path: Any) -> None:
+    keep = tmp_path / "tls"
+    first = _token_console(ros, tmp_path, tls_on_loopback=True, tls_cert_dir=str(keep)).server.tls.fingerprint
+    again = _token_console(ros, tmp_path, tls_on_loopback=True, tls_cert_dir=str(keep)).server.tls.fingerprint
+    assert first == again  # reused: the operator's trust survives a restart
+    fresh = _token_console(ros, tmp_path, tls_on_loopback=True).server.tls.fingerprint
+    assert fresh != first  # no directory: a new certificate per start
+    # the user's own certificate + key
+    cert_pem, key_pem = generate_self_signed("127.0.0.1")
+    (tmp_path / "c.pem").write_bytes(cert_pem)
+    (tmp_path / "k.pem").write_bytes(key_pem)
+    console = _token_console(
+        ros, tmp_path, tls_on_loopback=True, tls_cert_file=str(tmp_path / "c.pem"), tls_key_file=str(tmp_path / "k.pem")
+    )
+    assert console.server.tls.fingerprint == fingerprint_sha256(cert_pem)
+    assert not console.server.tls.generated
+    ctx = ssl.create_default_context(cadata=cert_pem.decode("ascii"))
+    status = https_request(console.server.port, ctx, "GET", "/api/state", {"X-Axis-Token": TOKEN})[0]
+    assert status == 200
+    # a certificate without its key (or an unreadable one) is refused with the reason, never half-served
+    with pytest.raises(ValueError, match="go together"):
+        _token_console(ros, tmp_path, tls_on_loopback=True, tls_cert_file=str(tmp_path / "c.pem"))
+    (tmp_path / "bad.pem").write_text("not a key\n")
+    with pytest.raises(ValueError, match="cannot load the TLS certificate"):
+        _token_console(
+            ros,
+            tmp_path,
+            tls_on_loopback=True,
+            tls_cert_file=str(tmp_path / "c.pem"),
+            tls_key_file=str(tmp_path / "bad.pem"),
+        )
+
+
+def test_plain_http_off_loopback_only_when_explicitly_allowed() -> None:
+    class Nothing:
+        pass
+
+    assert needs_tls("0.0.0.0", allow_plain_http=False)
+    assert needs_tls("192.168.0.5", allow_plain_http=False)
+    assert not needs_tls("0.0.0.0", allow_plain_http=True)
+    assert not needs_tls("127.0.0.1", allow_plain_http=False)
+    assert needs_tls("::1", allow_plain_http=False, tls_on_loopback=True)
+    # refused before any socket is bound
+    with pytest.raises(ValueError, match="plain HTTP"):
+        ConsoleServer(Nothing(), bind="0.0.0.0", port=0, token="t")  # type: ignore[arg-type]
+
+
+#: runs inside a fresh network namespace (only its own loopback): the real executable bound to 0.0.0.0
+_NETNS_CLIENT = r"""
+import hashlib, http.client, json, os, re, ssl, subprocess, sys, time
+port, token, tmp = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+env = dict(os.environ, AXIS_WEB_TOKEN=token)
+log = open(os.path.join(tmp, "console.log"), "wb")
+node = subprocess.Popen(["axis_web_console", "--ros-args", "-p", "bind:=0.0.0.0", "-p", f"port:={port}",
+                         "-p", f"url_file:={tmp}/url"], env=env, stdout=log, stderr=subprocess.STDOUT)
+out = {}
+try:
+    deadline = time.monotonic() + 60
+    while not os.path.exists(f"{tmp}/url") and time.monotonic() < deadline and node.poll() is None:
+        time.sleep(0.1)
+    out["url"] = open(f"{tmp}/url").read().strip()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        text = open(os.path.join(tmp, "console.log"), encoding="utf-8", errors="replace").read()
+        m = re.search(r"SHA-256 fingerprint ([0-9A-F:]{95})", text)
+        if m:
+            break
+        time.sleep(0.1)
+    out["logged_fingerprint"] = m.group(1) if m else None
+    # what an operator does: fetch the certificate, compare its fingerprint with the logged one, trust it
+    pem = ssl.get_server_certificate(("127.0.0.1", port))
+    der = ssl.PEM_cert_to_DER_cert(pem)
+    out["served_fingerprint"] = ":".join(f"{b:02X}" for b in hashlib.sha256(der).digest())
+    ctx = ssl.create_default_context(cadata=pem)
+    c = http.client.HTTPSConnection("127.0.0.1", port, timeout=10, context=ctx)
+    c.request("GET", "/api/state", headers={"Authorization": f"Bearer {token}"})
+    r = c.getresponse()
+    out["https_status"] = r.status
+    out["state_keys"] = sorted(json.loads(r.read()))
+    c.close()
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    c.request("GET", "/api/state", headers={"Authorization": f"Bearer {token}"})
+    out["plain_status"] = c.getresponse().status
+    c.close()
+finally:
+    node.terminate()
+    node.wait(20)
+    log.close()
+    out["log"] = open(os.path.join(tmp, "console.log"), encoding="utf-8", errors="replace").read()
+print(json.dumps(out))
+"""
+
+
+def test_off_loopback_bind_serves_https_and_logs_the_fingerprint(tmp_path: Any) -> None:
+    """The real executable bound to 0.0.0.0 inside a network namespace of our own (nothing leaves it)."""
+    if shutil.which("unshare") is None or shutil.which("axis_web_console") is None or os.geteuid() != 0:
+        pytest.skip("needs root, unshare and the installed axis_web_console (./scripts/bootstrap)")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    proc = subprocess.run(
+        ["unshare", "--net", sys.executable, "-c", _NETNS_CLIENT, str(port), TOKEN, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["url"] == f"https://127.0.0.1:{port}", out
+    assert out["logged_fingerprint"] is not None, out["log"][-2000:]
+    assert out["logged_fingerprint"] == out["served_fingerprint"]
+    assert out["https_status"] == 200
+    assert "ptz" in out["state_keys"]
+    assert out["plain_status"] == 400  # plain HTTP to the HTTPS port
+    assert TOKEN not in out["log"]  # the token never reaches the log
+
+
+def test_every_auth_path_is_throttled_per_client_address(ros: Any, tmp_path: Any) -> None:
+    console = _token_console(ros, tmp_path, auth_max_failures=3, auth_window=2.0)
+    form = {"Content-Type": "application/x-www-form-urlencoded"}
+    wrong = {
+        "bearer": lambda: request(console, "GET", "/api/state", headers={"Authorization": "Bearer nope"}),
+        "header": lambda: request(console, "GET", "/api/state", headers={"X-Axis-Token": "nope"}),
+        "cookie": lambda: request(console, "GET", "/api/state", headers={"Cookie": "axis_token=nope"}),
+        "login": lambda: request(console, "POST", "/login", raw=b"token=nope", headers=form),
+    }
+    right = {
+        "bearer": lambda: request(console, "GET", "/api/state", headers={"Authorization": f"Bearer {TOKEN}"}),
+        "header": lambda: request(console, "GET", "/api/state", headers={"X-Axis-Token": TOKEN}),
+        "cookie": lambda: request(console, "GET", "/api/state", headers={"Cookie": f"axis_token={TOKEN}"}),
+        "login": lambda: request(console, "POST", "/login", raw=f"token={TOKEN}".encode(), headers=form),
+    }
+    ok_status = {"bearer": 200, "header": 200, "cookie": 200, "login": 303}
+    for kind in wrong:  # each path alone exhausts the allowance ...
+        for _ in range(3):
+            status, headers, _ = wrong[kind]()
+            assert status == 401, kind
+            if kind == "cookie":  # a wrong cookie is cleared so a stale one does not keep guessing
+                assert "max-age=0" in headers["set-cookie"].lower()
+        locked_at = time.monotonic()
+        # ... and then every path is refused, even with the right token
+        for k in right:
+            status, headers, body = right[k]()
+            assert status == 429, (kind, k, status)
+            assert 1 <= int(headers["retry-after"]) <= 2
+        assert b"try again" in wrong[kind]()[2]
+        # no credential presented is not a guess: the login page is still served
+        status, _, body = request(console, "GET", "/")
+        assert status == 401
+        assert b"Access token" in body
+        # another client address is not affected
+        assert (
+            _raw_status(
+                console.server.port,
+                b"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer " + TOKEN.encode() + b"\r\n\r\n",
+                source="127.0.0.2",
+            )
+            == 200
+        )
+        # the window passes (the server's own clock): the right token works again
+        ros.wait_for(lambda k=kind: right[k]()[0] == ok_status[k], 10.0)  # type: ignore[misc]
+        assert time.monotonic() - locked_at >= 2.0 * 0.9
+        for k in right:
+            assert right[k]()[0] == ok_status[k]
+
+
+def _raw(port: int, data: bytes, source: str = "127.0.0.1", pause_after: float = 0.0) -> bytes:
+    """Send raw bytes, return everything the server answers until it closes (or 15 s pass)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=15, source_address=(source, 0)) as s:
+        s.sendall(data)
+        if pause_after:  # keep our side open, as a client that stalls mid-body does
+            time.sleep(pause_after)
+        else:
+            s.shutdown(socket.SHUT_WR)
+        chunks = []
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline:
+            try:
+                c = s.recv(65536)
+            except TimeoutError:
+                break
+            if not c:
+                break
+            chunks.append(c)
+            if b"\r\n\r\n" in b"".join(chunks) and pause_after:
+                break
+        return b"".join(chunks)
+
+
+def _raw_status(port: int, data: bytes, **kw: Any) -> int:
+    answer = _raw(port, data, **kw)
+    assert answer.startswith(b"HTTP/1."), f"no HTTP answer to {data[:80]!r}: {answer[:200]!r}"
+    return int(answer.split(b" ", 2)[1])
+
+
+def test_every_malformed_request_gets_a_4xx(ros: Any, tmp_path: Any) -> None:
+    FakePtz(ros)
+    console = _token_console(ros, tmp_path)
+    console.server.io_timeout = 1.0  # s, so the short-body case answers quickly
+    port = console.server.port
+    host = f"Host: 127.0.0.1:{port}\r\n".encode()
+    auth = f"Authorization: Bearer {TOKEN}\r\n".encode()
+    js = b"Content-Type: application/json\r\n"
+
+    def post(path: bytes, body: bytes, extra: bytes = b"", length: bytes | None = None) -> bytes:
+        cl = str(len(body)).encode() if length is None else length
+        return (
+            b"POST "
+            + path
+            + b" HTTP/1.1\r\n"
+            + host
+            + auth
+            + js
+            + extra
+            + b"Content-Length: "
+            + cl
+            + b"\r\n\r\n"
+            + body
+        )
+
+    cases: list[tuple[str, bytes, int]] = [
+        ("content-length not a number", post(b"/api/center", b"{}", length=b"abc"), 400),
+        ("negative content-length", post(b"/api/center", b"{}", length=b"-5"), 400),
+        ("non-ASCII digits", post(b"/api/center", b"{}", length="\uff12".encode()), 400),
+        ("two different lengths", post(b"/api/home", b"{}", extra=b"Content-Length: 7\r\n"), 400),
+        ("content-length on login", b"POST /login HTTP/1.1\r\n" + host + b"Content-Length: 1x\r\n\r\n", 400),
+        (
+            "chunked body",
+            b"POST /api/home HTTP/1.1\r\n"
+            + host
+            + auth
+            + js
+            + b"Transfer-Encoding: chunked\r\n\r\n2\r\n{}\r\n0\r\n\r\n",
+            411,
+        ),
+        ("oversize body", post(b"/api/home", b"", length=b"10000000"), 413),
+        ("bad JSON", post(b"/api/home", b"{"), 400),
+        ("JSON not an object", post(b"/api/home", b"[1, 2]"), 400),
+        ("JSON nested too deep", post(b"/api/home", b"[" * 60000), 400),
+        ("huge number", post(b"/api/center", b'{"u": ' + b"9" * 5000 + b"}"), 400),
+        ("not UTF-8", post(b"/api/home", b"\xff\xfe{}"), 400),
+        ("bad command fields", post(b"/api/center", b'{"u": "x", "v": 1, "width": 10, "height": 10}'), 400),
+        ("unknown command", post(b"/api/launch", b"{}"), 404),
+        ("wrong content type", post(b"/api/home", b"{}").replace(js, b"Content-Type: text/plain\r\n"), 415),
+        ("unknown method", b"BREW /api/state HTTP/1.1\r\n" + host + auth + b"\r\n", 405),
+        ("PUT", b"PUT /api/state HTTP/1.1\r\n" + host + auth + b"Content-Length: 2\r\n\r\n{}", 405),
+        ("DELETE", b"DELETE / HTTP/1.1\r\n" + host + b"\r\n", 405),
+        ("garbage request line", b"HELLO\r\n\r\n", 400),
+        ("HTTP/0.9 request", b"GET /\r\n", 400),
+        ("bad HTTP version", b"GET / HTTP/9.x\r\n" + host + b"\r\n", 400),
+        ("no Host", b"GET /api/state HTTP/1.1\r\n" + auth + b"\r\n", 421),
+        ("two Hosts", b"GET /api/state HTTP/1.1\r\n" + host + b"Host: 127.0.0.1\r\n" + auth + b"\r\n", 421),
+    ]
+    bad_host = b"Host: attacker.example\r\n"
+    for method, path in (
+        ("GET", "/login"), ("GET", "/"), ("GET", "/index.html"), ("GET", "/static/style.css"),
+        ("GET", "/static/app.js"), ("GET", "/api/state"), ("GET", "/api/keymap"), ("GET", "/video/ptz.mjpg"),
+        ("GET", "/video/ptz.jpg"), ("GET", "/nowhere"), ("HEAD", "/"), ("HEAD", "/login"), ("POST", "/login"),
+        ("POST", "/api/home"), ("POST", "/api/center"),
+    ):  # fmt: skip
+        req = f"{method} {path} HTTP/1.1\r\n".encode() + bad_host + auth
+        req += js + b"Content-Length: 2\r\n\r\n{}" if method == "POST" else b"\r\n"
+        cases.append((f"bad Host on {method} {path}", req, 421))
+    for what, data, want in cases:
+        got = _raw_status(port, data)
+        assert got == want, f"{what}: HTTP {got}, expected {want}"
+    # a body shorter than its Content-Length: 408 once the console stops waiting (the client keeps the line open)
+    answer = _raw(port, post(b"/api/home", b"{", length=b"20"), pause_after=5.0)
+    assert answer.startswith(b"HTTP/1.1 408"), answer[:100]
+    # the server is still healthy after all that
+    assert request(console, "GET", "/api/state", headers={"X-Axis-Token": TOKEN})[0] == 200

@@ -82,25 +82,41 @@ def test_encoder_tilt_offset_estimated_and_pan_offset_folded_into_yaw():
     t_err, r_err = _errors(scene, r)
     assert t_err < 0.005
     assert r_err < 0.05
-    # ignoring a 1.5° tilt offset is not silently accepted
-    with pytest.raises(CalibrationRefused, match="encoder offsets"):
+    # ignoring a 1.5° tilt offset is not silently accepted: most points disagree with any mount at 0.5 px
+    with pytest.raises(CalibrationRefused, match="too few inliers.*encoder offsets"):
         calibrate(scene.views, scene.camera_model, sigma_px=0.5, sigma_3d_m=0.0)
+    # without outlier rejection it is solved, with a warning naming the cause
+    r2 = calibrate(scene.views, scene.camera_model, sigma_px=0.5, sigma_3d_m=0.0, robust=False)
+    assert any("encoder offsets" in w for w in r2.warnings)
+    assert r2.normalised_rms > 2.0
+    with pytest.raises(CalibrationRefused, match="inconsistent data.*encoder offsets"):
+        calibrate(scene.views, scene.camera_model, sigma_px=0.5, sigma_3d_m=0.0, robust=False, max_normalised_rms=2.0)
 
 
 def test_thesis_like_set_is_refused_with_a_reason():
     scene = syn.thesis_like_scene(3)
-    with pytest.raises(CalibrationRefused, match="single view of nearly coplanar points") as exc:
+    with pytest.raises(CalibrationRefused, match="single camera pose of nearly coplanar points") as exc:
         calibrate(scene.views, scene.camera_model)
     assert exc.value.reason
-    # without the coplanarity gate the predicted-σ gate still refuses it (σ_t ≫ 3 cm)
+    assert exc.value.result is None  # refused before any solution
+    # raise_on_refusal=False is honoured before a solution exists too
+    r0 = calibrate(scene.views, scene.camera_model, raise_on_refusal=False)
+    assert r0.refused_reason == exc.value.reason
+    assert not r0.solved
+    assert not np.all(np.isfinite(r0.sigma_translation_m))
+    # without the coplanarity gate the solution is written with its (large) uncertainty ...
+    r = calibrate(scene.views, scene.camera_model, min_planarity_ratio=0.0)
+    assert r.refused_reason is None
+    assert float(r.sigma_translation_m.max()) > 0.05
+    # ... and the user's --max-sigma-cm limit refuses it
     with pytest.raises(CalibrationRefused, match="predicted σ translation") as exc2:
-        calibrate(scene.views, scene.camera_model, min_planarity_ratio=0.0)
+        calibrate(scene.views, scene.camera_model, min_planarity_ratio=0.0, max_sigma_translation_m=0.03)
     assert exc2.value.result is not None
-    assert float(exc2.value.result.sigma_translation_m.max()) > 0.05
-    # and with raise_on_refusal=False the result carries the reason
-    r = calibrate(scene.views, scene.camera_model, min_planarity_ratio=0.0, raise_on_refusal=False)
+    r = calibrate(
+        scene.views, scene.camera_model, min_planarity_ratio=0.0, max_sigma_translation_m=0.03, raise_on_refusal=False
+    )
     assert r.refused_reason is not None
-    assert "degenerate" in r.refused_reason
+    assert "requested limit" in r.refused_reason
 
 
 def test_too_few_points_refused():
@@ -145,12 +161,17 @@ def test_minus_ten_percent_focal_error_detected():
     hfov = math.radians(CameraModel().zoom.hfov_wide_deg)
     wrong_hfov = 2.0 * math.degrees(math.atan(math.tan(hfov / 2.0) / 0.9))  # fx 10 % too small
     wrong = CameraModel(zoom=ZoomModel(hfov_wide_deg=wrong_hfov))
-    with pytest.raises(CalibrationRefused, match="inconsistent intrinsics") as exc:
+    # the wrong focal makes the fixed-focal fit disagree with most points: refused, and the reason says why
+    with pytest.raises(CalibrationRefused, match="too few inliers.*focal length looks .* too short") as exc:
         calibrate(scene.views, wrong)
     res = exc.value.result
     assert res is not None
     assert res.focal_check.flagged
-    assert res.focal_check.scale == pytest.approx(1 / 0.9, abs=0.03)
+    assert res.focal_check.p_value < 1e-3
+    assert res.focal_check.cv_rms_fitted < res.focal_check.cv_rms_model
+    assert res.focal_check.scale == pytest.approx(1 / 0.9, abs=0.04)
+    with pytest.raises(CalibrationRefused, match="inconsistent intrinsics"):
+        calibrate(scene.views, wrong, min_inlier_fraction=0.0, refuse_on_focal_mismatch=True)
     # with the right model the check passes and reports a scale near 1
     ok = calibrate(scene.views, scene.camera_model)
     assert not ok.focal_check.flagged

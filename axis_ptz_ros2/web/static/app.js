@@ -37,16 +37,39 @@ async function post(path, body) {
   return answer;
 }
 
-// Pixel of a mouse event in the image's own (natural) pixels: the displayed size may differ. Pixel
-// coordinates follow geometry.py: pixel i covers [i - 0.5, i + 0.5), so the image centre is (w - 1) / 2.
-function naturalPixel(img, ev) {
+// The rectangle the picture occupies inside an <img> box: the whole box when the box has the picture's
+// aspect (the layout keeps it so), else the centred, letterboxed part (object-fit: contain), so a click maps
+// to the right pixel whatever the image's aspect (704x576 PAL, 1920x1080 HD, ...) and the window's shape.
+function pictureRect(img) {
   const r = img.getBoundingClientRect();
   const w = img.naturalWidth;
   const h = img.naturalHeight;
   if (!w || !h || r.width <= 0 || r.height <= 0) return null;
-  const x = ((ev.clientX - r.left) * w) / r.width - 0.5;
-  const y = ((ev.clientY - r.top) * h) / r.height - 0.5;
-  return { x: Math.min(Math.max(x, 0), w - 1), y: Math.min(Math.max(y, 0), h - 1), w, h };
+  const scale = Math.min(r.width / w, r.height / h);
+  const pw = w * scale;
+  const ph = h * scale;
+  return { left: r.left + (r.width - pw) / 2, top: r.top + (r.height - ph) / 2, width: pw, height: ph, w, h };
+}
+
+// Pixel of a mouse event in the image's own (natural) pixels: the displayed size may differ. Pixel
+// coordinates follow geometry.py: pixel i covers [i - 0.5, i + 0.5), so the image centre is (w - 1) / 2.
+function naturalPixel(img, ev) {
+  const r = pictureRect(img);
+  if (!r) return null;
+  const x = ((ev.clientX - r.left) * r.w) / r.width - 0.5;
+  const y = ((ev.clientY - r.top) * r.h) / r.height - 0.5;
+  return { x: Math.min(Math.max(x, 0), r.w - 1), y: Math.min(Math.max(y, 0), r.h - 1), w: r.w, h: r.h };
+}
+
+// The stage is sized to the live image's own aspect (from its natural size, never assumed).
+function updateAspect() {
+  const img = $("ptz");
+  const w = img.naturalWidth;
+  const h = img.naturalHeight;
+  if (!w || !h) return;
+  const aspect = String(w / h);
+  const root = document.documentElement.style; // the stage and the side panel's width both follow it
+  if (root.getPropertyValue("--ptz-aspect") !== aspect) root.setProperty("--ptz-aspect", aspect);
 }
 
 // ------------------------------------------------------------------------------------------------------
@@ -188,6 +211,7 @@ async function onQualitySubmit(ev) {
 const fmt = (v, digits, unit) => (v === null || v === undefined ? "–" : `${Number(v).toFixed(digits)}${unit}`);
 
 function render(s) {
+  updateAspect();
   state.mouse = s.mouse || state.mouse;
   $("shift-delta").textContent = `${state.mouse.shift_zoom_delta >= 0 ? "+" : ""}${state.mouse.shift_zoom_delta}`;
   $("ctrl-delta").textContent = `${state.mouse.ctrl_zoom_delta >= 0 ? "+" : ""}${state.mouse.ctrl_zoom_delta}`;
@@ -234,6 +258,10 @@ async function poll() {
   const link = $("link");
   try {
     const res = await fetch("/api/state", { credentials: "same-origin", cache: "no-store" });
+    if (res.status === 401) {
+      location.reload(); // token changed or cookie gone: the server answers the page with its sign-in form
+      return;
+    }
     if (!res.ok) throw new Error(`HTTP ${res.status}`);
     render(await res.json());
     link.textContent = "connected";
@@ -250,6 +278,7 @@ function main() {
   const ptz = $("ptz");
   const pano = $("pano");
   ptz.addEventListener("click", onPtzClick);
+  ptz.addEventListener("load", updateAspect);
   ptz.addEventListener("contextmenu", (ev) => ev.ctrlKey && ev.preventDefault());
   pano.addEventListener("dblclick", onPanoramaDblClick);
   keepAlive(ptz, () => "/video/ptz.mjpg");

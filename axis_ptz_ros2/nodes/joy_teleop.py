@@ -1,0 +1,232 @@
+"""``axis_joy_teleop``: drive the PTZ head with a joystick (``sensor_msgs/Joy``, e.g. from the ``joy`` package).
+
+A thin node over the pure :mod:`axis_ptz_ros2.teleop.joy` mapping: subscribes ``joy``, publishes
+``ptz/cmd/velocity`` (repeated at ``rate`` while the dead-man button is held, one explicit stop when motion
+ends or Joy messages stop for ``joy_timeout``), calls ``ptz/home`` and ``ptz/preset`` (goto) on button
+presses. Every map parameter can be changed at run time; a map that does not make sense (two actions on one
+button, a dead-man button that is also an action, preset buttons without names…) is refused with the reason,
+at start-up (exit code 2) and on ``set_parameters``.
+
+    axis_joy_teleop --ros-args --params-file config/joy_gamepad.params.yaml -r __ns:=/robot
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from types import FrameType
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import Joy
+from std_srvs.srv import Trigger
+
+from axis_ptz_interfaces.msg import PtzVelocity
+from axis_ptz_interfaces.srv import Preset
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params
+from axis_ptz_ros2.teleop.joy import Command, GotoPreset, Home, JoyMap, JoyTeleop, Stop, Velocity
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("pan_axis", 0, "Joy axis for pan (left = positive = turn left; -1 = none)", int_range=(-1, 63)),
+    ParamSpec("tilt_axis", 1, "Joy axis for tilt (up = positive = tilt up; -1 = none)", int_range=(-1, 63)),
+    ParamSpec("zoom_axis", 3, "Joy axis for zoom (up = positive = zoom in; -1 = none)", int_range=(-1, 63)),
+    ParamSpec("pan_speed", 1.0, "pan rate at full deflection (negative inverts)", "rad/s", float_range=(-10.0, 10.0)),
+    ParamSpec("tilt_speed", 1.0, "tilt rate at full deflection (negative inverts)", "rad/s", float_range=(-10.0, 10.0)),
+    ParamSpec(
+        "zoom_speed", 1.0, "zoom rate at full deflection, fraction of the camera's", "1", float_range=(-1.0, 1.0)
+    ),
+    ParamSpec("deadzone", 0.1, "stick deflection ignored around the centre", "1", float_range=(0.0, 0.95)),
+    ParamSpec(
+        "deadman_button", 9, "button that must be held for any motion (-1 = none: simulators only)", int_range=(-1, 63)
+    ),
+    ParamSpec("home_button", 3, "button: home (pan 0, tilt 0, zoom 1) (-1 = none)", int_range=(-1, 63)),
+    ParamSpec("zoom_in_button", -1, "button: zoom in at zoom_speed while held (-1 = none)", int_range=(-1, 63)),
+    ParamSpec("zoom_out_button", -1, "button: zoom out at zoom_speed while held (-1 = none)", int_range=(-1, 63)),
+    ParamSpec("preset_buttons", [0, 1, 2], "buttons that go to the presets named in preset_names (same order)"),
+    ParamSpec("preset_names", ["1", "2", "3"], "camera preset names for preset_buttons"),
+    ParamSpec("joy_timeout", 0.5, "stop when no Joy message came for this long", "s", float_range=(0.05, 10.0)),
+    ParamSpec("rate", 10.0, "velocity repeat rate while moving", "Hz", float_range=(1.0, 100.0), read_only=True),
+)
+_SPECS = {s.name: s for s in PARAMS}
+_MAP_FIELDS = {
+    "pan_axis": int,
+    "tilt_axis": int,
+    "zoom_axis": int,
+    "pan_speed": float,
+    "tilt_speed": float,
+    "zoom_speed": float,
+    "deadzone": float,
+    "deadman_button": int,
+    "home_button": int,
+    "zoom_in_button": int,
+    "zoom_out_button": int,
+}
+
+
+def joy_map_from_params(p: dict[str, Any]) -> JoyMap:
+    """A :class:`JoyMap` from parameter values; ValueError with every reason when it is not usable."""
+    kwargs: dict[str, Any] = {k: conv(p[k]) for k, conv in _MAP_FIELDS.items()}
+    try:
+        kwargs["preset_buttons"] = tuple(int(b) for b in p["preset_buttons"])
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"preset_buttons must be a list of integers: {err}") from None
+    kwargs["preset_names"] = tuple(str(n) for n in p["preset_names"])
+    kwargs["timeout"] = float(p["joy_timeout"])
+    return JoyMap(**kwargs)
+
+
+class JoyTeleopNode(Node):
+    """Joy → PTZ commands (see the module docstring and the README table)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("axis_joy_teleop", **kwargs)
+        self._p = declare_params(self, PARAMS)
+        self._lock = threading.Lock()
+        self._teleop = JoyTeleop(joy_map_from_params(self._p))  # ValueError: refused at start-up with the reason
+        self._warned = 0
+        self.add_on_set_parameters_callback(self._check_params)
+        self.add_post_set_parameters_callback(self._apply_params)
+        self._vel_pub = self.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
+        self._home = self.create_client(Trigger, "ptz/home")
+        self._preset = self.create_client(Preset, "ptz/preset")
+        self.create_subscription(Joy, "joy", self._on_joy, 10)
+        self._timer = self.create_timer(1.0 / float(self._p["rate"]), self._on_tick)
+        m = self._teleop.joy_map
+        self.get_logger().info(
+            f"joystick teleop up: axes pan {m.pan_axis} tilt {m.tilt_axis} zoom {m.zoom_axis}, "
+            f"dead-man button {m.deadman_button}, home {m.home_button}, presets "
+            f"{dict(zip(m.preset_buttons, m.preset_names, strict=True))}, stop after {m.timeout:g} s without Joy"
+        )
+
+    # ---- parameters -------------------------------------------------------------------------------
+    def _check_params(self, params: list[Parameter]) -> SetParametersResult:
+        merged = dict(self._p)
+        for prm in params:
+            if prm.name in _SPECS:
+                merged[prm.name] = prm.value
+        try:
+            joy_map_from_params(merged)
+        except ValueError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _apply_params(self, params: list[Parameter]) -> None:
+        for prm in params:
+            if prm.name in _SPECS:
+                self._p[prm.name] = prm.value
+        with self._lock:
+            self._teleop.joy_map = joy_map_from_params(self._p)
+            self._teleop.warnings.clear()
+            self._warned = 0
+
+    @property
+    def teleop(self) -> JoyTeleop:
+        """The mapping state (for tests and diagnostics)."""
+        return self._teleop
+
+    # ---- inputs -----------------------------------------------------------------------------------
+    def _on_joy(self, msg: Joy) -> None:
+        with self._lock:
+            commands = self._teleop.on_joy(list(msg.axes), list(msg.buttons), time.monotonic())
+            warnings = self._teleop.warnings[self._warned :]
+            self._warned = len(self._teleop.warnings)
+        for w in warnings:
+            self.get_logger().warn(w)
+        for c in commands:
+            self._send(c)
+
+    def _on_tick(self) -> None:
+        with self._lock:
+            commands = self._teleop.tick(time.monotonic())
+        for c in commands:
+            self._send(c)
+
+    # ---- outputs ----------------------------------------------------------------------------------
+    def _send(self, c: Command) -> None:
+        if isinstance(c, Velocity):
+            self._vel_pub.publish(PtzVelocity(pan_rate=c.pan_rate, tilt_rate=c.tilt_rate, zoom_rate=c.zoom_rate))
+        elif isinstance(c, Stop):
+            self._vel_pub.publish(PtzVelocity(pan_rate=0.0, tilt_rate=0.0, zoom_rate=0.0))
+            self.get_logger().info(f"stop: {c.reason}")
+        elif isinstance(c, Home):
+            self._call(self._home, Trigger.Request(), "ptz/home")
+        elif isinstance(c, GotoPreset):
+            req = Preset.Request(action="goto", name=c.name, wait=False, timeout_s=0.0)
+            self._call(self._preset, req, f"ptz/preset goto {c.name!r}")
+
+    def _call(self, client: Any, request: Any, what: str) -> None:
+        if not client.service_is_ready():
+            self.get_logger().warn(f"{what}: service not available (is the PTZ node running?)")
+            return
+        fut = client.call_async(request)
+
+        def done(f: Any) -> None:
+            try:
+                r = f.result()
+            except Exception as err:  # noqa: BLE001 - a failed call is reported, never raised into the executor
+                self.get_logger().warn(f"{what} failed: {err}")
+                return
+            if r is not None and not r.success:
+                self.get_logger().warn(f"{what} refused: {r.message}")
+
+        fut.add_done_callback(done)
+
+    def stop_motion(self, timeout_s: float = 1.0) -> bool:
+        """Send a stop if we started motion, and wait until subscribers acknowledged it; True if one was sent."""
+        with self._lock:
+            moving = self._teleop.moving
+            self._teleop = JoyTeleop(self._teleop.joy_map)  # forget the sticks: nothing repeats after this
+        if not moving:
+            return False
+        self._vel_pub.publish(PtzVelocity(pan_rate=0.0, tilt_rate=0.0, zoom_rate=0.0))
+        self._vel_pub.wait_for_all_acked(Duration(seconds=timeout_s))
+        return True
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the joystick teleop until Ctrl-C / SIGTERM, then stop the head if it was moving because of us.
+
+    rclpy's own signal handler is off: it would shut the context down before we could send the stop."""
+    rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
+    old = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
+    executor = SingleThreadedExecutor()
+    node: JoyTeleopNode | None = None
+    code = 0
+    try:
+        node = JoyTeleopNode()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as err:  # a parameter (file) that makes no sense: say why, exit non-zero
+        print(f"error: {err}", file=sys.stderr)  # noqa: T201
+        code = 2
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        if node is not None:
+            try:
+                if node.stop_motion():
+                    node.get_logger().info("stopped the head on exit")
+            finally:
+                executor.remove_node(node)
+                node.destroy_node()
+        executor.shutdown(timeout_sec=1.0)
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

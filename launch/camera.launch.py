@@ -1,0 +1,70 @@
+"""The camera driver on the robot: ``axis_camera`` (stream + PTZ in one process).
+
+    ros2 launch axis_ptz_ros2 camera.launch.py params_file:=/path/to/my_camera.params.yaml
+    ros2 launch axis_ptz_ros2 camera.launch.py namespace:=robot1 robot_state_publisher:=true
+
+Arguments:
+  params_file            parameters of axis_stream and axis_ptz (default: config/axis_camera.params.yaml,
+                         which points at loopback: copy it and set your camera's hostname)
+  namespace              ROS namespace of both nodes (default: none)
+  robot_state_publisher  true: also run robot_state_publisher with urdf/axis_214.urdf.xacro (mount and head from
+                         config/), fed by the PTZ node's joint_states; the PTZ node then leaves the head's /tf to it
+                         (publish_tf false) so every frame has one parent. Needs the xacro and
+                         robot_state_publisher packages.
+Credentials: AXIS_USERNAME / AXIS_PASSWORD in the environment of `ros2 launch`, or `password_file` in the params.
+"""
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution, PythonExpression
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+from launch_ros.substitutions import FindPackageShare
+
+
+def generate_launch_description() -> LaunchDescription:
+    share = FindPackageShare("axis_ptz_ros2")
+    params_file = LaunchConfiguration("params_file")
+    namespace = LaunchConfiguration("namespace")
+    use_rsp = LaunchConfiguration("robot_state_publisher")
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(
+                "params_file",
+                default_value=PathJoinSubstitution([share, "config", "axis_camera.params.yaml"]),
+                description="parameters of axis_stream and axis_ptz",
+            ),
+            DeclareLaunchArgument("namespace", default_value="", description="namespace of the camera nodes"),
+            DeclareLaunchArgument(
+                "robot_state_publisher",
+                default_value="false",
+                description="publish the head's frames with robot_state_publisher from urdf/axis_214.urdf.xacro",
+            ),
+            Node(
+                package="axis_ptz_ros2",
+                executable="axis_camera",
+                namespace=namespace,
+                output="screen",
+                parameters=[
+                    params_file,
+                    {"publish_tf": ParameterValue(PythonExpression(["'", use_rsp, "' != 'true'"]), value_type=bool)},
+                ],
+            ),
+            Node(
+                package="robot_state_publisher",
+                executable="robot_state_publisher",
+                namespace=namespace,
+                output="screen",
+                condition=IfCondition(use_rsp),
+                parameters=[
+                    {
+                        "robot_description": ParameterValue(
+                            Command(["xacro ", PathJoinSubstitution([share, "urdf", "axis_214.urdf.xacro"])]),
+                            value_type=str,
+                        )
+                    }
+                ],
+            ),
+        ]
+    )

@@ -1,0 +1,203 @@
+"""Cameras that are not a PAL 214 (issue 10): replies shaped like recordings of real Axis firmware
+(vapix.md §2.2, §4.7, §5.3, §5.5; P5512 NTSC dome fw 5.51, fixed cameras), over httpx.MockTransport."""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import httpx
+import pytest
+
+from axis_ptz_ros2.vapix import (
+    AuthError,
+    CameraConfig,
+    CameraTimeout,
+    HttpStatusError,
+    Resolution,
+    ResponseParseError,
+    VapixClient,
+)
+from tests.unit import fixtures_vapix as fx
+
+pytestmark = pytest.mark.unit
+
+PARAM = "/axis-cgi/param.cgi"
+V2PARAM = "/axis-cgi/view/param.cgi"
+IMAGESIZE = "/axis-cgi/imagesize.cgi"
+PTZ = "/axis-cgi/com/ptz.cgi"
+NTSC_LIST = fx.PARAM_RESOLUTION_P5512_NO_ROOT  # 4CIF,2CIF,CIF,QCIF [V-obs S8]
+DIGEST_401 = fx.text("", 401)
+
+
+def make(routes, **config) -> tuple[VapixClient, fx.Recorder]:
+    rec = fx.Recorder(routes)
+    return VapixClient(CameraConfig(**config), transport=rec.transport()), rec
+
+
+def imagesize(default: str | None, per_name: dict[str, str] | None = None):
+    """imagesize.cgi: ``default`` for a request without resolution=, per-name answers, else an HTML comment."""
+
+    def reply(request: httpx.Request) -> httpx.Response:
+        name = request.url.params.get("resolution")
+        if name is None and default is not None:
+            return httpx.Response(200, text=default)
+        if name is not None and per_name and name in per_name:
+            return httpx.Response(200, text=per_name[name])
+        return httpx.Response(200, text=f"<!-- Invalid resolution {name} -->\n")
+
+    return reply
+
+
+# ---- resolutions -----------------------------------------------------------------------------------
+def test_ntsc_camera_without_imagesize_is_not_given_pal_sizes():
+    vapix, rec = make({PARAM: fx.text(NTSC_LIST)})
+    sizes = vapix.supported_resolutions()
+    assert Resolution(704, 576) not in sizes  # the old silent PAL fallback
+    assert sizes == ()
+    assert "4CIF" in vapix.resolution_problem
+    assert "WIDTHxHEIGHT" in vapix.resolution_problem
+    # imagesize.cgi was found missing once, not asked again for every name
+    assert sum("imagesize" in p for p in rec.paths) == 2
+
+
+def test_ntsc_from_the_default_image_size_when_names_are_not_answered():
+    vapix, _ = make({PARAM: fx.text(NTSC_LIST + "\n"), IMAGESIZE: imagesize(fx.IMAGESIZE_4CIF_NTSC)})
+    assert vapix.supported_resolutions() == (
+        Resolution(704, 480),
+        Resolution(704, 240),
+        Resolution(352, 240),
+        Resolution(176, 120),
+    )
+    assert vapix.resolution_problem == ""
+
+
+def test_d1_is_a_real_resolution_name():
+    listing = "Properties.Image.Resolution=D1,4CIF,CIF\n"
+    vapix, _ = make(
+        {PARAM: fx.text(listing), IMAGESIZE: imagesize(None, {"D1": "image width = 720\nimage height = 480\n"})}
+    )
+    assert vapix.supported_resolutions() == (Resolution(720, 480), Resolution(704, 480), Resolution(352, 240))
+    pal, _ = make({PARAM: fx.text(listing), IMAGESIZE: imagesize("image width = 720\nimage height = 576\n")})
+    assert pal.supported_resolutions() == (Resolution(720, 576), Resolution(704, 576), Resolution(352, 288))
+    assert Resolution.parse("D1") == Resolution(720, 576)
+    assert Resolution.parse("d1", ntsc=True) == Resolution(720, 480)
+
+
+# ---- PTZ presence --------------------------------------------------------------------------------------
+def _device(ptz_enabled: str | None):
+    props = (
+        "root.Properties.API.HTTP.Version=3\nroot.Properties.PTZ.PTZ=yes\nroot.Properties.Image.Resolution=1920x1080\n"
+    )
+    routes = {
+        f"{PARAM}?action=list&group=Brand": fx.text("root.Brand.ProdShortName=AXIS M3045-V\n"),
+        f"{PARAM}?action=list&group=Properties": fx.text(props),
+        f"{PARAM}?action=list&group=PTZ.Support": fx.text("root.PTZ.Support.S1.AbsoluteZoom=true\n"),
+    }
+    if ptz_enabled is not None:
+        routes[f"{PARAM}?action=list&group=PTZ.ImageSource"] = fx.text(
+            f"root.PTZ.ImageSource.I0.PTZEnabled={ptz_enabled}\n"
+        )
+    else:
+        routes[f"{PARAM}?action=list&group=PTZ.ImageSource"] = fx.text(fx.PARAM_ERROR)
+    return make(routes)[0]
+
+
+@pytest.mark.parametrize(("flag", "ptz"), [("false", False), ("true", True), (None, True)])
+def test_fixed_camera_with_digital_ptz_is_not_a_ptz(flag, ptz):
+    vapix = _device(flag)
+    assert vapix.device_info().ptz is ptz
+    assert vapix.mechanical_ptz() is (None if flag is None else ptz)
+
+
+# ---- parameter paths -------------------------------------------------------------------------------------
+def test_legacy_param_path_tried_after_401_on_the_v3_path():
+    """Firmware 5.0-5.6 answers /axis-cgi/param.cgi with 401 even for allowed users (vapix.md §2.2)."""
+    vapix, rec = make({PARAM: DIGEST_401, V2PARAM: fx.text("root.Brand.ProdShortName=AXIS 214 PTZ\n")})
+    assert vapix.list_params("Brand") == {"Brand.ProdShortName": "AXIS 214 PTZ"}
+    assert rec.paths[-1].startswith(V2PARAM)
+    vapix.list_params("Brand")  # remembered
+    assert rec.paths[-1].startswith(V2PARAM)
+
+
+def test_401_on_both_param_paths_is_an_auth_error():
+    vapix, _ = make({PARAM: DIGEST_401, V2PARAM: DIGEST_401})
+    with pytest.raises(AuthError):
+        vapix.list_params("Brand")
+
+
+def test_404_on_v3_then_401_on_v2_reports_the_401():
+    vapix, _ = make({V2PARAM: DIGEST_401})
+    with pytest.raises(AuthError):
+        vapix.list_params("Brand")
+
+
+# ---- limits fallback ---------------------------------------------------------------------------------------
+def test_limits_404_does_not_fall_back_to_the_listing():
+    vapix, rec = make({PARAM: fx.text(fx.P5512_PTZ_LIMIT_PARAMS)})
+    with pytest.raises(HttpStatusError):
+        vapix.query_limits()
+    assert not any("param.cgi" in p for p in rec.paths)
+
+
+def test_limits_parse_error_falls_back_to_the_listing():
+    vapix, rec = make({PTZ: fx.text("MinPan=-180\nnonsense\n"), PARAM: fx.text(fx.P5512_PTZ_LIMIT_PARAMS)})
+    limits = vapix.query_limits()
+    assert limits.max_zoom == 19999
+    assert any("group=PTZ.Limit" in p for p in rec.paths)
+
+
+# ---- body caps -----------------------------------------------------------------------------------------------
+def _endless(chunk: bytes, ctype: str, delay: float = 0.0):
+    pulled = {"n": 0}
+
+    def body():
+        for _ in itertools.count():
+            pulled["n"] += 1
+            if delay:
+                time.sleep(delay)
+            yield chunk
+
+    def reply(request: httpx.Request) -> httpx.Response:
+        return httpx.Response(200, headers={"Content-Type": ctype}, content=body())
+
+    return reply, pulled
+
+
+def test_endless_page_is_refused_at_the_cap_not_read_for_ever():
+    reply, pulled = _endless(b"x" * 65536, "text/plain")
+    vapix, _ = make({PTZ: reply})
+    with pytest.raises(ResponseParseError, match="larger than"):
+        vapix.query_position()
+    assert pulled["n"] <= (1 << 20) // 65536 + 1
+
+
+def test_stream_on_the_wrong_port_is_refused_at_once():
+    reply, pulled = _endless(b"--myboundary\r\n", "multipart/x-mixed-replace; boundary=myboundary")
+    vapix, _ = make({PARAM: reply})
+    with pytest.raises(ResponseParseError, match="stream"):
+        vapix.list_params("Brand")
+    assert pulled["n"] <= 1
+
+
+def test_trickling_reply_ends_at_the_total_timeout():
+    reply, _ = _endless(b"y" * 10, "text/plain", delay=0.05)
+    vapix, _ = make({PTZ: reply}, timeout_s=0.5)
+    t0 = time.monotonic()
+    with pytest.raises(CameraTimeout, match="still arriving"):
+        vapix.query_position()
+    assert time.monotonic() - t0 < 5.0
+
+
+def test_big_error_page_is_read_only_partly():
+    reply, pulled = _endless(b"z" * 65536, "text/html")
+
+    def status_500(request: httpx.Request) -> httpx.Response:
+        response = reply(request)
+        response.status_code = 500
+        return response
+
+    vapix, _ = make({PTZ: status_500})
+    with pytest.raises(HttpStatusError):
+        vapix.query_position()
+    assert pulled["n"] <= 2
