@@ -222,7 +222,10 @@ def test_device_info_214_persona():
                     "Brand": fx.PARAM_BRAND_214,
                     "Properties": fx.PARAM_PROPERTIES_214,
                     "PTZ.Support": fx.PARAM_PTZ_SUPPORT,
-                }[req.url.params["group"]],
+                }.get(
+                    req.url.params["group"],
+                    f"# Error: Error -1 getting param in group '{req.url.params['group']}'\n",
+                ),
             ),
             "/axis-cgi/view/imagesize.cgi": fx.text(fx.IMAGESIZE_4CIF_PAL),
         }
