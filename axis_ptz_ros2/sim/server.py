@@ -100,6 +100,7 @@ class RequestCounts:
     ptz_log: list[PtzLogEntry] = field(default_factory=list)
     video_log: list[PtzLogEntry] = field(default_factory=list)  #: video.cgi / image.cgi requests (query strings)
     status: collections.Counter[int] = field(default_factory=collections.Counter)
+    auth: collections.Counter[str] = field(default_factory=collections.Counter)  #: Authorization scheme seen
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly mapping."""
@@ -107,6 +108,7 @@ class RequestCounts:
             "endpoints": dict(self.endpoints),
             "ptz": dict(self.ptz),
             "status": {str(k): v for k, v in self.status.items()},
+            "auth": dict(self.auth),
             "ptz_log": [[e.t_wall, e.method, e.query] for e in self.ptz_log[-200:]],
             "video_log": [[e.t_wall, e.method, e.query] for e in self.video_log[-200:]],
         }
@@ -810,7 +812,10 @@ class _Handler(BaseHTTPRequestHandler):
                     code, ERROR_HTML.format(code=code, reason=reason), "text/html; charset=ISO-8859-1"
                 )
             return
-        verdict = cam.auth_result(self.headers.get("Authorization"), self.command, raw_target)
+        authorization = self.headers.get("Authorization")
+        with cam._counts_lock:
+            cam._counts.auth[authorization.split(" ", 1)[0].lower() if authorization else "none"] += 1
+        verdict = cam.auth_result(authorization, self.command, raw_target)
         if verdict != "ok":
             self._unauthorized(path, stale=verdict == "stale")
             return
