@@ -137,7 +137,13 @@ CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
     ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
     ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
-    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
+    ParamSpec(
+        "auth",
+        "auto",
+        "HTTP authentication (auto: Digest; Basic only over HTTPS, else choose basic explicitly)",
+        choices=("auto", "none", "basic", "digest"),
+        read_only=True,
+    ),
     ParamSpec(
         "password_file",
         "",

@@ -100,6 +100,7 @@ class RequestCounts:
     ptz_log: list[PtzLogEntry] = field(default_factory=list)
     video_log: list[PtzLogEntry] = field(default_factory=list)  #: video.cgi / image.cgi requests (query strings)
     status: collections.Counter[int] = field(default_factory=collections.Counter)
+    auth: collections.Counter[str] = field(default_factory=collections.Counter)  #: Authorization scheme seen
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly mapping."""
@@ -107,6 +108,7 @@ class RequestCounts:
             "endpoints": dict(self.endpoints),
             "ptz": dict(self.ptz),
             "status": {str(k): v for k, v in self.status.items()},
+            "auth": dict(self.auth),
             "ptz_log": [[e.t_wall, e.method, e.query] for e in self.ptz_log[-200:]],
             "video_log": [[e.t_wall, e.method, e.query] for e in self.video_log[-200:]],
         }
@@ -632,7 +634,7 @@ class _StreamClosedError(Exception):
 
 class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"
-    server_version = "Boa/0.94.14rc21"  # the web server of Axis firmware 4.x
+    server_version = ""  # the persona decides (see version_string)
     sys_version = ""
     timeout = 60
     # Reply promptly like the camera's own stack: Nagle + delayed ACK would add ~40 ms to every query reply.
@@ -664,8 +666,16 @@ class _Handler(BaseHTTPRequestHandler):
         return self.server.camera
 
     def version_string(self) -> str:
-        """``Server:`` header of the persona (Boa on the 214's firmware 4.x)."""
+        """``Server:`` header of the persona ("" = none)."""
         return self.cam.persona.server_header
+
+    def send_response(self, code: int, message: str | None = None) -> None:
+        """Status line, ``Server`` only if the persona has one, ``Date``."""
+        self.log_request(code)
+        self.send_response_only(code, message)
+        if self.cam.persona.server_header:
+            self.send_header("Server", self.version_string())
+        self.send_header("Date", self.date_time_string())
 
     def _write(self, data: bytes) -> None:
         """Write honouring the bandwidth cap fault."""
@@ -802,7 +812,10 @@ class _Handler(BaseHTTPRequestHandler):
                     code, ERROR_HTML.format(code=code, reason=reason), "text/html; charset=ISO-8859-1"
                 )
             return
-        verdict = cam.auth_result(self.headers.get("Authorization"), self.command, raw_target)
+        authorization = self.headers.get("Authorization")
+        with cam._counts_lock:
+            cam._counts.auth[authorization.split(" ", 1)[0].lower() if authorization else "none"] += 1
+        verdict = cam.auth_result(authorization, self.command, raw_target)
         if verdict != "ok":
             self._unauthorized(path, stale=verdict == "stale")
             return
@@ -964,12 +977,16 @@ class _Handler(BaseHTTPRequestHandler):
         except ValueError as err:
             self._reply(400, f"Error:\n{err}\n")
             return
+        # As a real Axis answers video.cgi: HTTP/1.0, no Server and no Date, caching forbidden three ways.
         self.close_connection = True
-        self.send_response(200)
-        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
+        self.protocol_version = "HTTP/1.0"  # this connection only: it closes after the stream
+        self.log_request(200)
+        self.send_response_only(200)
         self.send_header("Cache-Control", "no-cache")
         self.send_header("Pragma", "no-cache")
+        self.send_header("Expires", "Thu, 01 Dec 1994 16:00:00 GMT")
         self.send_header("Connection", "close")
+        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
         self.end_headers()
         self.cam._count("", 200)
         with contextlib.suppress(_StreamClosedError, OSError):
