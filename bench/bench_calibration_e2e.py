@@ -1,17 +1,25 @@
-"""End-to-end extrinsic calibration against the simulated camera and laser over real DDS (loopback).
+"""End-to-end extrinsic calibration against the simulated camera and laser over real DDS (loopback), over seeds.
 
 The loop of ``tests/ros/test_calibration_e2e.py``: simulated Axis 214 (in-process HTTP on 127.0.0.1) + stream
-node + PTZ node running the NOMINAL mount (config/mount.yaml) + laser sim node; ``axis_calibrate capture``
-logic commands the poses, records state, frame and laser snapshot per view and picks the board dots
-automatically; ``calibrate`` recovers ``base_link → ptz_base``. Prints the recovered mount against the
-simulator's truth (cm, deg per axis), σ, residuals and held-out error, the measured picking noise (pixels
-against the true projection; 3-D for each laser pick mode against the scene's dot positions) and times.
+node + PTZ node running the NOMINAL mount (config/mount.yaml) + laser sim node with range noise; the
+``axis_calibrate capture --pick auto`` logic commands the poses (jittered per seed), records state, frame and
+laser snapshot per view and picks the board dots with the picker the user gets (``--pick-mode`` default
+``blob``, the CLI's default); ``calibrate`` runs with the solve command's defaults (σ_px 1 px, σ_3D 2 cm: a
+user has no ground truth to measure the picking noise with) and recovers ``base_link → ptz_base``.
 
-    .venv/bin/python bench/bench_calibration_e2e.py [--pick-mode blob|plane|nearest] [--range-noise 0.0]
-                                                    [--extra-boards] [--sigma-px 0.5] [--sigma-3d auto]
+Two worlds: ``config`` (config/sim_world.yaml, whose true mount is only 0.91 cm / 1.21° from the nominal one,
+so the nominal mount already passes the ≤ 2 cm translation row) and ``moved`` (the true mount displaced by
+MOVE below, ~6 cm / 2° from the nominal one, so the row can only pass if the calibration recovers the
+translation). The solver never sees the nominal mount (its start comes from PnP); the picker uses it only to
+tell the boards apart. Prints per run the recovered mount against the truth, and per world the spread over
+seeds and what the "≤ 2 cm, ≤ 0.25°" row proves compared with the nominal mount's error.
 
-``--extra-boards`` adds the calibration boards proposed for ``config/sim_world.yaml`` (EXTRA_BOARDS below) to a
-temporary copy of the world, with poses that see two boards per 1× view (≥ 5 views × 8 points).
+    .venv/bin/python bench/bench_calibration_e2e.py [--seeds 5] [--range-noise 0.015] [--pick-mode blob]
+        [--worlds config,moved] [--boards shipped,extra] [--sigma-px 1.0] [--sigma-3d 0.02] [--verbose]
+
+``--boards extra`` adds the calibration boards proposed for ``config/sim_world.yaml`` (EXTRA_BOARDS below) to a
+temporary copy of the world, with poses that see two boards per 1× view (≥ 5 views × 8 points); ``shipped``
+uses the world's two boards (12 dots, 8 views): the default runs both, to show what the board layout costs.
 """
 
 from __future__ import annotations
@@ -24,28 +32,28 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
     CaptureSession,
+    PoseCommand,
     SimBoardPicker,
     capture_views,
-    cloud_path,
     next_view_names,
     parse_poses,
 )
 from axis_ptz_ros2.calibration.cli import format_result  # noqa: E402
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
-from axis_ptz_ros2.calibration.picking import pick_view, picking_noise  # noqa: E402
-from axis_ptz_ros2.calibration.solver import CalibrationRefused, calibrate, rotation_angle  # noqa: E402
+from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
-from axis_ptz_ros2.geometry import matrix_to_rpy  # noqa: E402
+from axis_ptz_ros2.geometry import Transform  # noqa: E402
 from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
@@ -74,46 +82,72 @@ POSES_EXTRA = (
 
 SPEED = 300.0
 
+#: The "moved" world: true mount = config truth displaced by this (m, deg; xyz then roll/pitch/yaw added).
+MOVE_XYZ = (0.035, -0.03, 0.035)
+MOVE_RPY_DEG = (0.2, -0.3, 0.9)
 
-def _world_file(tmp: Path, extra: bool) -> Path:
+#: The row of the README's measured table this bench backs.
+ROW_T_CM, ROW_R_DEG = 2.0, 0.25
+
+
+def _world_file(tmp: Path, extra: bool, moved: bool) -> Path:
     base = default_config_path("sim_world.yaml")
-    if not extra:
+    if not extra and not moved:
         return base
-    text = base.read_text(encoding="utf-8").rstrip("\n") + "\n" + EXTRA_BOARDS_YAML.strip("\n") + "\n"
-    p = tmp / "sim_world_extra.yaml"
+    text = base.read_text(encoding="utf-8").rstrip("\n") + "\n"
+    if extra:
+        text += EXTRA_BOARDS_YAML.strip("\n") + "\n"
+    if moved:
+        data = yaml.safe_load(text)
+        ptz = data["ptz"]
+        ptz["mount_xyz"] = [round(a + b, 6) for a, b in zip(ptz["mount_xyz"], MOVE_XYZ, strict=True)]
+        ptz["mount_rpy_deg"] = [round(a + b, 6) for a, b in zip(ptz["mount_rpy_deg"], MOVE_RPY_DEG, strict=True)]
+        text = yaml.safe_dump(data, sort_keys=False)
+    p = tmp / f"sim_world{'_extra' if extra else ''}{'_moved' if moved else ''}.yaml"
     p.write_text(text, encoding="utf-8")
     return p
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0] if __doc__ else None)
-    ap.add_argument("--pick-mode", choices=["nearest", "plane", "blob"], default="blob")
-    ap.add_argument("--range-noise", type=float, default=0.0, help="laser range noise σ [m]")
-    ap.add_argument("--extra-boards", action="store_true", help="add the proposed boards (EXTRA_BOARDS_YAML)")
-    ap.add_argument("--poses", default=None, help="override the pose list 'pan_deg,tilt_deg,zoom;...'")
-    ap.add_argument("--sigma-px", type=float, default=0.5)
-    ap.add_argument("--sigma-3d", default="auto", help="m, or 'auto' = the measured per-axis picking noise")
-    args = ap.parse_args()
+def _jittered(poses: list[PoseCommand], rng: np.random.Generator, deg: float) -> list[PoseCommand]:
+    j = math.radians(deg)
+    return [PoseCommand(p.pan + rng.uniform(-j, j), p.tilt + rng.uniform(-j, j), p.zoom) for p in poses]
 
-    tmp = Path(tempfile.mkdtemp(prefix="bench_calib_e2e_"))
-    world_file = _world_file(tmp, args.extra_boards)
+
+def _errors(T: Transform, truth: Transform) -> tuple[float, float]:
+    return float(np.linalg.norm(T.t - truth.t)) * 100.0, math.degrees(rotation_angle(truth.R.T @ T.R))
+
+
+@dataclass
+class Run:
+    world: str
+    seed: int
+    n_pairs: int
+    pick_rms_cm: float
+    px_rms: float
+    t_cm: float
+    r_deg: float
+    sigma_t_cm: float
+    refused: str | None
+    t_capture: float
+
+
+def run_once(
+    args: argparse.Namespace, world_name: str, world_file: Path, seed: int, model_file: Path, tmp: Path
+) -> Run:
+    """One capture → pick → solve against a fresh simulated system."""
     world = load_world(world_file)
-    poses_text = args.poses or (POSES_EXTRA if args.extra_boards else POSES)
-    poses = parse_poses(poses_text)
-
-    model_dict = yaml.safe_load(default_config_path("axis214.yaml").read_text(encoding="utf-8"))
-    model_dict["head"] = {"h_tilt": world.kinematics.h_tilt, "d_opt": list(world.kinematics.d_opt)}
-    model_dict["max_speed"] = {"pan_dps": SPEED, "tilt_dps": SPEED}
-    model_file = tmp / "model.yaml"
-    model_file.write_text(yaml.safe_dump(model_dict), encoding="utf-8")
     model = load_camera_model(model_file)
     nominal_file = default_config_path("mount.yaml")
     nominal = load_mount(nominal_file)
     robot = load_robot()
-
-    t0 = time.monotonic()
+    rng = np.random.default_rng(seed)
+    extra = "extra" in world_name
+    base_poses = parse_poses(args.poses or (POSES_EXTRA if extra else POSES))
+    poses = _jittered(base_poses, rng, args.jitter_deg) if seed else base_poses
+    log = print if args.verbose else (lambda _s: None)
     cam = SimulatedCamera(world, port=0, speeds=Speeds(SPEED, SPEED, 0.5, 0.5)).start()
     h = RosHarness()
+    out = tmp / f"calib_{world_name.replace('+', '_').replace(' ', '_')}_{seed}.yaml"
     try:
         ptz = h.add(
             PtzNode(
@@ -142,6 +176,7 @@ def main() -> int:
                 parameter_overrides=[
                     Parameter("rate", value=5.0),
                     Parameter("range_noise", value=args.range_noise),
+                    Parameter("seed", value=seed),
                     Parameter("world_file", value=str(world_file)),
                 ],
             )
@@ -150,92 +185,159 @@ def main() -> int:
         deadline = time.monotonic() + 20
         while ptz.poller.latest is None and time.monotonic() < deadline:
             time.sleep(0.02)
-        t_up = time.monotonic() - t0
         session = CaptureSession(probe, T_base_laser=robot.laser.pose, laser_frame=robot.laser.frame, timeout_s=20)
         session.wait_ready()
         picker = SimBoardPicker(world_file, model, nominal.transform, mode=args.pick_mode)
-        out = tmp / "calib.yaml"
         t1 = time.monotonic()
-        report = capture_views(session, out, next_view_names(out, len(poses)), poses=poses, picker=picker, log=print)
+        report = capture_views(session, out, next_view_names(out, len(poses)), poses=poses, picker=picker, log=log)
         t_capture = time.monotonic() - t1
-        print(f"captured {len(report.views)} views, {len(report.picked)} pairs picked automatically")
         session.close()
     finally:
         h.close()
         cam.stop()
-
     cs = load_correspondences(out)
-    # ---- picking noise ---------------------------------------------------------------------------------
-    print(f"\n== picking noise ({len(cs.views)} views, {cs.n_points} pairs; poses {poses_text}) ==")
+    noise = report.picking_noise()
+    by_label = {f.label: f for f in picker.features}
     px_err = []
     for v in cs.views:
-        T = world.T_base_ptz @ world.kinematics.optical_in_ptz_base(v.pan, v.tilt)  # truth (the sim has no offsets)
+        T = world.T_base_ptz @ world.kinematics.optical_in_ptz_base(v.pan, v.tilt)
         K = world.zoom_model.intrinsics(v.zoom, v.image_width, v.image_height)
-        by_label = {f.label: f for f in picker.features}
         for c in v.points:
             uv = K.project(T.inverse().apply(np.array(by_label[c.label].point))[None])[0]
-            px_err.append(np.hypot(c.pixel[0] - uv[0], c.pixel[1] - uv[1]))
-    pe = np.array(px_err)
-    print(
-        f"pixels vs true projection      : RMS {np.sqrt(np.mean(pe**2)):.3f} px, median {np.median(pe):.3f}, "
-        f"max {pe.max():.3f} px"
+            px_err.append(math.hypot(c.pixel[0] - uv[0], c.pixel[1] - uv[1]))
+    res = calibrate(cs.views, model, sigma_px=args.sigma_px, sigma_3d_m=args.sigma_3d, raise_on_refusal=False)
+    t_cm, r_deg = _errors(res.transform, world.T_base_ptz) if res.solved else (math.nan, math.nan)
+    if args.verbose and res.solved:
+        print(format_result(res, max_rows=0).rsplit("\n\n", 1)[0])
+    return Run(
+        world_name,
+        seed,
+        cs.n_points,
+        noise.rms * 100.0,
+        _rms(px_err),
+        t_cm,
+        r_deg,
+        float(np.linalg.norm(res.sigma_translation_m)) * 100.0 if res.solved else math.nan,
+        res.refused_reason,
+        t_capture,
     )
-    noise_by_mode = {}
-    for mode in ("nearest", "plane", "blob"):
-        picked = []
-        for v in cs.views:
-            img = cv2.imread(str(out.parent / str(v.image)), cv2.IMREAD_COLOR)
-            cloud = np.load(cloud_path(out, v)).astype(np.float64)
-            picked += pick_view(img, cloud, v.pan, v.tilt, v.zoom, picker.features, model, nominal.transform, mode=mode)
-        n = picking_noise([p.laser.point for p in picked], [p.feature.point for p in picked])
-        noise_by_mode[mode] = n
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0] if __doc__ else None)
+    ap.add_argument("--seeds", type=int, default=3, help="runs per world (seed 0: the listed poses, others jittered)")
+    ap.add_argument("--range-noise", type=float, default=0.015, help="laser range noise σ [m] (0.015)")
+    ap.add_argument("--pick-mode", choices=["nearest", "plane", "blob"], default="blob")
+    ap.add_argument("--worlds", default="config,moved", help="comma list of: config, moved")
+    ap.add_argument("--jitter-deg", type=float, default=1.5, help="pan/tilt jitter of the poses per seed [deg]")
+    ap.add_argument("--boards", default="shipped,extra", help="comma list of: shipped, extra (EXTRA_BOARDS_YAML)")
+    ap.add_argument("--poses", default=None, help="override the pose list 'pan_deg,tilt_deg,zoom;...'")
+    ap.add_argument("--sigma-px", type=float, default=1.0, help="solver σ_px (the solve command's default)")
+    ap.add_argument("--sigma-3d", type=float, default=0.02, help="solver σ_3D [m] (the solve command's default)")
+    ap.add_argument("--verbose", action="store_true")
+    args = ap.parse_args()
+    worlds = [w.strip() for w in args.worlds.split(",") if w.strip()]
+    if any(w not in ("config", "moved") for w in worlds):
+        ap.error("--worlds takes config and/or moved")
+    boards = [b.strip() for b in args.boards.split(",") if b.strip()]
+    if any(b not in ("shipped", "extra") for b in boards):
+        ap.error("--boards takes shipped and/or extra")
+
+    inputs(
+        "axis_ptz_ros2/calibration",
+        "axis_ptz_ros2/camera_info.py",
+        "axis_ptz_ros2/nodes/laser_sim.py",
+        "axis_ptz_ros2/sim",
+        "config/sim_world.yaml",
+        "bench/bench_calibration_e2e.py",
+    )
+    tmp = Path(tempfile.mkdtemp(prefix="bench_calib_e2e_"))
+    nominal = load_mount(default_config_path("mount.yaml"))
+    t0 = time.monotonic()
+    print(
+        f"End-to-end calibration, {args.seeds} seeds per world: laser range noise σ {args.range_noise * 100:.1f} cm, "
+        f"picker '{args.pick_mode}' (axis_calibrate capture --pick auto), solve with σ_px {args.sigma_px} px, "
+        f"σ_3D {args.sigma_3d * 100:.1f} cm, poses jittered ±{args.jitter_deg}° per seed\n"
+    )
+    summary: list[tuple[str, float, float, list[Run]]] = []
+    for w in [f"{w}{'+extra boards' if b == 'extra' else ''}" for b in boards for w in worlds]:
+        world_file = _world_file(tmp, "extra" in w, w.startswith("moved"))
+        world = load_world(world_file)
+        model_dict = yaml.safe_load(default_config_path("axis214.yaml").read_text(encoding="utf-8"))
+        model_dict["head"] = {"h_tilt": world.kinematics.h_tilt, "d_opt": list(world.kinematics.d_opt)}
+        model_dict["max_speed"] = {"pan_dps": SPEED, "tilt_dps": SPEED}
+        model_file = tmp / "model.yaml"
+        model_file.write_text(yaml.safe_dump(model_dict), encoding="utf-8")
+        nom_t, nom_r = _errors(nominal.transform, world.T_base_ptz)
+        print(f"== world '{w}': nominal mount vs truth {nom_t:.2f} cm, {nom_r:.3f}° ==")
         print(
-            f"3-D laser pick {mode:8s}        : RMS {n.rms * 100:.2f} cm ({n.rms_per_axis * 100:.2f} cm per axis), "
-            f"median {n.median * 100:.2f} cm, max {n.max * 100:.2f} cm over {n.n} picks"
-            + ("   <- used" if mode == args.pick_mode else "")
+            f"{'seed':>4} {'pairs':>5} {'pick 3-D':>8} {'pick px':>7} {'|Δt| cm':>8} {'rot °':>7} "
+            f"{'|σ_t| cm':>8} {'capture':>7}"
         )
-    sigma_3d = (
-        max(noise_by_mode[args.pick_mode].rms_per_axis, 0.002) if args.sigma_3d == "auto" else float(args.sigma_3d)
-    )
-    # ---- calibration -------------------------------------------------------------------------------------
-    t2 = time.monotonic()
-    try:
-        res = calibrate(cs.views, model, sigma_px=args.sigma_px, sigma_3d_m=sigma_3d)
-        refused = None
-    except CalibrationRefused as err:
-        refused, res = err.reason, err.result
-    t_solve = time.monotonic() - t2
-    print(f"\n== calibration (σ_px {args.sigma_px}, σ_3D {sigma_3d * 100:.2f} cm) ==")
-    if res is None:
-        print(f"REFUSED without a solution: {refused}")
-        return 2
-    print(format_result(res, max_rows=0).rsplit("\n\n", 1)[0])
-    print(
-        "residual RMS per view [px]    : "
-        + ", ".join(
-            f"{v.name} {_rms([r.error_px for r in res.residuals if r.view == v.name]):.2f} "
-            f"(z {v.zoom:.0f}, {len(v.points)} pts)"
-            for v in cs.views
-        )
-    )
-    if refused:
-        print(f"REFUSED: {refused}")
-    truth = world.T_base_ptz
-    for name, T in (("nominal mount", nominal.transform), ("recovered mount", res.transform)):
-        dt = T.t - truth.t
-        dR = truth.R.T @ T.R
-        rpy = np.degrees(matrix_to_rpy(T.R)) - np.degrees(matrix_to_rpy(truth.R))
+        runs = []
+        for seed in range(args.seeds):
+            r = run_once(args, w, world_file, seed, model_file, tmp)
+            runs.append(r)
+            print(
+                f"{seed:4d} {r.n_pairs:5d} {r.pick_rms_cm:7.2f}c {r.px_rms:7.2f} {r.t_cm:8.2f} {r.r_deg:7.3f} "
+                f"{r.sigma_t_cm:8.2f} {r.t_capture:6.1f}s" + (f"  REFUSED: {r.refused}" if r.refused else "")
+            )
+        summary.append((w, nom_t, nom_r, runs))
+        print()
+
+    print("== what the README row 'recovered vs true mount ≤ 2 cm, ≤ 0.25°' proves ==")
+    for w, nom_t, nom_r, runs in summary:
+        ok = [r for r in runs if r.refused is None and math.isfinite(r.t_cm)]
+        ts = np.array([r.t_cm for r in ok]) if ok else np.array([math.nan])
+        rs = np.array([r.r_deg for r in ok]) if ok else np.array([math.nan])
+        passed = sum(r.t_cm <= ROW_T_CM and r.r_deg <= ROW_R_DEG for r in ok)
+        nominal_passes = nom_t <= ROW_T_CM and nom_r <= ROW_R_DEG
         print(
-            f"{name:16s} vs truth: |Δt| {np.linalg.norm(dt) * 100:.2f} cm (x {dt[0] * 100:+.2f}, y {dt[1] * 100:+.2f}, "
-            f"z {dt[2] * 100:+.2f}), rotation {math.degrees(rotation_angle(dR)):.3f}° "
-            f"(Δroll {rpy[0]:+.3f}, Δpitch {rpy[1]:+.3f}, Δyaw {rpy[2]:+.3f})"
+            f"world '{w}': recovered |Δt| median {np.median(ts):.2f} cm, max {ts.max():.2f} cm; rotation median "
+            f"{np.median(rs):.3f}°, max {rs.max():.3f}°; {passed}/{len(runs)} runs meet the row "
+            f"({len(runs) - len(ok)} refused). Nominal mount: {nom_t:.2f} cm, {nom_r:.3f}° — "
+            + ("meets" if nom_t <= ROW_T_CM else "fails")
+            + " the translation half, "
+            + ("meets" if nom_r <= ROW_R_DEG else "fails")
+            + " the rotation half"
+            + (" (so this world proves nothing)." if nominal_passes else ".")
         )
-    print(
-        f"\ntimes: start-up {t_up:.1f} s, capture {t_capture:.1f} s ({t_capture / len(poses):.2f} s/view incl. "
-        f"moves), calibrate {t_solve:.2f} s; total {time.monotonic() - t0:.1f} s"
-    )
-    print(f"files: {out}")
-    return 0 if refused is None else 2
+        if nom_t <= ROW_T_CM:
+            verdict = (
+                "and the recovered translation is no worse"
+                if ts.max() <= nom_t
+                else "and here the recovered translation is WORSE than the nominal one"
+            )
+            print(
+                f"    translation: the nominal mount is already within {ROW_T_CM:.0f} cm here, so '≤ 2 cm' cannot "
+                f"tell a calibrated mount from an uncalibrated one ({verdict}: max {ts.max():.2f} cm vs {nom_t:.2f} cm)"
+            )
+        else:
+            print(
+                f"    translation: the nominal mount is {nom_t:.2f} cm off; '≤ 2 cm' in "
+                f"{sum(t <= ROW_T_CM for t in ts)}"
+                f"/{len(runs)} runs shows the translation is recovered"
+            )
+        print(
+            f"    rotation: nominal {nom_r:.3f}° vs recovered max {rs.max():.3f}°: "
+            + ("the rotation half discriminates" if nom_r > ROW_R_DEG else "the rotation half does not discriminate")
+        )
+    for w, nom_t, nom_r, runs in summary:
+        ok_runs = [r for r in runs if r.refused is None and math.isfinite(r.t_cm)]
+        ts = [r.t_cm for r in ok_runs] or [math.nan]
+        rs = [r.r_deg for r in ok_runs] or [math.nan]
+        row(
+            f"calibration end to end (simulated camera + laser, capture → pick → solve), world '{w}', {len(runs)} "
+            f"seeds, laser range noise {args.range_noise * 100:.1f} cm, picker {args.pick_mode}, solve defaults; "
+            "recovered vs true mount median / max",
+            f"{np.median(ts):.2f} / {max(ts):.2f} cm, {np.median(rs):.3f} / {max(rs):.3f}° (nominal mount "
+            f"{nom_t:.2f} cm, {nom_r:.2f}° off)",
+            f"≤ {ROW_T_CM:.0f} cm, ≤ {ROW_R_DEG}° in every run",
+            len(ok_runs) == len(runs) and max(ts) <= ROW_T_CM and max(rs) <= ROW_R_DEG,
+        )
+    print(f"\ntotal {time.monotonic() - t0:.1f} s; files in {tmp}")
+    all_ok = all(r.refused is None for _, _, _, runs in summary for r in runs)
+    return 0 if all_ok else 2
 
 
 def _rms(x: list[float]) -> float:

@@ -3,7 +3,9 @@
 * :mod:`~axis_ptz_ros2.calibration.correspondences` — the ``axis_ptz_ros2/correspondences/v1`` file format
   (:func:`load_correspondences`, :func:`save_correspondences`, :func:`append_view`).
 * :mod:`~axis_ptz_ros2.calibration.solver` — :func:`calibrate` → :class:`CalibrationResult` or
-  :class:`CalibrationRefused` (imported lazily: it pulls in OpenCV and SciPy).
+  :class:`CalibrationRefused` (imported lazily: it pulls in OpenCV and SciPy); the least-squares model is in
+  :mod:`~axis_ptz_ros2.calibration.problem`, the focal check / held-out errors / per-view poses in
+  :mod:`~axis_ptz_ros2.calibration.diagnostics`, the JSON report in :mod:`~axis_ptz_ros2.calibration.report`.
 * :mod:`~axis_ptz_ros2.calibration.synthetic` — seeded scenes with ground truth.
 * :mod:`~axis_ptz_ros2.calibration.cli` — the ``axis_calibrate`` console script.
 """

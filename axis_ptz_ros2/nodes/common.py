@@ -36,6 +36,8 @@ from axis_ptz_ros2.vapix import CameraConfig
 STREAM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Commands: the newest wins; a small queue absorbs bursts.
 COMMAND_QOS = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: Consumer feedback (video/feedback): periodic reports, only the newest matters, never repaired late.
+FEEDBACK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Latched values (video/params): late joiners get the value in effect.
 LATCHED_QOS = QoSProfile(
     depth=1,
@@ -137,7 +139,13 @@ CONNECTION_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("verify_tls", True, "verify the camera's TLS certificate (HTTPS only)", read_only=True),
     ParamSpec("ca_file", "", "CA bundle file/directory for verify_tls ('' = system)", read_only=True),
     ParamSpec("camera", 1, "VAPIX camera number (camera=N)", int_range=(1, 16), read_only=True),
-    ParamSpec("auth", "auto", "HTTP authentication", choices=("auto", "none", "basic", "digest"), read_only=True),
+    ParamSpec(
+        "auth",
+        "auto",
+        "HTTP authentication (auto: Digest; Basic only over HTTPS, else choose basic explicitly)",
+        choices=("auto", "none", "basic", "digest"),
+        read_only=True,
+    ),
     ParamSpec(
         "password_file",
         "",

@@ -1,14 +1,17 @@
 """The PTZ node: commands, services, state, joint states and transforms of a pan-tilt-zoom head.
 
-A thin ROS layer over the ROS-free :mod:`axis_ptz_ros2.ptz` core. Every ROS-side decision (targets, relative
-accumulation, limits, pointing maths in REP-103 radians) lives here or in :mod:`axis_ptz_ros2.ptz.control`, so
-the same :class:`PtzNode` serves the Axis backend (default, built from parameters) and any other
-:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``.
+A thin ROS layer over the ROS-free :mod:`axis_ptz_ros2.ptz` core: every command goes through one
+:class:`~axis_ptz_ros2.ptz.commander.Commander` (targets recorded on the camera's acceptance, velocity mode,
+presets, arrival, the drive-safe zoom cap); the pointing maths is :mod:`axis_ptz_ros2.ptz.control`. The same
+:class:`PtzNode` serves the Axis backend (default, built from parameters) and any other
+:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``. The ``ptz/move`` action follows an order
+with feedback; a newer goal pre-empts a running one.
 
 Threads: one command worker (:class:`~axis_ptz_ros2.ptz.command_slot.CommandSlot`, latest motion wins, at
 most one request in flight) owned by the node and joined in :meth:`PtzNode.destroy_node`; state is polled by a
-thread of its own over a separate connection (paced at ``state_rate``, never ending on camera errors), services
-run in their own callback group so they never block topic commands.
+thread of its own over a separate connection (paced at ``state_rate``; it survives camera errors and
+restarts itself after anything unexpected), services run in their own callback group so they never block
+topic commands, action goals in a reentrant group.
 """
 
 from __future__ import annotations
@@ -17,17 +20,19 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, TransformStamped
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from geometry_msgs.msg import PointStamped, TransformStamped, Twist
+from nav_msgs.msg import Odometry
+from rclpy.action.server import ActionServer, CancelResponse, GoalResponse, ServerGoalHandle
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from axis_ptz_interfaces.action import PtzMove
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom
 from axis_ptz_ros2.config import CameraModel, MountConfig, load_camera_model, load_mount
@@ -46,19 +51,27 @@ from axis_ptz_ros2.nodes.common import (
     stamp_from_ns,
     transform_msg,
 )
-from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
-from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome, Ticket
+from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
+from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
+from axis_ptz_ros2.ptz.commander import (
+    Commander,
+    Order,
+    Preemption,
+    Progress,
+    Tolerances,
+    axis_value,
+    describe,
+    wait_accepted,
+)
 from axis_ptz_ros2.ptz.control import (
     JointOffsets,
     Target,
     area_zoom_target,
     center_target,
-    finite_or_none,
     look_at_target,
-    merge_target,
-    normalize_target,
     zoom_target,
 )
+from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -94,6 +107,47 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("pan_joint", "axis_ptz_pan_joint", "JointState name of the pan joint", read_only=True),
     ParamSpec("tilt_joint", "axis_ptz_tilt_joint", "JointState name of the tilt joint", read_only=True),
     ParamSpec("publish_tf", True, "also broadcast /tf and /tf_static when tf2_ros is importable", read_only=True),
+    ParamSpec(
+        "drive_topic",
+        "",
+        "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
+        read_only=True,
+    ),
+    ParamSpec(
+        "drive_topic_type",
+        "odometry",
+        "message type of drive_topic: nav_msgs/Odometry or geometry_msgs/Twist",
+        choices=("odometry", "twist"),
+        read_only=True,
+    ),
+    ParamSpec(
+        "drive_speed_threshold",
+        0.2,
+        "drive-safe zoom: cap the zoom above this linear speed",
+        "m/s",
+        float_range=(0.0, 100.0),
+    ),
+    ParamSpec(
+        "drive_turn_threshold",
+        0.3,
+        "drive-safe zoom: cap the zoom above this turn rate",
+        "rad/s",
+        float_range=(0.0, 100.0),
+    ),
+    ParamSpec(
+        "drive_zoom_cap",
+        4000.0,
+        "drive-safe zoom: highest zoom while driving (thesis: above ~4000 unusable on cobblestones)",
+        "VAPIX units",
+        float_range=(1.0, 99999.0),
+    ),
+    ParamSpec(
+        "drive_hold_time",
+        2.0,
+        "drive-safe zoom: restore the operator's zoom after the robot has been below both thresholds this long",
+        "s",
+        float_range=(0.0, 600.0),
+    ),
 )
 _SPECS = {s.name: s for s in PARAMS}
 # DiagnosticStatus levels as ints (the message constants are bytes; nodes.common.diagnostic takes an int)
@@ -106,6 +160,10 @@ _DYNAMIC = (
     "image_width",
     "image_height",
     "follow_video_params",
+    "drive_speed_threshold",
+    "drive_turn_threshold",
+    "drive_zoom_cap",
+    "drive_hold_time",
 )
 
 
@@ -159,20 +217,19 @@ class PtzNode(Node):
         self._joint_names = [str(p["pan_joint"]), str(p["tilt_joint"])]
 
         self._backend: PtzBackend = backend if backend is not None else build_axis_backend(p, self._model)
-        self._lock = threading.RLock()  # target, velocity and limits bookkeeping
-        self._target: Target | None = None
-        self._velocity_active = False
-        self._last_velocity = 0.0
-        self._last_cmd_mono = 0.0
-        self._refused = 0
-        self._still_polls = 0
         self._head_limits: PtzLimitsRos = self._backend.limits()
-        self._cmd_errors_logged = 0
 
         self._slot = CommandSlot(error_types=(PtzBackendError,), on_error=self._on_command_error)
         self._slot.start()
         period = 1.0 / float(p["state_rate"])
         self._poller = StatePoller(self._backend.read_state, period, max_backoff_s=max(2.0, period))
+        self._tol = Tolerances(float(p["arrival_tolerance"]), float(p["zoom_tolerance"]), float(p["velocity_timeout"]))
+        self._cmd = Commander(self._backend, self._slot, self._poller, lambda: self.limits, self._offsets, self._tol)
+        self._poll_restarts = 0
+        self._poll_last_crash = ""
+        self._drive: DriveSafeZoom | None = None
+        if p["drive_topic"]:
+            self._drive = DriveSafeZoom(self._drive_config())
 
         # Publishers.
         self._state_pub = self.create_publisher(PtzState, "ptz/state", STREAM_QOS)
@@ -210,6 +267,11 @@ class PtzNode(Node):
         self.create_subscription(PixelTarget, "ptz/cmd/center", self._on_center, COMMAND_QOS, callback_group=g)
         self.create_subscription(PointStamped, "ptz/cmd/look_at", self._on_look_at, COMMAND_QOS, callback_group=g)
         self.create_subscription(VideoParams, "video/params", self._on_video_params, LATCHED_QOS, callback_group=g)
+        if self._drive is not None:
+            if p["drive_topic_type"] == "twist":
+                self.create_subscription(Twist, p["drive_topic"], self._on_twist, 10, callback_group=g)
+            else:
+                self.create_subscription(Odometry, p["drive_topic"], self._on_odometry, 10, callback_group=g)
 
         s = self._srv_group
         self.create_service(MovePtz, "ptz/move_absolute", self._srv_absolute, callback_group=s)
@@ -221,6 +283,19 @@ class PtzNode(Node):
         self.create_service(Trigger, "ptz/home", self._srv_home, callback_group=s)
         self.create_service(Preset, "ptz/preset", self._srv_preset, callback_group=s)
         self.create_service(ListPresets, "ptz/list_presets", self._srv_list_presets, callback_group=s)
+        self._move_goals = Preemption()
+        self._move_orders: dict[bytes, Order] = {}
+        self._move_orders_lock = threading.Lock()
+        self._action_server = ActionServer(
+            self,
+            PtzMove,
+            "ptz/move",
+            execute_callback=self._execute_move,
+            goal_callback=lambda _goal: GoalResponse.ACCEPT,
+            handle_accepted_callback=self._accept_move,
+            cancel_callback=lambda _goal: CancelResponse.ACCEPT,
+            callback_group=ReentrantCallbackGroup(),
+        )
         self.get_logger().info(
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
             f"{self._base_frame} -> {self._ptz_base_frame} -> {self._optical_frame}"
@@ -236,6 +311,14 @@ class PtzNode(Node):
         for prm in params:
             if prm.name in _DYNAMIC:
                 self._p[prm.name] = prm.value
+        self._tol.pan_tilt_rad = float(self._p["arrival_tolerance"])
+        self._tol.zoom_units = float(self._p["zoom_tolerance"])
+        self._tol.velocity_timeout_s = float(self._p["velocity_timeout"])
+        if self._drive is not None:
+            self._drive.set_config(self._drive_config())
+            if self._cmd.zoom_cap is not None:  # a new cap value applies now
+                self._cmd.set_zoom_cap(None)
+                self._cmd.set_zoom_cap(float(self._p["drive_zoom_cap"]))
 
     def _image_size(self, width: int = 0, height: int = 0) -> tuple[int, int]:
         return (int(width) or int(self._p["image_width"])), (int(height) or int(self._p["image_height"]))
@@ -252,15 +335,15 @@ class PtzNode(Node):
         """Limits in joint coordinates (REP-103 radians, zoom units)."""
         return self._offsets.limits(self._head_limits)
 
-    def _reading(self) -> PtzReading | None:
-        s = self._poller.latest
-        return None if s is None else self._offsets.from_head(s.reading)
-
     @property
     def target(self) -> Target | None:
-        """The pose last commanded (None after velocity/home/preset commands)."""
-        with self._lock:
-            return self._target
+        """The target the camera last accepted (None after velocity commands or an unknown preset)."""
+        return self._cmd.target
+
+    @property
+    def commander(self) -> Commander:
+        """The command path (targets, velocity mode, presets, arrival)."""
+        return self._cmd
 
     @property
     def slot(self) -> CommandSlot:
@@ -273,51 +356,65 @@ class PtzNode(Node):
         return self._poller
 
     def _poll_loop(self) -> None:
-        """Poll at ``state_rate`` on a fixed schedule until destroy_node (the poller backs off by itself)."""
+        """Poll at ``state_rate`` on a fixed schedule until destroy_node. The poller backs off by itself on
+        camera errors; anything else that goes wrong in one tick is logged and counted, and polling restarts
+        after a short pause (the thread never ends before destroy_node)."""
         period = self._poller.period_s
         next_t = time.monotonic()
         while not self._stop.is_set():
             try:
                 self._on_poll()
-            except Exception:  # noqa: BLE001 - only a shut-down context ends the loop; anything else is a bug
+            except Exception as err:  # noqa: BLE001 - a bug in one tick must not end state publishing
                 if self._stop.is_set() or not self.context.ok():
                     return
-                raise
+                self._poll_restarts += 1
+                self._poll_last_crash = f"{type(err).__name__}: {err}"
+                self.get_logger().error(
+                    f"state poll failed unexpectedly ({self._poll_last_crash}); restarting the poller",
+                    throttle_duration_sec=5.0,
+                )
+                self._stop.wait(min(1.0, max(period, 0.1)))
+                next_t = time.monotonic()
+                continue
             next_t += period
             now = time.monotonic()
             if next_t < now - period:  # fell behind (slow camera): do not burst to catch up
                 next_t = now
             self._stop.wait(max(0.0, next_t - now))
 
+    def _ensure_poller(self) -> None:
+        """Start a new poll thread if the current one has ended (it only ends on destroy_node by design)."""
+        if self._stop.is_set() or self._poll_thread.is_alive():
+            return
+        self._poll_restarts += 1
+        self._poll_last_crash = self._poll_last_crash or "the state poll thread ended"
+        self.get_logger().error("the state poll thread ended; starting a new one")
+        self._poll_thread = threading.Thread(target=self._poll_loop, name="ptz-state", daemon=True)
+        self._poll_thread.start()
+
     def _on_poll(self) -> None:
+        if self._drive is not None:
+            self._apply_drive(self._drive.tick())
         sample = self._poller.poll()
         if self._poller.stats.ok % 100 == 1 or sample is None:
             with contextlib.suppress(PtzBackendError):  # camera limits once known; fallback retried
                 self._head_limits = self._backend.limits()
         if sample is None:
             return
-        self._track_target(sample)
+        if self._cmd.on_sample(sample):
+            self.get_logger().warn(
+                "head settled away from the commanded target; relative moves now start from the measured pose"
+            )
         self._publish_state(sample)
 
-    def _track_target(self, sample: StateSample) -> None:
-        """Drop a target the head has evidently settled away from (reboot, another client moved it)."""
-        with self._lock:
-            if self._target is None:
-                self._still_polls = 0
-                return
-            self._still_polls = 0 if sample.head_moving else self._still_polls + 1
-            r = self._offsets.from_head(sample.reading)
-            tol = float(self._p["arrival_tolerance"])
-            if (
-                self._still_polls >= 5
-                and self._slot.idle
-                and time.monotonic() - self._last_cmd_mono > 2.0
-                and not self._target.reached(r, tol, float(self._p["zoom_tolerance"]))
-            ):
-                self.get_logger().warn(
-                    "head settled away from the commanded target; relative moves now start from the measured pose"
-                )
-                self._target = None
+    def state_age(self) -> float:
+        """Seconds since the newest state sample was measured (inf before the first)."""
+        s = self._poller.latest
+        return math.inf if s is None else max(0.0, (time.time_ns() - s.reading.stamp_ns) / 1e9)
+
+    def stale_after(self) -> float:
+        """State older than this is stale (an ERROR in diagnostics)."""
+        return max(1.0, 5.0 * self._poller.period_s, float(self._p["state_timeout"]) * 2.0)
 
     def _state_msg(self, sample: StateSample) -> PtzState:
         r = self._offsets.from_head(sample.reading)
@@ -330,14 +427,13 @@ class PtzNode(Node):
         m.pan, m.tilt, m.zoom = float(r.pan), float(r.tilt), float(r.zoom)
         m.magnification = float(self._model.zoom.magnification(r.zoom))
         m.hfov, m.vfov = float(intr.hfov), float(intr.vfov)
-        with self._lock:
-            target, velocity = self._target, self._velocity_active
-        reached = target is None or target.reached(
-            r, float(self._p["arrival_tolerance"]), float(self._p["zoom_tolerance"])
-        )
-        m.moving = bool(sample.head_moving or velocity or not reached)
+        m.moving = bool(sample.head_moving or self._cmd.moving_expected(r))
         m.pan_min, m.pan_max, m.tilt_min, m.tilt_max = lim.pan_min, lim.pan_max, lim.tilt_min, lim.tilt_max
         m.zoom_min, m.zoom_max = lim.zoom_min, lim.zoom_max
+        cap, requested = self._cmd.zoom_cap, self._cmd.requested_zoom
+        m.zoom_capped = cap is not None
+        m.zoom_cap = float(self._p["drive_zoom_cap"]) if self._drive is not None else math.nan
+        m.requested_zoom = float(requested) if requested is not None else math.nan
         return m
 
     def _publish_state(self, sample: StateSample) -> None:
@@ -363,9 +459,15 @@ class PtzNode(Node):
                 self._tf.sendTransform(transform_msg(T_opt, self._ptz_base_frame, self._optical_frame, stamp))
 
     def _publish_diagnostics(self) -> None:
+        self._ensure_poller()
         st, cs = self._poller.stats, self._slot.stats
+        age, stale = self.state_age(), self.stale_after()
         if st.ok == 0 and st.failed == 0:
             level, msg = DIAG_STALE, "no state poll yet"
+        elif math.isfinite(age) and age > stale:
+            level, msg = DIAG_ERROR, f"state is stale: the newest is {age:.1f} s old (> {stale:.1f} s)"
+            if st.last_error:
+                msg += f"; last poll error: {st.last_error}"
         elif st.consecutive_failures >= 5:
             level, msg = DIAG_ERROR, f"camera not answering: {st.last_error}"
         elif st.consecutive_failures > 0:
@@ -374,6 +476,10 @@ class PtzNode(Node):
             level, msg = DIAG_OK, "ok"
         values = {
             "state_rate_hz": st.rate_hz,
+            "state_age_s": age if math.isfinite(age) else -1.0,
+            "state_stale_after_s": stale,
+            "poller_restarts": self._poll_restarts,
+            "poller_last_crash": self._poll_last_crash,
             "polls_ok": st.ok,
             "polls_failed": st.failed,
             "consecutive_failures": st.consecutive_failures,
@@ -383,7 +489,9 @@ class PtzNode(Node):
             "commands_sent": cs.sent,
             "commands_failed": cs.failed,
             "commands_superseded": cs.superseded,
-            "commands_refused": self._refused,
+            "commands_refused": self._cmd.stats.refused + self._cmd.stats.refused_at_send,
+            "last_refusal": self._cmd.stats.last_refusal,
+            "halted_after_failed_command": self._cmd.stats.halted_after_failure,
             "last_command_error": cs.last_error,
             "last_command_latency_s": cs.last_latency_s,
             "limits_source": getattr(self._backend, "limits_source", "backend"),
@@ -395,82 +503,31 @@ class PtzNode(Node):
         self._diag_pub.publish(diagnostic(self, name, level, msg, values, hardware_id=repr(self._backend)))
 
     # ------------------------------------------------------------------------------------------------
-    # Commands (ROS units; every path ends in the command slot)
+    # Commands (ROS units; every path goes through the commander and ends in the command slot)
     # ------------------------------------------------------------------------------------------------
     def _on_command_error(self, ticket: Ticket, err: BaseException) -> None:
         self.get_logger().warn(f"PTZ command {ticket.label} failed: {err}", throttle_duration_sec=2.0)
 
-    def _refuse(self, reason: str) -> tuple[None, None, str]:
-        self._refused += 1
-        return None, None, reason
-
-    def _move(
-        self,
-        label: str,
-        pan: float | None,
-        tilt: float | None,
-        zoom: float | None,
-        *,
-        relative: bool = False,
-        speed: float | None = None,
-    ) -> tuple[Ticket | None, Target | None, str]:
-        """Merge into the target, check limits, submit. Returns (ticket, target, reason-if-refused)."""
-        with self._lock:
-            try:
-                target = merge_target(self._target, self._reading(), pan, tilt, zoom, relative)
-            except ValueError as err:
-                return self._refuse(str(err))
-            lim = self.limits
-            target = normalize_target(target, lim)
-            if target.zoom is not None:
-                target = Target(target.pan, target.tilt, float(round(target.zoom)))
-            if target.empty:
-                return self._refuse("nothing to move: every axis is NaN")
-            reason = lim.violation(target.pan, target.tilt, target.zoom)
-            if reason is not None:
-                return self._refuse(f"refused, not sent: {reason}")
-            self._target = target
-            self._velocity_active = False
-            self._last_cmd_mono = time.monotonic()
-            hp, ht = self._offsets.to_head(target.pan, target.tilt)
-            backend, z = self._backend, target.zoom
-            ticket = self._slot.submit(label, lambda: backend.move_to(hp, ht, z, speed))
-        return ticket, target, ""
-
-    def _untargeted(self, label: str, fn: Callable[[], None], supersedable: bool = True) -> Ticket:
-        """Submit a command whose end pose the node does not know (home, preset, velocity)."""
-        with self._lock:
-            if supersedable:
-                self._target = None
-            self._last_cmd_mono = time.monotonic()
-            return self._slot.submit(label, fn, supersedable=supersedable)
-
-    def _velocity(self, pan_rate: float, tilt_rate: float, zoom_rate: float) -> Ticket:
-        with self._lock:
-            vals = [v if math.isfinite(v) else 0.0 for v in (pan_rate, tilt_rate, zoom_rate)]
-            moving = any(v != 0.0 for v in vals)
-            self._velocity_active = moving
-            self._last_velocity = time.monotonic()
-            if moving and self._watchdog.is_canceled():
-                self._watchdog.reset()
-            backend = self._backend
-            label = "velocity" if moving else "stop"
-            return self._untargeted(label, lambda: backend.velocity(vals[0], vals[1], max(-1.0, min(1.0, vals[2]))))
+    def _command_move(self, label: str, c: PtzCommand, *, relative: bool) -> Order:
+        """A PtzCommand: NaN = keep that axis, ±inf refused."""
+        try:
+            pan, tilt, zoom = axis_value(c.pan, "pan"), axis_value(c.tilt, "tilt"), axis_value(c.zoom, "zoom")
+            speed = axis_value(c.speed, "speed")
+        except ValueError as err:
+            return self._cmd.refuse(label, str(err))
+        return self._cmd.move(label, pan, tilt, zoom, relative=relative, speed=speed or None)
 
     def _on_watchdog(self) -> None:
-        with self._lock:
-            if not self._velocity_active:
-                self._watchdog.cancel()
-                return
-            if time.monotonic() - self._last_velocity < float(self._p["velocity_timeout"]):
-                return
+        if not self._cmd.velocity_active:
             self._watchdog.cancel()
-        self.get_logger().info("velocity command timed out: stopping", throttle_duration_sec=5.0)
-        self._velocity(0.0, 0.0, 0.0)
+            return
+        if self._cmd.check_velocity_timeout():
+            self._watchdog.cancel()
+            self.get_logger().info("velocity command timed out: stopping", throttle_duration_sec=5.0)
 
     # -- pointing helpers -------------------------------------------------------------------------------
     def _center_pose(self, u: float, v: float, width: int, height: int) -> tuple[float, float] | str:
-        r = self._reading()
+        r = self._cmd.reading()
         if r is None:
             return "the current pose is not known yet"
         w, h = self._image_size(width, height)
@@ -478,19 +535,22 @@ class PtzNode(Node):
             return f"pixel ({u:g}, {v:g}) outside the {w}x{h} image"
         return center_target(r, u, v, w, h, self._model.zoom)
 
-    def _center(self, t: PixelTarget) -> tuple[Ticket | None, Target | None, str]:
+    def _center(self, t: PixelTarget) -> Order:
+        if math.isinf(t.zoom_delta):
+            return self._cmd.refuse("center", "zoom_delta is infinite")
         pose = self._center_pose(t.u, t.v, t.image_width, t.image_height)
         if isinstance(pose, str):
-            return self._refuse(pose)
+            return self._cmd.refuse("center", pose)
         zoom = None
         if math.isfinite(t.zoom_delta) and t.zoom_delta != 0.0:
-            r = self._reading()
+            r = self._cmd.reading()
             assert r is not None
             zoom = min(max(r.zoom + t.zoom_delta, self.limits.zoom_min), self.limits.zoom_max)
-        return self._move("center", pose[0], pose[1], zoom)
+        return self._cmd.move("center", pose[0], pose[1], zoom)
 
-    def _look_at(self, msg: PointStamped, zoom: float | None) -> tuple[Ticket | None, Target | None, str]:
+    def _look_at(self, msg: PointStamped, zoom: float) -> Order:
         try:
+            z = axis_value(zoom, "zoom")
             pan, tilt = look_at_target(
                 (msg.point.x, msg.point.y, msg.point.z),
                 msg.header.frame_id,
@@ -500,208 +560,268 @@ class PtzNode(Node):
                 self._model.head,
             )
         except ValueError as err:
-            return self._refuse(str(err))
-        return self._move("look_at", pan, tilt, zoom)
+            return self._cmd.refuse("look_at", str(err))
+        return self._cmd.move("look_at", pan, tilt, z)
 
     # -- topics ---------------------------------------------------------------------------------------
-    def _log_refusal(self, what: str, reason: str) -> None:
-        if reason:
-            self.get_logger().warn(f"{what}: {reason}", throttle_duration_sec=2.0)
+    def _log_refusal(self, what: str, order: Order) -> None:
+        if order.refused:
+            self.get_logger().warn(f"{what}: {order.reason}", throttle_duration_sec=2.0)
 
     def _on_absolute(self, msg: PtzCommand) -> None:
-        self._on_command("absolute", msg, relative=False)
+        self._log_refusal("ptz/cmd/absolute", self._command_move("absolute", msg, relative=False))
 
     def _on_relative(self, msg: PtzCommand) -> None:
-        self._on_command("relative", msg, relative=True)
-
-    def _on_command(self, kind: str, c: PtzCommand, *, relative: bool) -> None:
-        """ptz/cmd/absolute and ptz/cmd/relative: NaN = keep that axis; refusals are logged (throttled)."""
-        _, _, reason = self._move(
-            kind,
-            finite_or_none(c.pan),
-            finite_or_none(c.tilt),
-            finite_or_none(c.zoom),
-            relative=relative,
-            speed=finite_or_none(c.speed),
-        )
-        self._log_refusal(f"ptz/cmd/{kind}", reason)
+        self._log_refusal("ptz/cmd/relative", self._command_move("relative", msg, relative=True))
 
     def _on_velocity(self, msg: PtzVelocity) -> None:
-        self._velocity(msg.pan_rate, msg.tilt_rate, msg.zoom_rate)
+        order = self._cmd.velocity(msg.pan_rate, msg.tilt_rate, msg.zoom_rate)
+        self._log_refusal("ptz/cmd/velocity", order)
+        if not order.refused and self._cmd.velocity_active and self._watchdog.is_canceled():
+            self._watchdog.reset()
 
     def _on_center(self, msg: PixelTarget) -> None:
-        self._log_refusal("ptz/cmd/center", self._center(msg)[2])
+        self._log_refusal("ptz/cmd/center", self._center(msg))
 
     def _on_look_at(self, msg: PointStamped) -> None:
-        self._log_refusal("ptz/cmd/look_at", self._look_at(msg, None)[2])
+        self._log_refusal("ptz/cmd/look_at", self._look_at(msg, math.nan))
 
     # -- services -------------------------------------------------------------------------------------
     def _timeout(self, timeout_s: float) -> float:
         return float(timeout_s) if math.isfinite(timeout_s) and timeout_s > 0.0 else float(self._p["wait_timeout"])
 
-    def _finish(
-        self, ticket: Ticket | None, target: Target | None, reason: str, wait: bool, timeout_s: float, resp: Any
-    ) -> Any:
+    def _follow(self, order: Order, wait: bool, timeout_s: float) -> tuple[bool, str, StateSample | None]:
+        """Accepted (``wait`` false) or arrived (``wait`` true): success, message, the last sample."""
+        if not wait:
+            ok, msg = wait_accepted(order.ticket, order.reason, timeout_s)
+            return ok, msg, self._poller.latest
+        last = Progress(self._poller.latest, order.target, True, False, "no progress")
+        for step in self._cmd.track(order, timeout_s):
+            last = step
+        return last.success, last.message, last.sample
+
+    def _finish(self, order: Order, wait: bool, timeout_s: float, resp: Any) -> Any:
         """Fill ``resp`` (success, message, state) for a motion service."""
-        deadline = time.monotonic() + self._timeout(timeout_s)
-        resp.success, resp.message = self._await_ticket(ticket, reason, deadline)
-        if resp.success and wait:
-            resp.success, resp.message, sample = self._await_arrival(target, deadline)
-        else:
-            sample = self._poller.latest
+        resp.success, resp.message, sample = self._follow(order, wait, self._timeout(timeout_s))
         if hasattr(resp, "state"):
             if sample is not None:
                 resp.state = self._state_msg(sample)
-            if not wait and target is not None:
+            if not wait and order.target is not None:
                 for axis in ("pan", "tilt", "zoom"):
-                    value = getattr(target, axis)
+                    value = getattr(order.target, axis)
                     if value is not None:
                         setattr(resp.state, axis, float(value))
         return resp
 
-    def _await_ticket(self, ticket: Ticket | None, reason: str, deadline: float) -> tuple[bool, str]:
-        if ticket is None:
-            return False, reason
-        if not ticket.wait(max(0.0, deadline - time.monotonic())):
-            return False, "timed out waiting for the camera to accept the command"
-        if ticket.outcome is Outcome.SENT:
-            return True, "sent"
-        if ticket.outcome is Outcome.SUPERSEDED:
-            return False, "superseded by a newer command before it was sent"
-        return False, f"camera error: {ticket.error}" if ticket.error else str(ticket.outcome)
-
-    def _await_arrival(self, target: Target | None, deadline: float) -> tuple[bool, str, StateSample | None]:
-        """Until the head is still at ``target`` (or, without a target, still for a few polls)."""
-        tol, ztol = float(self._p["arrival_tolerance"]), float(self._p["zoom_tolerance"])
-        start = self._poller.latest
-        seq = start.seq if start is not None else 0
-        still = 0
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0.0:
-                return False, "timed out before arrival", self._poller.latest
-            s = self._poller.wait_for(lambda _s: True, left, after_seq=seq)
-            if s is None:
-                return False, "timed out before arrival", self._poller.latest
-            seq = s.seq
-            still = 0 if s.head_moving else still + 1
-            if target is not None:
-                with self._lock:
-                    if self._target is not target:
-                        return False, "superseded by a newer command before arrival", s
-                if not s.head_moving and target.reached(self._offsets.from_head(s.reading), tol, ztol):
-                    return True, "arrived", s
-            elif still >= 3:
-                return True, "arrived (head still)", s
-
     def _srv_absolute(self, req: MovePtz.Request, resp: MovePtz.Response) -> MovePtz.Response:
-        c = req.command
-        t, tgt, reason = self._move(
-            "absolute",
-            finite_or_none(c.pan),
-            finite_or_none(c.tilt),
-            finite_or_none(c.zoom),
-            speed=finite_or_none(c.speed),
-        )
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
+        return self._finish(self._command_move("absolute", req.command, relative=False), req.wait, req.timeout_s, resp)
 
     def _srv_relative(self, req: MovePtz.Request, resp: MovePtz.Response) -> MovePtz.Response:
-        c = req.command
-        t, tgt, reason = self._move(
-            "relative",
-            finite_or_none(c.pan),
-            finite_or_none(c.tilt),
-            finite_or_none(c.zoom),
-            relative=True,
-            speed=finite_or_none(c.speed),
-        )
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
+        return self._finish(self._command_move("relative", req.command, relative=True), req.wait, req.timeout_s, resp)
 
     def _srv_center(self, req: CenterOnPixel.Request, resp: CenterOnPixel.Response) -> CenterOnPixel.Response:
-        t, tgt, reason = self._center(req.target)
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
+        return self._finish(self._center(req.target), req.wait, req.timeout_s, resp)
 
-    def _srv_area_zoom(self, req: AreaZoom.Request, resp: AreaZoom.Response) -> AreaZoom.Response:
-        r = self._reading()
+    def _area_zoom(self, req: AreaZoom.Request) -> Order:
+        r = self._cmd.reading()
         w, h = self._image_size(req.image_width, req.image_height)
         box = (req.u_min, req.v_min, req.u_max, req.v_max)
         if r is None:
-            t, tgt, reason = self._refuse("the current pose is not known yet")
-        elif not all(math.isfinite(b) for b in box):
-            t, tgt, reason = self._refuse("the box is not finite")
-        else:
-            try:
-                pan, tilt, zoom = area_zoom_target(r, box, w, h, self._model.zoom)
-            except ValueError as err:
-                t, tgt, reason = self._refuse(str(err))
-            else:
-                zoom = min(max(zoom, self.limits.zoom_min), self.limits.zoom_max)
-                t, tgt, reason = self._move("area_zoom", pan, tilt, zoom)
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
-
-    def _srv_set_zoom(self, req: SetZoom.Request, resp: SetZoom.Response) -> SetZoom.Response:
+            return self._cmd.refuse("area_zoom", "the current pose is not known yet")
+        if not all(math.isfinite(b) for b in box):
+            return self._cmd.refuse("area_zoom", "the box is not finite")
         try:
-            zoom = zoom_target(
+            pan, tilt, zoom = area_zoom_target(r, box, w, h, self._model.zoom)
+        except ValueError as err:
+            return self._cmd.refuse("area_zoom", str(err))
+        zoom = min(max(zoom, self.limits.zoom_min), self.limits.zoom_max)
+        return self._cmd.move("area_zoom", pan, tilt, zoom)
+
+    def _srv_area_zoom(self, req: AreaZoom.Request, resp: AreaZoom.Response) -> AreaZoom.Response:
+        return self._finish(self._area_zoom(req), req.wait, req.timeout_s, resp)
+
+    def _set_zoom(self, zoom: float, magnification: float, hfov: float) -> Order:
+        try:
+            units = zoom_target(
                 self._model.zoom,
-                finite_or_none(req.zoom),
-                finite_or_none(req.magnification),
-                finite_or_none(req.hfov),
+                axis_value(zoom, "zoom"),
+                axis_value(magnification, "magnification"),
+                axis_value(hfov, "hfov"),
             )
         except ValueError as err:
-            t, tgt, reason = self._refuse(str(err))
-        else:
-            t, tgt, reason = self._move("set_zoom", None, None, zoom)
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
+            return self._cmd.refuse("set_zoom", str(err))
+        return self._cmd.move("set_zoom", None, None, units)
+
+    def _srv_set_zoom(self, req: SetZoom.Request, resp: SetZoom.Response) -> SetZoom.Response:
+        return self._finish(self._set_zoom(req.zoom, req.magnification, req.hfov), req.wait, req.timeout_s, resp)
 
     def _srv_look_at(self, req: LookAt.Request, resp: LookAt.Response) -> LookAt.Response:
-        t, tgt, reason = self._look_at(req.target, finite_or_none(req.zoom))
-        return self._finish(t, tgt, reason, req.wait, req.timeout_s, resp)
+        return self._finish(self._look_at(req.target, req.zoom), req.wait, req.timeout_s, resp)
 
     def _srv_home(self, req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        ticket = self._untargeted("home", self._backend.home)
-        deadline = time.monotonic() + float(self._p["wait_timeout"])
-        resp.success, resp.message = self._await_ticket(ticket, "", deadline)
+        """Answers when the head has arrived at the home pose (or why it did not), within wait_timeout."""
+        resp.success, resp.message, _ = self._follow(self._cmd.home(), True, float(self._p["wait_timeout"]))
         return resp
 
     def _srv_preset(self, req: Preset.Request, resp: Preset.Response) -> Preset.Response:
-        action, name, b = req.action.strip().lower(), req.name, self._backend
+        action, name = req.action.strip().lower(), req.name
+        timeout = self._timeout(req.timeout_s)
         if action == "goto":
-            ticket = self._untargeted("goto_preset", lambda: b.goto_preset(name))
-        elif action == "set":
-            ticket = self._untargeted("set_preset", lambda: b.set_preset(name), supersedable=False)
-        elif action == "remove":
-            ticket = self._untargeted("remove_preset", lambda: b.remove_preset(name), supersedable=False)
+            resp.success, resp.message, _ = self._follow(self._cmd.goto_preset(name), req.wait, timeout)
+        elif action in ("set", "remove"):
+            ticket = self._cmd.set_preset(name) if action == "set" else self._cmd.remove_preset(name)
+            resp.success, resp.message = wait_accepted(ticket, "", timeout)
         else:
             resp.success, resp.message = False, f"unknown action {req.action!r} (goto, set, remove)"
-            return resp
-        deadline = time.monotonic() + self._timeout(req.timeout_s)
-        resp.success, resp.message = self._await_ticket(ticket, "", deadline)
-        if resp.success and req.wait and action == "goto":
-            resp.success, resp.message, _ = self._await_arrival(None, deadline)
         return resp
 
     def _srv_list_presets(self, req: ListPresets.Request, resp: ListPresets.Response) -> ListPresets.Response:
         out: list[Any] = []
         b = self._backend
         ticket = self._slot.submit("list_presets", lambda: out.extend(b.list_presets()), supersedable=False)
-        resp.success, resp.message = self._await_ticket(ticket, "", time.monotonic() + float(self._p["timeout"]))
+        resp.success, resp.message = wait_accepted(ticket, "", float(self._p["timeout"]))
         resp.numbers = [int(pr.number) for pr in out]
         resp.names = [str(pr.name) for pr in out]
         return resp
 
     # ------------------------------------------------------------------------------------------------
+    # ptz/move action
+    # ------------------------------------------------------------------------------------------------
+    def _goal_order(self, g: PtzMove.Goal) -> Order:
+        """The order of a ptz/move goal (refused with the reason when the goal is invalid)."""
+
+        def unused_if_zero(v: float) -> float:
+            return math.nan if v == 0.0 else v  # 0 is no valid zoom, magnification or field of view
+
+        if g.kind == PtzMove.Goal.ABSOLUTE:
+            return self._command_move("move_absolute", g.command, relative=False)
+        if g.kind == PtzMove.Goal.RELATIVE:
+            return self._command_move("move_relative", g.command, relative=True)
+        if g.kind == PtzMove.Goal.ZOOM:
+            return self._set_zoom(
+                unused_if_zero(g.command.zoom), unused_if_zero(g.magnification), unused_if_zero(g.hfov)
+            )
+        if g.kind == PtzMove.Goal.LOOK_AT:
+            return self._look_at(g.point, unused_if_zero(g.command.zoom))
+        if g.kind == PtzMove.Goal.HOME:
+            return self._cmd.home()
+        if g.kind == PtzMove.Goal.PRESET:
+            if not g.preset:
+                return self._cmd.refuse("move_preset", "kind PRESET needs a preset name")
+            return self._cmd.goto_preset(g.preset)
+        return self._cmd.refuse("move", f"unknown goal kind {g.kind} (0..5: ABSOLUTE..PRESET)")
+
+    def _accept_move(self, goal: ServerGoalHandle) -> None:
+        """Submit the goal's order now; a valid one pre-empts the running goal (an invalid one does not: it
+        ends aborted with the reason and the running goal keeps the head)."""
+        key = bytes(goal.goal_id.uuid)
+        order = self._goal_order(goal.request)
+        with self._move_orders_lock:
+            self._move_orders[key] = order
+        if not order.refused:
+            self._move_goals.start(key)
+        goal.execute()
+
+    def _execute_move(self, goal: ServerGoalHandle) -> PtzMove.Result:
+        """Follow the goal's order with feedback; cancel stops the head; a newer goal pre-empts this one."""
+        key = bytes(goal.goal_id.uuid)
+        result = PtzMove.Result()
+        try:
+            with self._move_orders_lock:
+                order = self._move_orders.pop(key, None)
+            if order is None:
+                order = self._goal_order(goal.request)
+
+            def interrupted() -> bool:
+                return goal.is_cancel_requested or self._move_goals.preempted(key)
+
+            last: Progress | None = None
+            for last in self._cmd.track(order, self._timeout(goal.request.timeout_s), interrupted):
+                if last.done:
+                    break
+                if last.sample is not None:
+                    fb = PtzMove.Feedback()
+                    fb.state = self._state_msg(last.sample)
+                    fb.pan_error, fb.tilt_error, fb.zoom_error = (float(e) for e in last.error)
+                    goal.publish_feedback(fb)
+            preempted = self._move_goals.preempted(key)
+            if last is not None and last.done and not preempted:
+                result.success, result.message = last.success, last.message
+                sample = last.sample
+            elif goal.is_cancel_requested and not preempted:
+                result.success, result.message, sample = False, *self._stop_for_cancel(order)
+            else:
+                result.success, sample = False, self._poller.latest
+                result.message = "pre-empted by a newer ptz/move goal"
+            if sample is not None:
+                result.state = self._state_msg(sample)
+            if result.success:
+                goal.succeed()
+            elif goal.is_cancel_requested and not preempted:
+                goal.canceled()
+            else:
+                goal.abort()
+            return result
+        finally:
+            self._move_goals.finish(key)
+
+    def _stop_for_cancel(self, order: Order) -> tuple[str, StateSample | None]:
+        """Stop the head (only if nothing newer was commanded since) and report where it stopped."""
+        if self._cmd.generation != order.gen:
+            return "cancelled (a newer command is already in charge of the head)", self._poller.latest
+        stop = self._cmd.stop()
+        ok, why = wait_accepted(stop.ticket, stop.reason, float(self._p["timeout"]))
+        if not ok:
+            return f"cancelled, but stopping the head failed: {why}", self._poller.latest
+        s = self._poller.latest
+        s = self._poller.wait_for(lambda x: not x.head_moving, 2.0, after_seq=s.seq if s else 0) or self._poller.latest
+        where = describe(self._offsets.from_head(s.reading)) if s is not None else "an unknown pose"
+        return f"cancelled: the head stopped at {where}", s
+
+    # ------------------------------------------------------------------------------------------------
+    # Drive-safe zoom
+    # ------------------------------------------------------------------------------------------------
+    def _drive_config(self) -> DriveSafeConfig:
+        p = self._p
+        return DriveSafeConfig(
+            float(p["drive_speed_threshold"]),
+            float(p["drive_turn_threshold"]),
+            float(p["drive_zoom_cap"]),
+            float(p["drive_hold_time"]),
+        )
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        t = msg.twist.twist
+        self._on_speed(math.hypot(t.linear.x, t.linear.y), t.angular.z)
+
+    def _on_twist(self, msg: Twist) -> None:
+        self._on_speed(math.hypot(msg.linear.x, msg.linear.y), msg.angular.z)
+
+    def _on_speed(self, linear: float, angular: float) -> None:
+        if self._drive is not None:
+            self._apply_drive(self._drive.update(linear, angular))
+
+    def _apply_drive(self, capped: bool) -> None:
+        cap = float(self._p["drive_zoom_cap"]) if capped else None
+        if cap == self._cmd.zoom_cap:
+            return
+        order = self._cmd.set_zoom_cap(cap)
+        what = f"robot moving: zoom capped at {cap:g}" if cap is not None else "robot stopped: zoom cap lifted"
+        sent = f" ({order.label} sent)" if order is not None and not order.refused else ""
+        self.get_logger().info(what + sent)
+
+    # ------------------------------------------------------------------------------------------------
     def destroy_node(self) -> None:
         """Stop a running velocity command (best effort), join the command worker, close the backend."""
-        with self._lock:
-            stop = self._velocity_active
-            self._velocity_active = False
-        if stop:
-            t = self._slot.submit("stop", lambda: self._backend.velocity(0.0, 0.0, 0.0))
-            t.wait(1.0)
+        if self._cmd.velocity_active:
+            order = self._cmd.stop()
+            if order.ticket is not None:
+                order.ticket.wait(1.0)
         self._stop.set()
         self._poll_thread.join(timeout=float(self._p["state_timeout"]) + 1.0)
         self._slot.stop(timeout=float(self._p["timeout"]) + 1.0)
         self._backend.close()
+        self._action_server.destroy()
         super().destroy_node()
 
 

@@ -15,11 +15,6 @@ from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel, center_o
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos, PtzReading
 
 
-def finite_or_none(value: float) -> float | None:
-    """A message field where NaN means "unchanged"."""
-    return None if value is None or not math.isfinite(value) else float(value)
-
-
 @dataclass(frozen=True, slots=True)
 class Target:
     """A commanded pose; None = axis not commanded (unknown)."""

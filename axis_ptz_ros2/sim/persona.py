@@ -162,6 +162,7 @@ def parameter_tree(limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> d
         "PTZ.Limit.L1.MinFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.max_zoom)) * 10))),
         "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
     }
+    p.update(real_listing_ptz_keys())
     for cap in _SUPPORT:
         p[f"PTZ.Support.S1.{cap}"] = "true"
     for cap in _NO_SUPPORT:
@@ -179,6 +180,40 @@ def parameter_tree(limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> d
             "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
         }
     )
+    return p
+
+
+def real_listing_ptz_keys() -> dict[str, str]:
+    """``PTZ`` keys every recorded real listing has (Kane610 fixtures of a Sony-block dome and of 5.51
+    cameras, vapix.md §4.7) that are the same on both personas. Values as recorded; the brightness limits
+    agree with ``query=limits``."""
+    p = {
+        "PTZ.CamPorts.Cam1Port": "1",
+        "PTZ.ImageSource.I0.PTZEnabled": "true",
+        "PTZ.Limit.L1.MinBrightness": "1",
+        "PTZ.Limit.L1.MaxBrightness": "9999",
+        "PTZ.PTZDriverStatuses.Driver1Status": "3",  # 3 = driver installed
+        "PTZ.Various.V1.AutoFocus": "true",
+        "PTZ.Various.V1.AutoIris": "true",
+        "PTZ.Various.V1.CtlQueueing": "false",
+        "PTZ.Various.V1.CtlQueueLimit": "20",
+        "PTZ.Various.V1.CtlQueuePollTime": "20",
+        "PTZ.Various.V1.SpeedCtlEnabled": "true",
+        "PTZ.Various.V1.ReturnToOverview": "0",
+    }
+    for n, (group, priority, timeout_type, timeout, cookie) in enumerate(
+        (
+            ("Administrator", 10, "activity", 60, "yes"),
+            ("Operator", 30, "activity", 60, "yes"),
+            ("Viewer", 50, "timespan", 60, "yes"),
+            ("Event", 20, "activity", 20, "no"),
+        )
+    ):
+        p[f"PTZ.UserCtlQueue.U{n}.Priority"] = str(priority)
+        p[f"PTZ.UserCtlQueue.U{n}.TimeoutTime"] = str(timeout)
+        p[f"PTZ.UserCtlQueue.U{n}.TimeoutType"] = timeout_type
+        p[f"PTZ.UserCtlQueue.U{n}.UseCookie"] = cookie
+        p[f"PTZ.UserCtlQueue.U{n}.UserGroup"] = group
     return p
 
 
@@ -237,7 +272,7 @@ class Persona:
     attributes: bool = False  # answers ptz.cgi?query=attributes
     preset_params: bool = False  # mirrors the server presets under PTZ.Preset.P0.*
     whoami: str = "Sony_camblock"
-    server_header: str = "Boa/0.94.14rc21"
+    server_header: str = ""  # "" = no Server header
     aliases: tuple[str, ...] = ()
 
     @property
@@ -288,6 +323,8 @@ AXIS_214 = Persona(
     https=False,
     tree=_axis214_tree,
     camera_model_file="axis214.yaml",
+    preset_params=True,  # every recorded listing keeps presets under PTZ.Preset.P0 (assumed for fw 4.49)
+    server_header="",  # a real Axis MJPEG reply has no Server header; for other replies of fw 4.49: unknown
     aliases=("214",),
 )
 
@@ -358,7 +395,7 @@ _Q6075_SUPPORT = {
     "IrCutFilter": True,
     "AutoIrCutFilter": True,
     "BackLight": False,
-    "Auxiliary": True,
+    "Auxiliary": False,  # the simulator implements no auxiliary= functions (info=1 does not offer them)
     "OSDMenu": False,
     "ActionNotification": True,
     "ProportionalSpeed": True,
@@ -419,6 +456,7 @@ def _modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str,
         "PTZ.Limit.L1.MinFieldAngle": str(max(1, int(round(math.degrees(zoom.hfov(optical_end)) * 10)))),
         "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
     }
+    p.update(real_listing_ptz_keys())
     for cap, on in _Q6075_SUPPORT.items():
         p[f"PTZ.Support.S1.{cap}"] = "true" if on else "false"
     p.update(

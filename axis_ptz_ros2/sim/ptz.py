@@ -79,7 +79,6 @@ backlight={ on | off }
 continuouspantiltmove=[x-speed],[y-speed]
 continuouszoommove=[speed]
 continuousfocusmove=[speed]
-auxiliary=[function]
 setserverpresetname=[name]
 setserverpresetno=[n]
 removeserverpresetname=[name]
@@ -101,7 +100,7 @@ _MOVES = {
     "downleft": (-1.0, -1.0),
     "downright": (1.0, -1.0),
 }
-_QUERIES = ("position", "limits", "speed", "presetposcam", "presetposall", "attributes")
+_QUERIES = ("position", "limits", "speed", "presetposcam", "presetposall", "attributes", "mode")
 _PRESET_NAME = re.compile(r'^[^"<>~:]{1,31}$')
 
 
@@ -593,6 +592,8 @@ class PtzState:
             ]
         elif what == "speed":
             lines = [f"speed={self.speed}"]
+        elif what == "mode":
+            lines = ["mode=normal"]  # the only value seen from real cameras (vapix.md §4.4)
         else:  # presetposcam / presetposall
             lines = ["Preset Positions for camera 1"]
             lines += [f"presetposno{n}={p.name}" for n, p in sorted(self.presets.items())]

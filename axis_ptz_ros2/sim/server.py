@@ -26,6 +26,7 @@ import re
 import secrets
 import socket
 import ssl
+import struct
 import sys
 import threading
 import time
@@ -59,6 +60,7 @@ BOUNDARY = "myboundary"
 MAX_FPS = 30
 NONCE_LIFETIME_S = 600.0  #: default Digest nonce lifetime (a guess: real Axis lifetimes are not documented)
 CHALLENGE_STYLES = ("current", "legacy")
+REBOOT_ERROR_KINDS = ("503", "empty", "401")
 
 _VIDEO_PATHS = ("/axis-cgi/mjpg/video.cgi", "/mjpg/video.mjpg")
 _ENDPOINTS: dict[str, str] = {
@@ -98,6 +100,7 @@ class RequestCounts:
     ptz_log: list[PtzLogEntry] = field(default_factory=list)
     video_log: list[PtzLogEntry] = field(default_factory=list)  #: video.cgi / image.cgi requests (query strings)
     status: collections.Counter[int] = field(default_factory=collections.Counter)
+    auth: collections.Counter[str] = field(default_factory=collections.Counter)  #: Authorization scheme seen
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly mapping."""
@@ -105,6 +108,7 @@ class RequestCounts:
             "endpoints": dict(self.endpoints),
             "ptz": dict(self.ptz),
             "status": {str(k): v for k, v in self.status.items()},
+            "auth": dict(self.auth),
             "ptz_log": [[e.t_wall, e.method, e.query] for e in self.ptz_log[-200:]],
             "video_log": [[e.t_wall, e.method, e.query] for e in self.video_log[-200:]],
         }
@@ -215,6 +219,11 @@ class SimulatedCamera:
         self._stopping = threading.Event()
         self._rebooting = threading.Event()
         self._reboot_gen = 0
+        self._blackholed = threading.Event()  #: a reboot that drops packets: connects hang, requests vanish
+        self._blackhole_socks: list[socket.socket] = []
+        self._errors_until = 0.0  #: monotonic end of the "web server up, video not yet" phase of a reboot
+        self._error_kind = "503"
+        self.video_ok_at: float | None = None  #: wall time (time.time()) video was served again after a reboot
         self._lifecycle = threading.Lock()
         self._jpeg_cache: collections.OrderedDict[tuple[Any, ...], bytes] = collections.OrderedDict()
         self._jpeg_lock = threading.Lock()
@@ -255,13 +264,15 @@ class SimulatedCamera:
         )
         self._thread.start()
 
-    def _close_all(self) -> None:
+    def _close_all(self, silently: bool = False) -> None:
+        """Stop listening; close every connection (``silently``: leave them open and mute, as a camera that
+        lost power does: its peers notice only through their own timeouts)."""
         server, self._server = self._server, None
         if server is not None:
             server.shutdown()
             server.server_close()
         with self._conns_lock:
-            conns = list(self._conns)
+            conns = [] if silently else list(self._conns)
         for c in conns:
             with contextlib.suppress(OSError):
                 c.shutdown(socket.SHUT_RDWR)
@@ -276,6 +287,7 @@ class SimulatedCamera:
             self._reboot_gen += 1
             self._rebooting.clear()
             self._close_all()
+            self._end_blackhole()
             if self._cert is not None:
                 self._cert.cleanup()
                 self._cert = None
@@ -317,16 +329,35 @@ class SimulatedCamera:
         """Whether a simulated reboot is in progress."""
         return self._rebooting.is_set()
 
-    def reboot(self, seconds: float) -> None:
-        """Simulate a reboot: close everything, refuse connections for ``seconds``, then come back on the
-        same port at the home position (returns immediately)."""
+    def reboot(
+        self, seconds: float, *, blackhole: bool = False, errors_s: float = 0.0, error_kind: str = "503"
+    ) -> None:
+        """Simulate a reboot (returns immediately), then come back on the same port at the home position with
+        every Digest nonce forgotten.
+
+        For ``seconds`` the camera is gone: connections are refused at once (``blackhole=False``, what the
+        loopback interface does when nothing listens), or packets are dropped (``blackhole=True``, what a
+        rebooting camera on a real network does: a connect hangs until the client's timeout, open
+        connections go silent and requests on them are never answered). Then for ``errors_s`` its web server
+        answers every camera request with ``error_kind`` (``503``, ``empty``: connection closed without a
+        reply, or ``401``) before video works; :attr:`video_ok_at` records when it does (wall time).
+        """
+        if error_kind not in REBOOT_ERROR_KINDS:
+            raise ValueError(f"error_kind must be one of {REBOOT_ERROR_KINDS}")
+        if seconds < 0 or errors_s < 0:
+            raise ValueError("reboot durations must be >= 0")
         with self._lifecycle:
             if self._server is None:
                 raise RuntimeError("camera not running")
+            if blackhole:
+                self._blackholed.set()  # before the generation changes: streams must go mute, not close
             self._rebooting.set()
             self._reboot_gen += 1
             gen = self._reboot_gen
-            self._close_all()
+            self.video_ok_at = None
+            self._close_all(silently=blackhole)
+            if blackhole:
+                self._start_blackhole()
 
         def come_back() -> None:
             deadline = time.monotonic() + seconds
@@ -336,17 +367,57 @@ class SimulatedCamera:
             with self._lifecycle:
                 if gen != self._reboot_gen or self._stopping.is_set():
                     return
+                self._end_blackhole()
                 self.state.reset()
                 self.forget_nonces()
+                self._error_kind = error_kind
+                self._errors_until = time.monotonic() + errors_s
                 for _ in range(100):
                     try:
                         self._listen()
                         break
                     except OSError:
                         time.sleep(0.05)
+                self.video_ok_at = time.time() + errors_s
+            if self._stopping.wait(errors_s):
+                return
+            if gen == self._reboot_gen:
                 self._rebooting.clear()
 
         threading.Thread(target=come_back, daemon=True).start()
+
+    def serving_errors(self) -> bool:
+        """Whether the camera is in the "web server up, video not yet" phase of a reboot."""
+        return time.monotonic() < self._errors_until
+
+    def _start_blackhole(self) -> None:
+        """Hold the port with a listener that never accepts and whose (tiny) accept queue is full: the kernel
+        then drops every new SYN, so a client's connect hangs as if the camera were off the network."""
+        family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
+        listener = socket.socket(family, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        for _ in range(100):
+            try:
+                listener.bind((self.host, self._port))
+                break
+            except OSError:
+                time.sleep(0.02)
+        listener.listen(0)
+        socks = [listener]
+        for _ in range(4):
+            filler = socket.socket(family, socket.SOCK_STREAM)
+            filler.setblocking(False)
+            filler.connect_ex((self.host, self._port))
+            socks.append(filler)
+        self._blackhole_socks = socks
+
+    def _end_blackhole(self) -> None:
+        socks, self._blackhole_socks = self._blackhole_socks, []
+        for sock in socks:
+            with contextlib.suppress(OSError):
+                sock.close()
+        self._blackholed.clear()  # held requests now end with a reset, as for a peer that rebooted
+
 
     # ---- ground truth and control ----------------------------------------------------------------------
     def position(self) -> tuple[float, float, float]:
@@ -398,6 +469,9 @@ class SimulatedCamera:
             "speed": self.state.speed,
             "faults": self.faults.as_dict(),
             "rebooting": self.rebooting,
+            "blackholed": self._blackholed.is_set(),
+            "serving_errors": self.serving_errors(),
+            "video_ok_at": self.video_ok_at,
             "nonce_lifetime_s": self.nonce_lifetime_s,
             "challenge_style": self.challenge_style,
             "frames_sent": self.frames_sent,
@@ -560,7 +634,7 @@ class _StreamClosedError(Exception):
 
 class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"
-    server_version = "Boa/0.94.14rc21"  # the web server of Axis firmware 4.x
+    server_version = ""  # the persona decides (see version_string)
     sys_version = ""
     timeout = 60
     # Reply promptly like the camera's own stack: Nagle + delayed ACK would add ~40 ms to every query reply.
@@ -592,8 +666,16 @@ class _Handler(BaseHTTPRequestHandler):
         return self.server.camera
 
     def version_string(self) -> str:
-        """``Server:`` header of the persona (Boa on the 214's firmware 4.x)."""
+        """``Server:`` header of the persona ("" = none)."""
         return self.cam.persona.server_header
+
+    def send_response(self, code: int, message: str | None = None) -> None:
+        """Status line, ``Server`` only if the persona has one, ``Date``."""
+        self.log_request(code)
+        self.send_response_only(code, message)
+        if self.cam.persona.server_header:
+            self.send_header("Server", self.version_string())
+        self.send_header("Date", self.date_time_string())
 
     def _write(self, data: bytes) -> None:
         """Write honouring the bandwidth cap fault."""
@@ -654,6 +736,33 @@ class _Handler(BaseHTTPRequestHandler):
         body = self.rfile.read(n).decode("utf-8", "replace") if n > 0 else ""
         self._dispatch(body)
 
+    def _hold_silently(self) -> None:
+        """A request that arrived while the camera drops packets: never answered; when the camera is back
+        the connection is reset (the rebooted camera knows nothing of it)."""
+        cam = self.cam
+        while cam._blackholed.is_set() and not cam._stopping.is_set():
+            cam._stopping.wait(0.05)
+        self._abort_connection()
+
+    def _abort_connection(self) -> None:
+        """Close with a reset (no FIN first): the socket closes for real once the handler's files are closed,
+        before the server's own ``shutdown(SHUT_WR)`` could send a FIN."""
+        self.close_connection = True
+        with contextlib.suppress(OSError):
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            self.connection.close()
+
+    def _reboot_error(self, path: str) -> None:
+        kind = self.cam._error_kind
+        if kind == "empty":
+            self.close_connection = True  # connection accepted, then closed (FIN) without a byte of reply
+        elif kind == "401":
+            self._unauthorized(path)
+        else:
+            self._reply(
+                503, ERROR_HTML.format(code=503, reason="Service Unavailable"), "text/html; charset=ISO-8859-1"
+            )
+
     def _raw_target(self) -> str:
         """The request target exactly as on the request line (the stdlib rewrites a leading "//" in
         ``self.path``; Digest clients sign the target they sent)."""
@@ -673,8 +782,15 @@ class _Handler(BaseHTTPRequestHandler):
             args = parse_qsl(query, keep_blank_values=True, strict_parsing=False)
         except ValueError:
             args = []
+        if cam._blackholed.is_set():
+            self._hold_silently()
+            return
         if path.startswith("/sim/"):
             self._sim(path, args)
+            return
+        if cam.serving_errors() and _ENDPOINTS.get(path):
+            cam._count(_ENDPOINTS[path])
+            self._reboot_error(path)
             return
         endpoint = _ENDPOINTS.get(path, "")
         cam._count(endpoint or "other")
@@ -696,7 +812,10 @@ class _Handler(BaseHTTPRequestHandler):
                     code, ERROR_HTML.format(code=code, reason=reason), "text/html; charset=ISO-8859-1"
                 )
             return
-        verdict = cam.auth_result(self.headers.get("Authorization"), self.command, raw_target)
+        authorization = self.headers.get("Authorization")
+        with cam._counts_lock:
+            cam._counts.auth[authorization.split(" ", 1)[0].lower() if authorization else "none"] += 1
+        verdict = cam.auth_result(authorization, self.command, raw_target)
         if verdict != "ok":
             self._unauthorized(path, stale=verdict == "stale")
             return
@@ -858,16 +977,22 @@ class _Handler(BaseHTTPRequestHandler):
         except ValueError as err:
             self._reply(400, f"Error:\n{err}\n")
             return
+        # As a real Axis answers video.cgi: HTTP/1.0, no Server and no Date, caching forbidden three ways.
         self.close_connection = True
-        self.send_response(200)
-        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
+        self.protocol_version = "HTTP/1.0"  # this connection only: it closes after the stream
+        self.log_request(200)
+        self.send_response_only(200)
         self.send_header("Cache-Control", "no-cache")
         self.send_header("Pragma", "no-cache")
+        self.send_header("Expires", "Thu, 01 Dec 1994 16:00:00 GMT")
         self.send_header("Connection", "close")
+        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
         self.end_headers()
         self.cam._count("", 200)
         with contextlib.suppress(_StreamClosedError, OSError):
             self._stream(w, h, comp, overlay, opts)
+        if self.cam._blackholed.is_set():
+            self._hold_silently()  # the camera went mute mid-stream: no FIN, the client must time out
 
     def _stream(self, w: int, h: int, comp: int, overlay: str, opts: dict[str, int]) -> None:
         cam = self.cam
@@ -961,6 +1086,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._reply(404, NOT_FOUND_HTML.format(path=path), "text/html; charset=ISO-8859-1")
             return
         reboot = None
+        reboot_opts: dict[str, Any] = {}
         try:
             changes: dict[str, Any] = {}
             for k, v in args:
@@ -970,6 +1096,14 @@ class _Handler(BaseHTTPRequestHandler):
                     cam.reset_counts()
                 elif k == "reboot":
                     reboot = float(v)
+                elif k == "reboot_blackhole":
+                    reboot_opts["blackhole"] = v.lower() in ("1", "true", "yes", "on")
+                elif k == "reboot_errors_s":
+                    reboot_opts["errors_s"] = float(v)
+                elif k == "reboot_error":
+                    if v not in REBOOT_ERROR_KINDS:
+                        raise ValueError(f"reboot_error must be one of {REBOOT_ERROR_KINDS}")
+                    reboot_opts["error_kind"] = v
                 elif k == "nonce_lifetime":
                     cam.set_auth_options(nonce_lifetime_s=float(v))
                 elif k == "challenge_style":
@@ -989,7 +1123,7 @@ class _Handler(BaseHTTPRequestHandler):
             self.close_connection = True
             self.wfile.flush()
             secs = reboot
-            threading.Thread(target=cam.reboot, args=(secs,), daemon=True).start()
+            threading.Thread(target=cam.reboot, args=(secs,), kwargs=reboot_opts, daemon=True).start()
 
 
 def _part_header(length: int) -> bytes:

@@ -62,8 +62,9 @@ class ReaderConfig:
     """Timing of the reader (seconds)."""
 
     backoff_initial_s: float = 0.1
-    backoff_max_s: float = 2.0
+    backoff_max_s: float = 1.0
     auth_retry_s: float = 10.0
+    auth_grace_s: float = 120.0  #: a 401 this soon after frames flowed is a rebooting camera: retry on back-off
     stall_timeout_s: float = 1.0
     read_timeout_s: float = 5.0
     meter_window_s: float = 2.0
@@ -271,6 +272,11 @@ class StreamReader:
         """Sleep, but wake at once on stop/params/activity changes."""
         self._wake.wait(seconds)
 
+    def _retry_delay(self, attempt_start: float) -> float:
+        """Back-off counted from the start of the failed attempt: a connect that hung until its timeout has
+        already waited (a camera that drops packets while it reboots), so the next try is not delayed twice."""
+        return max(0.0, self._backoff.next() - (self._clock() - attempt_start))
+
     def _run(self) -> None:
         while not self._stop.is_set():
             self._wake.clear()
@@ -284,10 +290,19 @@ class StreamReader:
                 continue
             if self._state not in (StreamState.RECONNECTING, StreamState.AUTH_FAILED):
                 self._set_state(StreamState.CONNECTING)
+            attempt = self._clock()
             try:
                 source = self._opener(params, self._config.read_timeout(params.fps))
             except AuthError as err:
                 self._auth_failures += 1
+                last = self._last_frame
+                if last is not None and self._clock() - last < self._config.auth_grace_s:
+                    # Frames flowed with these credentials moments ago: a camera that is still booting
+                    # answers 401 before its user database is up. Keep the normal back-off.
+                    self._reconnects += 1
+                    self._set_state(StreamState.RECONNECTING, f"{err} (camera restarting?)")
+                    self._wait(self._retry_delay(attempt))
+                    continue
                 self._set_state(StreamState.AUTH_FAILED, str(err))
                 self._wait(self._config.auth_retry_s)
                 continue
@@ -298,7 +313,7 @@ class StreamReader:
             except AxisPtzError as err:
                 self._reconnects += 1
                 self._set_state(StreamState.RECONNECTING, str(err))
-                self._wait(self._backoff.next())
+                self._wait(self._retry_delay(attempt))
                 continue
             self._read(source, params)
 

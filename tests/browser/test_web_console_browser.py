@@ -350,7 +350,7 @@ def test_live_image_gets_most_of_one_screen(demo: Demo, browser: Any) -> None:
             pg.wait_for_function("document.getElementById('r-pan').textContent !== '–'", timeout=30_000)
             # the stage follows the stream's own aspect once app.js has seen a frame
             pg.wait_for_function(
-                "document.getElementById('ptz-frame').style.getPropertyValue('--ptz-aspect') !== ''", timeout=10_000
+                "document.documentElement.style.getPropertyValue('--ptz-aspect') !== ''", timeout=10_000
             )
             g = layout(pg)
             screen = vw * vh
@@ -386,6 +386,44 @@ def test_live_image_gets_most_of_one_screen(demo: Demo, browser: Any) -> None:
                 pg.screenshot(path=str(DOCS_IMAGES / picture))
         finally:
             ctx.close()
+
+
+def test_wide_stream_keeps_its_aspect_and_click_still_centres(demo: Demo, page: Any) -> None:
+    """704x288 (2CIF, 2.44:1, a resolution the 214 offers): the stage follows it and a click still centres."""
+    page.select_option("#q-res", "704x288")
+    page.click("#q-apply")
+    wait_for(lambda: latest_video_params().height == 288, 10.0, "the stream at 704x288")
+    wait_for(lambda: page.evaluate("document.getElementById('ptz').naturalHeight") == 288, 15.0, "288-line video")
+    try:
+        time.sleep(1.0)  # the next state poll re-sizes the stage
+        g = layout(page)
+        p = g["ptz"]
+        assert g["natural"] == [704, 288]
+        assert p["w"] / p["h"] == pytest.approx(704 / 288, rel=0.01), g
+        # width-bound now: the image spans the stage and the side panel shrank to its minimum (16rem)
+        assert g["panel"]["w"] == pytest.approx(16 * 16, abs=2), g
+        assert g["doc_h"] <= g["vh"], g
+        shot(page, "wide_stream")
+        # click -> centre with the real 704x288 geometry (the camera's own 704x288 snapshot is the truth)
+        goto_pose(demo, page, -80.0, 3.0, 1.0)
+        snap = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution=704x288")
+        before = green_blob(cv2.imdecode(np.frombuffer(snap, np.uint8), cv2.IMREAD_COLOR))
+        assert before is not None, "the marker is not in view"
+        u, v, _ = before
+        assert abs(u - 703 / 2) > 40
+        page.mouse.click(*client_point(page, "#ptz", u, v))
+        wait_for(lambda: "centring" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
+        time.sleep(0.3)
+        wait_still(demo)
+        snap = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution=704x288")
+        after = green_blob(cv2.imdecode(np.frombuffer(snap, np.uint8), cv2.IMREAD_COLOR))
+        assert after is not None
+        du, dv = after[0] - 703 / 2, after[1] - 287 / 2
+        assert math.hypot(du, dv) < 4.0, f"marker at ({after[0]:.1f}, {after[1]:.1f}) after the click"
+    finally:
+        page.select_option("#q-res", f"{W}x{H}")
+        page.click("#q-apply")
+        wait_for(lambda: latest_video_params().height == H, 10.0, "the stream back at full size")
 
 
 def shot_path(name: str) -> Path:

@@ -36,10 +36,13 @@ def test_stall_keeps_socket_open_then_resumes(cam, client):
     _, _, body, marks = read_stream(client, VIDEO + "&nbrofframes=4", max_seconds=4)
     ps = parts(body)
     assert len(ps) == 4
-    # arrival time of each part's first byte
-    arrivals = [next(t for t, n in marks if n > start) for _, start in ps]
-    assert arrivals[2] - arrivals[1] >= 0.7
-    assert arrivals[1] - arrivals[0] < 0.3
+    # the camera's own send stamps (not arrival times, which a loaded client shifts): the one long gap is the
+    # configured stall, after the second frame; it lasts at least stall_seconds
+    sent_ns = [int(m.group(2)) for m in COM.finditer(body)]
+    assert len(sent_ns) == 4
+    gaps = [(b - a) / 1e9 for a, b in zip(sent_ns, sent_ns[1:], strict=False)]
+    assert gaps[1] >= 0.8 - 0.01, gaps
+    assert max(gaps) == gaps[1], gaps
 
 
 def test_garbage_between_parts(cam, client):
@@ -119,17 +122,18 @@ def test_reboot_refuses_then_recovers_on_same_port():
         with c.stream("GET", VIDEO) as stream:
             it = stream.iter_raw()
             next(it)
-            c.get("/sim/control", params={"reboot": "1.0"})
+            c.get("/sim/control", params={"reboot": "3.0"})
             t0 = time.monotonic()
             with contextlib.suppress(httpx.HTTPError):  # the open stream ends (EOF or reset)
                 for _ in it:
-                    if time.monotonic() - t0 > 3:
+                    if time.monotonic() - t0 > 20:
                         break
-            assert time.monotonic() - t0 < 1.0
-        time.sleep(0.2)
+            assert time.monotonic() - t0 <= 20, "the open stream kept going through the reboot"
+        # while the camera reboots (3 s: ample margin on a loaded machine), connections are refused
+        assert cam.rebooting
         with pytest.raises(httpx.ConnectError):
             httpx.get(cam.base_url + "/axis-cgi/com/ptz.cgi?query=speed", timeout=1.0)
-        t_end = time.monotonic() + 5
+        t_end = time.monotonic() + 15
         while cam.rebooting and time.monotonic() < t_end:
             time.sleep(0.05)
         assert not cam.rebooting

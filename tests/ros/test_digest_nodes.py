@@ -152,3 +152,44 @@ def test_stream_node_digest_reconnects_after_expiry_and_restart(ros: RosHarness,
         assert all(b > a for a, b in zip(stamps, stamps[1:], strict=False)), "an old frame was republished"
     finally:
         cam.stop()
+
+
+def test_basic_only_camera_over_http_gets_no_password_and_says_why(ros: RosHarness, cred: str) -> None:
+    """auth=auto against a camera offering only Basic over plain HTTP: never sent; /diagnostics explains."""
+    cam = SimulatedCamera(port=0, auth="basic", password=PASSWORD).start()
+    try:
+        params = {"port": cam.port, "password_file": cred, "lazy": False, "auth_retry": 1.0}
+        ros.add(StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
+        probe = ros.probe()
+        diags: list[DiagnosticArray] = []
+        probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+
+        def refused() -> bool:
+            values = _diag_values(diags, "MJPEG stream")
+            return int(values.get("auth basic refused (plain HTTP)", "0")) >= 2
+
+        ros.wait_for(refused, 10.0)
+        status = [s for d in list(diags) for s in d.status if s.name.endswith("MJPEG stream")][-1]
+        assert "offers only Basic" in status.message
+        assert "auth: basic" in status.message
+        assert PASSWORD not in status.message
+        seen = cam.request_counts.auth
+        assert seen.get("basic", 0) == 0, f"Basic credentials were sent over plain HTTP: {dict(seen)}"
+        assert seen.get("none", 0) >= 2
+    finally:
+        cam.stop()
+
+
+def test_ptz_node_says_at_start_up_that_a_camera_has_no_ptz_head(
+    ros: RosHarness, capfd: pytest.CaptureFixture[str]
+) -> None:
+    cam = SimulatedCamera(port=0).start()
+    try:
+        cam.params["PTZ.ImageSource.I0.PTZEnabled"] = "false"  # a fixed camera with digital PTZ only
+        overrides = [Parameter("port", value=cam.port), Parameter("state_timeout", value=1.0)]
+        ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
+        err = capfd.readouterr().err
+        assert "no PTZ head" in err
+        assert "PTZ.ImageSource.I0.PTZEnabled=false" in err
+    finally:
+        cam.stop()

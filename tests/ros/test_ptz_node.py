@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -23,12 +24,16 @@ import yaml
 
 pytest.importorskip("rclpy")
 
+from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PointStamped  # noqa: E402
+from geometry_msgs.msg import PointStamped, Twist  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from axis_ptz_interfaces.action import PtzMove  # noqa: E402
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom  # noqa: E402
 from axis_ptz_ros2.config import MountConfig, save_mount  # noqa: E402
@@ -97,6 +102,7 @@ def config_files(cam: SimulatedCamera, tmp_path_factory: pytest.TempPathFactory)
 def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNode:
     cam.set_faults(FaultConfig())
     cam.teleport(0.0, 0.0, 1)
+    cam.state.speed = 100  # VAPIX speed is a persistent setting: undo a slow move of an earlier test
     cam.reset_counts()
     model, mount = config_files
     overrides = [
@@ -394,11 +400,13 @@ def test_state_joint_states_and_transform(ros: Any, node: PtzNode, cam: Simulate
     probe.create_subscription(PtzState, "ptz/state", states.append, STREAM_QOS)
     probe.create_subscription(JointState, "joint_states", joints.append, STREAM_QOS)
     assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(20.0), math.radians(-10.0), 5000.0)).success
+    # no rate is asserted here (timing under load belongs to bench/bench_ptz.py): state keeps coming, each
+    # message newer than the one before
     n0 = len(states)
-    t0 = time.monotonic()
-    time.sleep(1.0)
-    rate = (len(states) - n0) / (time.monotonic() - t0)
-    assert rate > 10.0, rate  # nominal 20 Hz (not a speed assertion: the bench measures it)
+    ros.wait_for(lambda: len(states) >= n0 + 3, 10.0)
+    stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in states[n0:]]
+    assert stamps == sorted(stamps)
+    assert len(set(stamps)) == len(stamps)
     s = states[-1]
     assert (s.pan, s.tilt, s.zoom) == pytest.approx((math.radians(20.0), math.radians(-10.0), 5000.0), abs=1e-4)
     assert not s.moving
@@ -417,19 +425,21 @@ def test_burst_of_relative_commands_coalesces(ros: Any, node: PtzNode, cam: Simu
     pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS))
     cam.reset_counts()
     step = math.radians(0.1)
-    t_last = 0.0
+    gen0 = node.commander.generation
     for _ in range(300):
         pub.publish(cmd(pan=step))
-        t_last = time.time()
         time.sleep(1.0 / 30.0)
+    # the moment the node has taken the last command (every command counts one generation) ...
+    ros.wait_for(lambda: node.commander.generation == gen0 + 300, 20.0)
+    n_at_last = len(motion_requests(cam))
     want_vapix = -300 * 0.1  # 30 deg left
-    ros.wait_for(lambda: abs(cam.position()[0] - want_vapix) < 1e-3, 5.0)
+    ros.wait_for(lambda: abs(cam.position()[0] - want_vapix) < 1e-3, 10.0)
     reqs = motion_requests(cam)
-    assert len(reqs) < 150, len(reqs)  # ~ one per round trip instead of 300
-    final = [e for e in reqs if "pan=-30" in e.query]
-    assert final, reqs[-1].query
-    delay = final[0].t_wall - t_last
-    assert delay < 2 * latency + 0.1, delay  # at most the request in flight, then its own
+    # ... at most the request then in flight and the last command's own request follow: no backlog, and the
+    # burst was coalesced (no wall-clock bound: that figure is measured by bench/bench_ptz.py)
+    assert len(reqs) - n_at_last <= 2, [e.query for e in reqs[n_at_last:]]
+    assert len(reqs) < 300
+    assert "pan=-30" in reqs[-1].query, reqs[-1].query
     cam.set_faults(FaultConfig())
 
 
@@ -492,3 +502,361 @@ def test_parameters_dynamic_and_read_only(ros: Any, node: PtzNode, cam: Simulate
     ros.wait_for(lambda: not cam.state.moving(), 2.0)
     assert time.monotonic() - t0 < 0.6  # the new 0.2 s timeout, not the default 0.5 s
     assert cam.position()[0] > 0.0  # REP-103 negative pan rate = right = VAPIX +
+
+
+# ------------------------------------------------------------------------------------------------------
+# commands that never fight (issue 11)
+# ------------------------------------------------------------------------------------------------------
+def velocity_stops(cam: SimulatedCamera) -> list[Any]:
+    return [e for e in motion_requests(cam) if "continuouspantiltmove=0" in e.query.replace("%2C", ",")]
+
+
+def test_home_and_preset_right_after_velocity_are_not_stopped_by_the_watchdog(
+    ros: Any, node: PtzNode, cam: SimulatedCamera
+) -> None:
+    # a home move from 150 deg takes ~0.5 s at the test head's speed: longer than velocity_timeout (0.2 s),
+    # so a watchdog that still thought velocity mode was on would stop it part-way
+    assert node.set_parameters([Parameter("velocity_timeout", value=0.2)])[0].successful
+    probe = ros.probe()
+    pub = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
+    home = probe.create_client(Trigger, "ptz/home")
+    preset = probe.create_client(Preset, "ptz/preset")
+    assert home.wait_for_service(timeout_sec=10.0)
+    cam.teleport(150.0, 30.0, 5000)
+    ros.wait_for(lambda: node.commander.reading() is not None and abs(node.commander.reading().zoom - 5000) < 1)
+    cam.reset_counts()
+    pub.publish(PtzVelocity(pan_rate=0.1, tilt_rate=0.0, zoom_rate=0.0))
+    ros.wait_for(lambda: cam.state.moving(), 5.0)
+    r = ros.call(home, Trigger.Request(), timeout=20.0)
+    assert r.success, r.message
+    assert "arrived" in r.message
+    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)  # the sim's ground truth
+    time.sleep(0.5)  # well past velocity_timeout: nothing stops or moves the head afterwards
+    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
+    assert velocity_stops(cam) == []
+    # the same for a preset goto with wait
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(-150.0), math.radians(-20.0), 3000.0)).success
+    assert ros.call(preset, Preset.Request(action="set", name="far")).success
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 1.0)).success
+    cam.reset_counts()
+    pub.publish(PtzVelocity(pan_rate=-0.1, tilt_rate=0.0, zoom_rate=0.0))
+    ros.wait_for(lambda: cam.state.moving(), 5.0)
+    r = ros.call(preset, Preset.Request(action="goto", name="far", wait=True, timeout_s=10.0), timeout=20.0)
+    assert r.success, r.message
+    assert "arrived" in r.message
+    assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
+    time.sleep(0.5)
+    assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
+    assert velocity_stops(cam) == []
+
+
+def test_preset_goto_reports_where_the_head_stopped(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    preset = probe.create_client(Preset, "ptz/preset")
+    assert ros.call(preset, Preset.Request(action="set", name="start")).success  # at (0, 0, 1)
+    cam.teleport(-120.0, 10.0, 1)
+    ros.wait_for(lambda: abs(cam.position()[0] + 120.0) < 1e-6)
+    assert node.commander.preset_pose("start") is not None  # stored by this node: its pose is known
+    cam.state.speed = 10  # 30 deg/s: the move takes 4 s, so "part-way" does not depend on the test's timing
+    fut = preset.call_async(Preset.Request(action="goto", name="start", wait=True, timeout_s=10.0))
+    ros.wait_for(lambda: cam.state.moving(), 5.0)
+    cam.teleport(*cam.position())  # another client stops the head part-way
+    stopped = cam.position()
+    assert stopped[0] < -10.0
+    cam.state.speed = 100
+    ros.wait_for(fut.done, 15.0)
+    r = fut.result()
+    assert not r.success, r.message
+    assert "stopped at" in r.message, r.message
+    assert f"{-stopped[0]:.1f}" in r.message  # where it stopped, REP-103 degrees
+    # a preset the node never saw stored: arrival = the head settled there; its pose is learned
+    r = ros.call(preset, Preset.Request(action="goto", name="Home", wait=True, timeout_s=10.0), timeout=15.0)
+    assert r.success, r.message
+    assert "not known" in r.message
+    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
+    assert node.commander.preset_pose("Home") is not None
+
+
+def test_infinite_values_are_refused_never_sent(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 1.0)).success
+    pub_abs = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))
+    pub_vel = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
+    cam.reset_counts()
+    refused0 = node.commander.stats.refused
+    for service in ("ptz/move_absolute", "ptz/move_relative"):
+        for c in (cmd(pan=math.inf), cmd(tilt=-math.inf), cmd(math.radians(5.0), 0.0, math.inf)):
+            resp = move(ros, probe, service, c)
+            assert not resp.success
+            assert "inf" in resp.message, resp.message
+    pub_abs.publish(cmd(pan=math.inf, tilt=math.radians(5.0)))
+    pub_vel.publish(PtzVelocity(pan_rate=math.inf, tilt_rate=0.0, zoom_rate=0.0))
+    pub_vel.publish(PtzVelocity(pan_rate=0.0, tilt_rate=-math.inf, zoom_rate=0.0))
+    ros.wait_for(lambda: node.commander.stats.refused >= refused0 + 9, 5.0)
+    time.sleep(0.3)
+    assert motion_requests(cam) == []  # neither a move, nor a "keep this axis" move, nor a silent stop
+    assert cam.position() == pytest.approx((-10.0, 0.0, 1.0), abs=1e-3)
+
+
+def test_a_rejected_command_never_becomes_the_target(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    probe = ros.probe()
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(20.0), 0.0, 1.0)).success
+    cam.set_faults(http_error=500)  # the camera refuses the next command
+    resp = move(ros, probe, "ptz/move_relative", cmd(pan=math.radians(10.0)), wait=False)
+    assert not resp.success
+    assert "camera error" in resp.message
+    cam.set_faults(FaultConfig())
+    assert node.target is not None
+    assert node.target.pan == pytest.approx(math.radians(20.0))
+    resp = move(ros, probe, "ptz/move_relative", cmd(pan=math.radians(5.0)))
+    assert resp.success, resp.message
+    # 20 + 5, not 20 + 10 + 5: the refused step was never added
+    assert cam.position()[0] == pytest.approx(-25.0, abs=1e-3)
+
+
+def _diag_values(diags: list[DiagnosticArray], node: PtzNode) -> list[tuple[int, str, dict[str, str]]]:
+    out = []
+    for d in diags:
+        for st in d.status:
+            if st.name.startswith(node.get_name()):
+                out.append(
+                    (
+                        int.from_bytes(st.level, "little") if isinstance(st.level, bytes) else int(st.level),
+                        st.message,
+                        {kv.key: kv.value for kv in st.values},
+                    )
+                )
+    return out
+
+
+def test_state_poller_restarts_itself_and_stale_state_is_an_error(
+    ros: Any, node: PtzNode, cam: SimulatedCamera
+) -> None:
+    probe = ros.probe()
+    states: list[PtzState] = []
+    diags: list[DiagnosticArray] = []
+    probe.create_subscription(PtzState, "ptz/state", states.append, STREAM_QOS)
+    probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+    ros.wait_for(lambda: len(states) > 2, 10.0)
+    # a bug inside one poll tick (not a camera error): the poller logs it, restarts and keeps publishing
+    real_poll = node.poller.poll
+    crashes = {"n": 0}
+
+    def crashing_poll() -> Any:
+        if crashes["n"] < 2:
+            crashes["n"] += 1
+            raise RuntimeError("injected poll bug")
+        return real_poll()
+
+    node.poller.poll = crashing_poll  # type: ignore[method-assign]
+    ros.wait_for(lambda: crashes["n"] == 2, 5.0)
+    n = len(states)
+    cam.teleport(-40.0, 0.0, 1)
+    ros.wait_for(lambda: len(states) > n and states[-1].pan == pytest.approx(math.radians(40.0), abs=1e-4), 10.0)
+    ros.wait_for(lambda: any(v.get("poller_restarts", "0") not in ("0", "") for _, _, v in _diag_values(diags, node)))
+    # a poll that never returns: state ages; diagnostics say ERROR "stale" with the age
+    release = threading.Event()
+
+    def hanging_poll() -> Any:
+        release.wait(30.0)
+        return real_poll()
+
+    node.poller.poll = hanging_poll  # type: ignore[method-assign]
+    try:
+        ros.wait_for(lambda: any(lvl == 2 and "stale" in msg for lvl, msg, _ in _diag_values(diags, node)[-2:]), 15.0)
+        lvl, msg, values = [x for x in _diag_values(diags, node) if "stale" in x[1]][-1]
+        assert float(values["state_age_s"]) >= float(values["state_stale_after_s"])
+    finally:
+        node.poller.poll = real_poll  # type: ignore[method-assign]
+        release.set()
+    ros.wait_for(lambda: _diag_values(diags, node)[-1][0] == 0, 10.0)
+
+
+# ------------------------------------------------------------------------------------------------------
+# ptz/move action (issue 15)
+# ------------------------------------------------------------------------------------------------------
+class MoveClient:
+    """rclpy's ActionClient driven from the test thread (the harness spins the executor)."""
+
+    def __init__(self, ros: Any) -> None:
+        self.ros = ros
+        self.probe = ros.probe("action_probe")
+        self.client = ActionClient(self.probe, PtzMove, "ptz/move")
+        assert self.client.wait_for_server(timeout_sec=10.0)
+
+    def send(self, goal: PtzMove.Goal, feedback: list[Any] | None = None) -> Any:
+        cb = None if feedback is None else (lambda m: feedback.append(m.feedback))
+        fut = self.client.send_goal_async(goal, feedback_callback=cb)
+        self.ros.wait_for(fut.done, 10.0)
+        handle = fut.result()
+        assert handle.accepted
+        return handle
+
+    def result(self, handle: Any, timeout: float = 20.0) -> Any:
+        fut = handle.get_result_async()
+        self.ros.wait_for(fut.done, timeout)
+        return fut.result()
+
+
+def absolute_goal(pan_deg: float, tilt_deg: float = 0.0, zoom: float = 1.0, speed: float = NAN) -> PtzMove.Goal:
+    return PtzMove.Goal(
+        kind=PtzMove.Goal.ABSOLUTE,
+        command=cmd(math.radians(pan_deg), math.radians(tilt_deg), zoom, speed),
+        timeout_s=15.0,
+    )
+
+
+def test_move_action_feedback_and_result_land_on_the_sim(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    mc = MoveClient(ros)
+    feedback: list[Any] = []
+    handle = mc.send(absolute_goal(40.0, 10.0, 2000.0, speed=0.2), feedback)  # 60 deg/s: ~0.7 s of motion
+    res = mc.result(handle)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert res.result.success
+    truth = sim_pose(cam)
+    assert truth == pytest.approx((math.radians(40.0), math.radians(10.0), 2000.0), abs=1e-4)
+    assert (res.result.state.pan, res.result.state.tilt, res.result.state.zoom) == pytest.approx(truth, abs=1e-4)
+    assert feedback, "no feedback while the head moved"
+    assert any(f.pan_error > math.radians(1.0) for f in feedback)  # remaining error while on the way
+    assert all(f.state.pan <= math.radians(40.0) + 1e-4 for f in feedback)
+    # zoom by magnification, home, look-at and a relative goal
+    goal = PtzMove.Goal(kind=PtzMove.Goal.ZOOM, command=cmd(), magnification=4.0, hfov=NAN, timeout_s=10.0)
+    res = mc.result(mc.send(goal))
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.world.zoom_model.magnification(cam.position()[2]) == pytest.approx(4.0, abs=0.01)
+    goal = PtzMove.Goal(kind=PtzMove.Goal.RELATIVE, command=cmd(pan=math.radians(-10.0)), timeout_s=10.0)
+    res = mc.result(mc.send(goal))
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.position()[0] == pytest.approx(-30.0, abs=1e-3)
+    res = mc.result(mc.send(PtzMove.Goal(kind=PtzMove.Goal.HOME, timeout_s=10.0)))
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
+    goal = PtzMove.Goal(kind=PtzMove.Goal.LOOK_AT, command=cmd(), timeout_s=10.0)
+    goal.point.header.frame_id = "axis_ptz_base"
+    goal.point.point.x, goal.point.point.y, goal.point.point.z = 5.0, -5.0, 0.0687 + 5.0 * math.sqrt(2.0)
+    res = mc.result(mc.send(goal))
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.position()[:2] == pytest.approx((45.0, 45.0), abs=0.05)
+    # an invalid goal ends aborted with the reason, and nothing is sent
+    cam.reset_counts()
+    res = mc.result(mc.send(absolute_goal(0.0, 0.0, 99999.0)))
+    assert res.status == GoalStatus.STATUS_ABORTED
+    assert "limits" in res.result.message
+    res = mc.result(mc.send(PtzMove.Goal(kind=PtzMove.Goal.ABSOLUTE, command=cmd(pan=math.inf))))
+    assert res.status == GoalStatus.STATUS_ABORTED
+    assert "inf" in res.result.message
+    assert motion_requests(cam) == []
+
+
+def test_move_action_cancel_stops_the_head(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    mc = MoveClient(ros)
+    feedback: list[Any] = []
+    handle = mc.send(absolute_goal(-90.0, speed=0.05), feedback)  # 15 deg/s: 6 s to get there
+    ros.wait_for(lambda: len(feedback) >= 3 and cam.state.moving(), 10.0)
+    cancel = handle.cancel_goal_async()
+    ros.wait_for(cancel.done, 10.0)
+    res = mc.result(handle)
+    assert res.status == GoalStatus.STATUS_CANCELED, res.result.message
+    assert "stopped at" in res.result.message
+    assert not cam.state.moving()
+    stopped = cam.position()
+    assert 1.0 < stopped[0] < 89.0  # VAPIX +pan = right = REP-103 -90: stopped on the way
+    time.sleep(0.5)
+    assert cam.position() == pytest.approx(stopped, abs=1e-6)  # and stays stopped
+    assert res.result.state.pan == pytest.approx(-math.radians(stopped[0]), abs=1e-3)
+
+
+def test_move_action_newer_goal_preempts_the_older(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+    mc = MoveClient(ros)
+    fb: list[Any] = []
+    first = mc.send(absolute_goal(80.0, speed=0.05), fb)
+    ros.wait_for(lambda: len(fb) >= 2 and cam.state.moving(), 10.0)
+    second = mc.send(absolute_goal(-20.0, 5.0, 1500.0, speed=1.0))
+    res1 = mc.result(first)
+    assert res1.status == GoalStatus.STATUS_ABORTED
+    assert "pre-empted" in res1.result.message
+    res2 = mc.result(second)
+    assert res2.status == GoalStatus.STATUS_SUCCEEDED, res2.result.message
+    assert cam.position() == pytest.approx((20.0, 5.0, 1500.0), abs=1e-3)  # the newer goal won
+    # an invalid newer goal ends aborted with its reason and does not take the head from the running goal
+    fb.clear()
+    running = mc.send(absolute_goal(30.0, speed=0.1), fb)
+    ros.wait_for(lambda: len(fb) >= 2, 10.0)
+    bad = mc.result(mc.send(absolute_goal(0.0, 0.0, 99999.0)))
+    assert bad.status == GoalStatus.STATUS_ABORTED
+    assert "limits" in bad.result.message
+    res = mc.result(running)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.position()[0] == pytest.approx(-30.0, abs=1e-3)
+    # a topic command pre-empts a running goal as well (the head obeys the latest command)
+    probe = ros.probe()
+    pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))
+    fb.clear()
+    third = mc.send(absolute_goal(80.0, speed=0.05), fb)
+    ros.wait_for(lambda: len(fb) >= 2, 10.0)
+    pub.publish(cmd(math.radians(10.0), 0.0, 1.0, 1.0))
+    res3 = mc.result(third)
+    assert res3.status == GoalStatus.STATUS_ABORTED
+    assert "superseded" in res3.result.message
+    ros.wait_for(lambda: cam.position() == pytest.approx((-10.0, 0.0, 1.0), abs=1e-3), 10.0)
+
+
+# ------------------------------------------------------------------------------------------------------
+# drive-safe zoom (issue 15)
+# ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["odometry", "twist"])
+def test_drive_safe_zoom_caps_while_moving_and_restores(
+    ros: Any, cam: SimulatedCamera, config_files: tuple[str, str], kind: str
+) -> None:
+    cam.set_faults(FaultConfig())
+    cam.teleport(0.0, 0.0, 1)
+    cam.state.speed = 100
+    model, mount = config_files
+    overrides = [
+        Parameter("port", value=cam.port),
+        Parameter("camera_model", value=model),
+        Parameter("mount_file", value=mount),
+        Parameter("state_timeout", value=0.5),
+        Parameter("drive_topic", value="odom" if kind == "odometry" else "cmd_vel"),
+        Parameter("drive_topic_type", value=kind),
+        Parameter("drive_zoom_cap", value=4000.0),
+        Parameter("drive_hold_time", value=0.5),
+    ]
+    node = ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
+    ros.wait_for(lambda: node.poller.latest is not None, 10.0)
+    probe = ros.probe()
+    states: list[PtzState] = []
+    probe.create_subscription(PtzState, "ptz/state", states.append, STREAM_QOS)
+    if kind == "odometry":
+        pub = connect(ros, probe.create_publisher(Odometry, "odom", 10))
+    else:
+        pub = connect(ros, probe.create_publisher(Twist, "cmd_vel", 10))
+
+    def drive(linear: float, angular: float) -> None:
+        if kind == "odometry":
+            m = Odometry()
+            m.twist.twist.linear.x, m.twist.twist.angular.z = linear, angular
+        else:
+            m = Twist()
+            m.linear.x, m.angular.z = linear, angular
+        pub.publish(m)
+
+    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 8000.0)).success
+    ros.wait_for(lambda: states and not states[-1].zoom_capped and states[-1].zoom_cap == 4000.0, 5.0)
+    # driving (or turning on the spot with cmd_vel): the sim's zoom comes down to the cap
+    fast = (1.0, 0.0) if kind == "odometry" else (0.0, 0.8)
+    drive(*fast)
+    ros.wait_for(lambda: cam.position()[2] == pytest.approx(4000.0) and not cam.state.moving(), 10.0)
+    assert cam.position()[0] == pytest.approx(-10.0, abs=1e-3)  # pan untouched
+    ros.wait_for(lambda: states[-1].zoom_capped and states[-1].requested_zoom == 8000.0, 5.0)
+    # while driving, a zoom above the cap is held at the cap and remembered as the operator's zoom
+    drive(*fast)
+    resp = move(ros, probe, "ptz/move_absolute", cmd(zoom=9000.0))
+    assert resp.success, resp.message
+    assert cam.position()[2] == pytest.approx(4000.0)
+    ros.wait_for(lambda: states[-1].requested_zoom == 9000.0, 5.0)
+    # slow below the thresholds: still capped during the hold, then the operator's zoom comes back
+    drive(0.05, 0.05)
+    ros.wait_for(lambda: cam.position()[2] == pytest.approx(9000.0) and not cam.state.moving(), 10.0)
+    ros.wait_for(lambda: not states[-1].zoom_capped, 5.0)
+    assert cam.position()[:2] == pytest.approx((-10.0, 0.0), abs=1e-3)

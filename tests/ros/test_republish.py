@@ -48,11 +48,19 @@ def test_decodes_only_while_someone_subscribes(ros):
     assert np.array_equal(arr, expected)
     assert np.abs(arr.astype(int) - src.astype(int)).mean() < 8  # and it is the picture that was sent
 
-    time.sleep(0.3)  # let repeats of the publish loop above arrive
-    n = len(got)
-    pub.publish(CompressedImage(format="jpeg", data=b"\xff\xd8 not a jpeg"))
+    # A broken JPEG is counted and publishes nothing. Messages from one publisher are handled in order, so once
+    # it is counted every earlier repeat of the loop above has been decoded; a good one after it is a barrier.
+    bad = CompressedImage(format="jpeg", data=b"\xff\xd8 not a jpeg")
+    bad.header.stamp.sec = 999
+    pub.publish(bad)
     ros.wait_for(lambda: node.failed == 1, timeout=3)
-    assert len(got) == n
+    decoded = node.decoded
+    msg.header.stamp.sec = 777
+    pub.publish(msg)
+    ros.wait_for(lambda: any(g.header.stamp.sec == 777 for g in got), timeout=3)
+    assert node.decoded == decoded + 1
+    assert node.failed == 1
+    assert not [g for g in got if g.header.stamp.sec == 999]
 
     probe.destroy_subscription(sub)
     ros.wait_for(lambda: probe.count_subscribers("image_raw/compressed") == 0, timeout=3)

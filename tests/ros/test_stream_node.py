@@ -155,6 +155,13 @@ def video_count(camera: SimulatedCamera) -> int:
     return camera.request_counts.endpoints.get("video", 0)
 
 
+def frames_stay(camera: SimulatedCamera, seconds: float) -> bool:
+    """True if the camera sent no frame for ``seconds``."""
+    sent = camera.frames_sent
+    time.sleep(seconds)
+    return camera.frames_sent == sent
+
+
 def assert_never_repeated(frames: list[Frame]) -> None:
     """Each frame published once: send times strictly increasing, seq increasing within a connection."""
     ts = [f.t_sent for f in frames]
@@ -175,25 +182,22 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     time.sleep(0.6)
     assert camera.request_counts.endpoints.get("video", 0) == 0, "streamed with nobody subscribed"
     assert node._reader.stats().state.value == "idle-lazy"
-    t0 = time.monotonic()
     rec, subs = subscribe(ros, probe, info=False)
-    ros.wait_for(lambda: rec.count() >= 3, timeout=5)
-    assert rec.frames[0].t_rx - t0 < 1.5, "streaming did not start promptly"
+    ros.wait_for(lambda: rec.count() >= 3, timeout=5)  # (how promptly is a speed figure: bench_stream)
     assert video_count(camera) == 1
     # camera_info alone also keeps it streaming
     info_rec = Recorder()
     info_sub = probe.create_subscription(CameraInfo, "camera_info", info_rec.on_info, STREAM_QOS)
     probe.destroy_subscription(subs[0])
-    time.sleep(0.5)
+    ros.wait_for(lambda: node._image_pub.get_subscription_count() == 0, timeout=5)
     n = len(info_rec.infos)
-    time.sleep(0.5)
-    assert len(info_rec.infos) > n
+    ros.wait_for(lambda: len(info_rec.infos) >= n + 5, timeout=5)
+    assert node._reader.stats().state.value != "idle-lazy"
     probe.destroy_subscription(info_sub)
     ros.wait_for(lambda: node._reader.stats().state.value == "idle-lazy", timeout=3)
-    time.sleep(0.3)  # the camera notices a closed socket on its next write or two
-    sent = camera.frames_sent
-    time.sleep(0.5)
-    assert camera.frames_sent == sent, "the camera still streams after the last subscriber left"
+    # the camera notices the closed socket on its next write or two: then it sends nothing more (at 15 fps a
+    # streaming camera never goes 0.5 s without a frame)
+    ros.wait_for(lambda: frames_stay(camera, 0.5), timeout=5)
     assert video_count(camera) == 1
 
 
@@ -269,9 +273,8 @@ def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
     assert "640x480" in res.reason
     assert "352x288" in res.reason  # the reason lists what the camera supports
     t = time.monotonic()
-    time.sleep(0.6)
+    ros.wait_for(lambda: len(rec.since(t)) >= 3, timeout=5)  # not interrupted by a refused value
     after = rec.since(t)
-    assert len(after) >= 3, "stream interrupted by a refused value"
     assert all(decoded_size(f.data) == (352, 288) for f in after[-2:])
     assert video_count(camera) == before, "the camera saw a request for refused values"
     values = get_params(ros, probe, "fps", "resolution", "compression")
@@ -297,10 +300,13 @@ def test_service_sets_several_atomically(ros, camera):
     values = get_params(ros, probe, "fps", "resolution", "compression")
     assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (5, "176x144", 80)
     t = time.monotonic()
-    time.sleep(1.3)
-    got = rec.since(t)
-    assert decoded_size(got[-1].data) == (176, 144)
-    assert rate(got) == pytest.approx(5.0, rel=0.3)
+
+    def small() -> list[Frame]:
+        return [f for f in rec.since(t) if decoded_size(f.data) == (176, 144)]
+
+    ros.wait_for(lambda: len(small()) >= 7, timeout=5)
+    assert decoded_size(rec.since(t)[-1].data) == (176, 144)
+    assert camera_rate(small()) == pytest.approx(5.0, rel=0.25)  # the camera's own stamps
     keep = ros.call(client, SetVideoParams.Request(fps=0, resolution="", compression=-1))
     assert keep.success
     assert (keep.params.fps, keep.params.resolution, keep.params.compression) == (5, "176x144", 80)
@@ -317,8 +323,8 @@ def test_recovers_after_reboot_stall_and_garbage(ros, camera):
     ros.wait_for(lambda: camera.rebooting, timeout=2)
     ros.wait_for(lambda: not camera.rebooting, timeout=5)
     back = time.monotonic()
-    ros.wait_for(lambda: rec.since(back), timeout=3)
-    assert rec.since(back)[0].t_rx - back < 1.0
+    ros.wait_for(lambda: rec.since(back), timeout=3)  # (how soon is a speed figure: bench_stream's recovery)
+    assert rec.since(back)[0].seq <= 5, "the first frame after the reboot is not from a new connection"
 
     # stall: the socket stays open but nothing comes; the watchdog reconnects
     camera.set_faults(stall_after_frames=3, stall_seconds=30.0)

@@ -7,6 +7,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from typing import Any
 from urllib.parse import parse_qs
 
 import httpx
@@ -16,8 +18,9 @@ import pytest
 from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Mount, PanDirection, PtzKinematics, Transform, VapixConvention, ZoomModel
 from axis_ptz_ros2.ptz.axis_backend import AxisBackend, speed_to_vapix
-from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
+from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
+from axis_ptz_ros2.ptz.commander import Commander, Order, Preemption, Tolerances, axis_value, rate_value
 from axis_ptz_ros2.ptz.control import (
     JointOffsets,
     Target,
@@ -28,6 +31,7 @@ from axis_ptz_ros2.ptz.control import (
     normalize_target,
     zoom_target,
 )
+from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.state import StatePoller
 from axis_ptz_ros2.vapix import CameraConfig, VapixClient
 from tests.unit.fixtures_vapix import LIMITS_RESPONSE, POSITION_RESPONSE
@@ -376,3 +380,301 @@ def test_ptz_core_imports_with_ros_blocked() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "ok"
+
+
+# ------------------------------------------------------------------------------------------------------
+# commander: commands that never fight (an in-memory head, no ROS)
+# ------------------------------------------------------------------------------------------------------
+class MemoryHead:
+    """A head that jumps to every accepted command; ``refuse`` makes the next commands fail like a camera
+    answering ``Error:``; ``gate`` holds a command in flight."""
+
+    def __init__(self) -> None:
+        self.pose = [0.0, 0.0, 1.0]
+        self.rates = [0.0, 0.0, 0.0]
+        self.calls: list[tuple[str, tuple[object, ...]]] = []
+        self.refuse = False
+        self.fail_next = 0  # fail this many of the next commands
+        self.gate: threading.Event | None = None
+        self.stamp = 0
+
+    def _cmd(self, name: str, *args: object) -> None:
+        if self.gate is not None:
+            self.gate.wait(5.0)
+        if self.fail_next > 0:
+            self.fail_next -= 1
+            raise PtzBackendError(f"Error: {name} refused")
+        if self.refuse and name != "velocity":
+            raise PtzBackendError(f"Error: {name} refused")
+        self.calls.append((name, args))
+
+    def limits(self) -> PtzLimitsRos:
+        return LIM
+
+    def read_state(self) -> PtzReading:
+        self.stamp += 50_000_000
+        return PtzReading(self.pose[0], self.pose[1], self.pose[2], self.stamp)
+
+    def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
+        self._cmd("move_to", pan, tilt, zoom)
+        self.rates = [0.0, 0.0, 0.0]
+        for i, v in enumerate((pan, tilt, zoom)):
+            if v is not None:
+                self.pose[i] = v
+
+    def velocity(self, pan_rate: float, tilt_rate: float, zoom_rate: float) -> None:
+        self._cmd("velocity", pan_rate, tilt_rate, zoom_rate)
+        self.rates = [pan_rate, tilt_rate, zoom_rate]
+
+    def home(self) -> None:
+        self._cmd("home")
+
+    def goto_preset(self, name: str) -> None:
+        self._cmd("goto_preset", name)
+
+    def set_preset(self, name: str) -> None:
+        self._cmd("set_preset", name)
+
+    def remove_preset(self, name: str) -> None:
+        self._cmd("remove_preset", name)
+
+    def list_presets(self) -> list[PresetInfo]:
+        return []
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.fixture
+def head_and_commander() -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
+    """A commander over the in-memory head, its state polled every 10 ms in the background."""
+    head = MemoryHead()
+    slot = CommandSlot(error_types=(PtzBackendError,))
+    slot.start()
+    poller = StatePoller(head.read_state, period_s=0.01)
+    cmd = Commander(head, slot, poller, lambda: LIM, tolerances=Tolerances(0.002, 2.0, 0.5))
+    stop = threading.Event()
+
+    def polls() -> None:
+        while not stop.is_set():
+            poller.poll()
+            stop.wait(0.01)
+
+    poller.poll()
+    th = threading.Thread(target=polls, daemon=True)
+    th.start()
+    try:
+        yield head, cmd, poller
+    finally:
+        stop.set()
+        th.join()
+        slot.stop()
+
+
+class RosFreeWait:
+    @staticmethod
+    def until(predicate: Any, timeout: float = 5.0) -> None:
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            assert time.monotonic() < deadline, "timed out"
+            time.sleep(0.005)
+
+
+def _done(order: Order) -> None:
+    assert order.ticket is not None, order.reason
+    assert order.ticket.wait(5.0)
+
+
+def test_infinite_fields_are_refused_never_read_as_keep_or_stop() -> None:
+    assert axis_value(float("nan"), "pan") is None
+    assert axis_value(0.25, "pan") == 0.25
+    for v in (math.inf, -math.inf):
+        with pytest.raises(ValueError, match="inf"):
+            axis_value(v, "tilt")
+        with pytest.raises(ValueError, match="finite"):
+            rate_value(v, "pan_rate")
+    with pytest.raises(ValueError, match="finite"):
+        rate_value(float("nan"), "zoom_rate")
+
+
+def test_infinite_velocity_is_refused_not_sent(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    order = cmd.velocity(math.inf, 0.0, 0.0)
+    assert order.refused
+    assert "finite" in order.reason
+    assert cmd.velocity(0.1, float("nan"), 0.0).refused
+    assert head.calls == []
+    assert cmd.stats.refused == 2
+
+
+def test_target_is_recorded_on_acceptance_not_submission(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    _done(cmd.move("abs", 0.5, 0.1, 1000.0))
+    assert cmd.target == Target(0.5, 0.1, 1000.0)
+    head.refuse = True
+    order = cmd.move("rel", 0.2, None, None, relative=True)
+    _done(order)
+    assert order.ticket.outcome is Outcome.FAILED
+    assert cmd.target == Target(0.5, 0.1, 1000.0)  # the refused step never became the target
+    head.refuse = False
+    _done(cmd.move("rel", 0.1, None, None, relative=True))
+    assert head.calls[-1] == ("move_to", (pytest.approx(0.6), pytest.approx(0.1), 1000.0))
+    assert cmd.target is not None
+    assert cmd.target.pan == pytest.approx(0.6)
+
+
+def test_queued_relative_steps_compose_and_are_rebased_after_a_failure(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    _done(cmd.move("abs", 0.0, 0.0, 1.0))
+    head.gate = threading.Event()
+    head.fail_next = 1
+    in_flight = cmd.move("rel", 0.3, None, None, relative=True)  # will fail
+    assert in_flight.ticket is not None
+    RosFreeWait.until(lambda: in_flight.ticket.started_ns > 0)
+    queued = [cmd.move("rel", 0.01, None, None, relative=True) for _ in range(5)]
+    assert all(q.ticket is not None for q in queued)
+    assert queued[-1].target is not None
+    assert queued[-1].target.pan == pytest.approx(0.35)  # provisional: assumes the one in flight succeeds
+    head.gate.set()
+    _done(in_flight)
+    assert in_flight.ticket.outcome is Outcome.FAILED
+    _done(queued[-1])
+    # the failed 0.3 is gone; the five queued 0.01 steps were superseded into one request of their sum
+    sent = [c for c in head.calls if c[0] == "move_to"]
+    assert sent[-1][1][0] == pytest.approx(0.05)
+    assert [q.ticket.outcome for q in queued[:-1]] == [Outcome.SUPERSEDED] * 4
+
+
+def test_a_move_ends_velocity_mode_so_the_watchdog_never_stops_it(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    _done(cmd.velocity(0.5, 0.0, 0.0))
+    assert cmd.velocity_active
+    _done(cmd.home())
+    assert not cmd.velocity_active
+    time.sleep(0.6)  # past velocity_timeout (0.5 s)
+    assert cmd.check_velocity_timeout() is False
+    assert [c[0] for c in head.calls] == ["velocity", "move_to"]
+    assert head.calls[-1][1] == (0.0, 0.0, 1.0)  # home: pan 0, tilt 0, widest zoom
+    # without the move the watchdog does stop a stale velocity command
+    _done(cmd.velocity(0.0, 0.3, 0.0))
+    assert cmd.check_velocity_timeout() is False  # fresh
+    time.sleep(0.6)
+    assert cmd.check_velocity_timeout() is True
+    deadline = time.monotonic() + 2.0
+    while head.calls[-1] != ("velocity", (0.0, 0.0, 0.0)) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert head.calls[-1] == ("velocity", (0.0, 0.0, 0.0))
+
+
+def test_a_failed_move_after_velocity_stops_the_head(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    _done(cmd.velocity(0.5, 0.0, 0.0))
+    head.refuse = True
+    order = cmd.goto_preset("nowhere")
+    _done(order)
+    assert order.ticket.outcome is Outcome.FAILED
+    assert head.rates == [0.0, 0.0, 0.0]  # the continuous motion was stopped, not left running
+    assert cmd.stats.halted_after_failure == 1
+
+
+def test_refused_at_submission_keeps_velocity_mode(head_and_commander: Any) -> None:
+    _, cmd, _ = head_and_commander
+    _done(cmd.velocity(0.5, 0.0, 0.0))
+    order = cmd.move("abs", math.radians(200.0), None, None)
+    assert order.refused
+    assert "limits" in order.reason
+    assert cmd.velocity_active  # the watchdog still guards the running velocity command
+
+
+def test_track_reports_arrival_short_stop_and_supersession(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    order = cmd.move("abs", 0.2, None, None)
+    _done(order)
+    steps = list(cmd.track(order, 2.0))
+    assert steps[-1].done
+    assert steps[-1].success, steps[-1].message
+    assert "arrived" in steps[-1].message
+    # the head stops short (another client / a camera clamp): reported with where it is, after settling
+    order = cmd.move("abs", 0.4, None, None)
+    _done(order)
+    head.pose[0] = 0.3
+    steps = list(cmd.track(order, 5.0))
+    assert not steps[-1].success
+    assert "stopped at" in steps[-1].message
+    assert steps[-1].error[0] == pytest.approx(0.1)
+    # a newer command supersedes the one being followed
+    order = cmd.move("abs", 0.1, None, None)
+    _done(order)
+    gen = cmd.generation
+    _done(cmd.move("abs", 0.15, None, None))
+    assert cmd.generation == gen + 1
+    steps = list(cmd.track(order, 2.0))
+    assert not steps[-1].success
+    assert "superseded" in steps[-1].message
+
+
+def test_presets_are_tracked_to_a_known_pose(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    _done(cmd.move("abs", 0.3, -0.1, 2500.0))
+    poller.wait_for(lambda s: s.reading.zoom == 2500.0 and not s.head_moving, 2.0)
+    assert cmd.set_preset("door").wait(2.0)
+    assert cmd.preset_pose("door") == Target(0.3, -0.1, 2500.0)
+    order = cmd.goto_preset("door")
+    assert order.target == Target(0.3, -0.1, 2500.0)
+    assert cmd.remove_preset("door").wait(2.0)
+    assert cmd.preset_pose("door") is None
+
+
+def test_zoom_cap_caps_commands_and_restores_the_operators_zoom(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    _done(cmd.move("abs", 0.1, 0.0, 8000.0))
+    poller.wait_for(lambda s: s.reading.zoom == 8000.0, 2.0)
+    order = cmd.set_zoom_cap(4000.0)
+    assert order is not None
+    _done(order)
+    assert head.pose[2] == 4000.0
+    assert cmd.requested_zoom == 8000.0
+    assert cmd.target == Target(0.1, 0.0, 8000.0)  # the operator's target is kept
+    _done(cmd.move("rel", None, None, 500.0, relative=True))  # zoom in while capped: held at the cap
+    assert head.pose[2] == 4000.0
+    assert cmd.requested_zoom == 8500.0
+    _done(cmd.move("abs", None, None, 2000.0))  # below the cap: obeyed
+    assert head.pose[2] == 2000.0
+    _done(cmd.move("abs", None, None, 9000.0))
+    poller.wait_for(lambda s: s.reading.zoom == 4000.0, 2.0)
+    order = cmd.set_zoom_cap(None)
+    assert order is not None
+    _done(order)
+    assert head.pose[2] == 9000.0  # restored
+    assert cmd.zoom_cap is None
+
+
+def test_drive_safe_zoom_thresholds_and_hold() -> None:
+    clock = FakeClock()
+    d = DriveSafeZoom(DriveSafeConfig(speed_mps=0.2, turn_rps=0.3, zoom_cap=4000.0, hold_s=2.0), clock=clock)
+    assert not d.update(0.1, 0.1)
+    assert d.update(0.25, 0.0)
+    assert d.update(0.0, -0.5)  # turning on the spot
+    clock.t += 1.0
+    assert d.update(0.0, 0.0)  # stopped, within the hold
+    clock.t += 1.01
+    assert not d.update(0.0, 0.0)
+    assert d.update(math.nan, 0.0)  # unknown speed: the safe side
+    clock.t += 5.0
+    assert not d.tick()  # no messages for the hold time: released
+    with pytest.raises(ValueError, match="zoom_cap"):
+        DriveSafeConfig(zoom_cap=-1.0)
+
+
+def test_preemption_bookkeeping() -> None:
+    p = Preemption()
+    p.start(b"a")
+    assert not p.preempted(b"a")
+    p.start(b"b")
+    assert p.preempted(b"a")
+    assert not p.preempted(b"b")
+    p.finish(b"a")
+    assert not p.preempted(b"a")
+    p.finish(b"b")
+    p.start(b"c")
+    assert not p.preempted(b"c")

@@ -471,3 +471,52 @@ def test_reader_never_delivers_a_frame_twice_or_after_stop(reader_factory):
     time.sleep(0.05)
     assert [j for j, _ in r.got] == [b"%d" % i for i in range(50)]
     assert r.state is StreamState.STOPPED
+
+
+class HangingOpener(FakeOpener):
+    """Connects that hang until their timeout (a camera dropping packets), scripted like FakeOpener."""
+
+    def __init__(self, hang_s: float) -> None:
+        super().__init__()
+        self.hang_s = hang_s
+
+    def __call__(self, params: VideoParams, read_timeout_s: float) -> FakeSource:
+        if self.script and isinstance(self.script[0], CameraTimeout):
+            time.sleep(self.hang_s)
+        return super().__call__(params, read_timeout_s)
+
+
+def test_reader_back_off_counts_from_the_start_of_a_hung_connect(reader_factory):
+    """A connect that hung for its whole timeout has waited already: the next try is not delayed again."""
+    opener = HangingOpener(hang_s=0.4)
+    opener.script = [CameraTimeout("connect timed out")] * 3
+    r = reader_factory(opener, ReaderConfig(backoff_initial_s=0.4, backoff_max_s=0.4))
+    wait_for(lambda: len(opener.sources) == 1, timeout=5.0)
+    starts = [t for t, _ in opener.calls]
+    gaps = [b - a for a, b in zip(starts, starts[1:], strict=False)]
+    assert len(gaps) == 3
+    # each attempt starts one back-off (0.4 s) after the previous one STARTED, not 0.4 s after it failed
+    assert all(g < 0.4 + 0.25 for g in gaps), gaps
+    assert r.stats().reconnects == 3
+
+
+def test_reader_401_right_after_frames_is_a_rebooting_camera_not_a_refused_login(reader_factory):
+    opener = FakeOpener()
+    r = reader_factory(opener, ReaderConfig(backoff_initial_s=0.05, backoff_max_s=0.1, auth_retry_s=30.0))
+    wait_for(lambda: opener.sources)
+    opener.frames.put(b"\xff\xd8a\xff\xd9")
+    wait_for(lambda: r.stats().frames == 1)
+    opener.script = [AuthError("HTTP 401"), AuthError("HTTP 401")]
+    opener.frames.put(None)  # the camera went away; while booting it answers 401
+    wait_for(lambda: len(opener.sources) == 2, timeout=3.0)  # not after auth_retry_s = 30 s
+    assert r.stats().auth_failures == 2
+    assert r.state is not StreamState.AUTH_FAILED
+
+
+def test_reader_401_without_recent_frames_waits_auth_retry(reader_factory):
+    opener = FakeOpener()
+    opener.script = [AuthError("HTTP 401")]
+    r = reader_factory(opener, ReaderConfig(auth_retry_s=30.0))
+    wait_for(lambda: r.state is StreamState.AUTH_FAILED)
+    time.sleep(0.3)
+    assert len(opener.calls) == 1
