@@ -6,6 +6,7 @@ Sub-commands::
                    [--fixed] [--out mount.yaml] [--report report.json] [--encoder-offsets] [--sigma-px 1.0]
                    [--sigma-3d 0.02] [--max-sigma-cm X] [--max-sigma-deg Y] [--no-robust] [--holdout auto]
     axis_calibrate synth OUT.yaml [--seed 0] [--views 5] [--points 8] [--pixel-noise 1] [--point-noise 0.02]
+                   [--outliers 0.1] [--distortion plumb_bob --camera-info-out ost.yaml] [--fixed]
 
     axis_calibrate capture OUT.yaml [--poses "pan_deg,tilt_deg[,zoom];..."] [--views N] [--pick none|auto]
                    [--camera-model ...] [--mount config/mount.yaml] [--robot config/robot.yaml]
@@ -45,8 +46,8 @@ from axis_ptz_ros2.calibration.correspondences import (
 )
 from axis_ptz_ros2.calibration.report import report_dict, write_report
 from axis_ptz_ros2.calibration.solver import CalibrationInputError, CalibrationResult, calibrate
-from axis_ptz_ros2.calibration.synthetic import make_scene
-from axis_ptz_ros2.camera_info import CameraInfoError, load_camera_info
+from axis_ptz_ros2.calibration.synthetic import make_fixed_scene, make_scene, real_like_camera_info
+from axis_ptz_ros2.camera_info import CameraInfoError, load_camera_info, save_camera_info
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot, save_mount
 
 
@@ -55,12 +56,12 @@ def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
     x, y, z, r, p, yw = result.xyz_rpy()
     st = result.sigma_translation_m * 100.0
     sr = np.degrees(result.sigma_rotation_rad)
-    name = "T_ref_optical" if result.fixed else "T_base_ptz"
+    name = "T_ref_opt" if result.fixed else "T_base_ptz"
     lines = [
         f"{name:<11} xyz [m]   : {x:+.4f} {y:+.4f} {z:+.4f}",
         f"            rpy [deg] : {math.degrees(r):+.3f} {math.degrees(p):+.3f} {math.degrees(yw):+.3f}",
         f"σ translation [cm]    : x {st[0]:.2f}  y {st[1]:.2f}  z {st[2]:.2f}",
-        f"σ rotation [deg]      : rotX {sr[0]:.3f}  rotY {sr[1]:.3f}  rotZ {sr[2]:.3f}  (about base axes)",
+        f"σ rotation [deg]      : rotX {sr[0]:.3f}  rotY {sr[1]:.3f}  rotZ {sr[2]:.3f}  (about parent axes)",
     ]
     if result.tilt_offset_sigma > 0:
         lines.append(
@@ -203,21 +204,60 @@ def _cmd_solve(args: argparse.Namespace) -> int:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    scene = make_scene(
-        args.seed,
-        n_views=args.views,
-        points_per_view=args.points,
-        pixel_noise_px=args.pixel_noise,
-        point_noise_m=args.point_noise,
-    )
+    if args.camera_info_out is not None and args.distortion == "none":
+        print("error: --camera-info-out needs --distortion (the nominal model has no camera_info)", file=sys.stderr)
+        return 1
+    for target, what in ((args.out, "output"), (args.camera_info_out, "--camera-info-out")):
+        if target is not None:
+            problem = _writable_target(target, what)
+            if problem:
+                print(f"error: {problem}", file=sys.stderr)
+                return 1
+    ref = None
+    if args.camera_model_ref is not None:
+        ref = Path(args.camera_model_ref).expanduser()
+        ref = ref if ref.is_absolute() else args.out.parent / ref
+    try:
+        cm = load_camera_model(ref)  # the model `solve` will load for this file
+    except ValueError as err:
+        print(f"error: camera model: {err}", file=sys.stderr)
+        return 1
+    if args.distortion != "none":
+        cm = cm.with_camera_info(real_like_camera_info(args.distortion))
+    if args.fixed:
+        scene = make_fixed_scene(
+            args.seed,
+            cm,
+            n_views=args.views,
+            points_per_view=args.points,
+            pixel_noise_px=args.pixel_noise,
+            point_noise_m=args.point_noise,
+            outlier_fraction=args.outliers,
+        )
+    else:
+        scene = make_scene(
+            args.seed,
+            n_views=args.views,
+            points_per_view=args.points,
+            pixel_noise_px=args.pixel_noise,
+            point_noise_m=args.point_noise,
+            outlier_fraction=args.outliers,
+            camera_model=cm,
+        )
     x, y, z, r, p, yw = scene.truth.xyz_rpy()
+    what = "T_reference_optical" if args.fixed else "T_base_ptz"
     comment = (
-        f"synthetic scene seed {args.seed}: true T_base_ptz xyz [{x:.4f}, {y:.4f}, {z:.4f}] m, "
+        f"synthetic scene seed {args.seed}: true {what} xyz [{x:.4f}, {y:.4f}, {z:.4f}] m, "
         f"rpy [{math.degrees(r):.3f}, {math.degrees(p):.3f}, {math.degrees(yw):.3f}] deg; "
         f"noise {args.pixel_noise} px, {args.point_noise} m"
+        + (f", {args.outliers:.0%} outliers" if args.outliers else "")
+        + (f"; raw pixels of a {args.distortion} lens" if args.distortion != "none" else "")
     )
     save_correspondences(CorrespondenceSet(scene.views, args.camera_model_ref, comment), args.out)
     print(f"wrote {args.out}: {comment}")
+    if args.camera_info_out is not None and cm.camera_info is not None:
+        save_camera_info(cm.camera_info, args.camera_info_out)
+        print(f"wrote {args.camera_info_out} (solve with --camera-info {args.camera_info_out})")
     return 0
 
 
@@ -339,6 +379,15 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--pixel-noise", type=float, default=1.0, help="px, σ per axis")
     g.add_argument("--point-noise", type=float, default=0.02, help="m, σ per axis")
     g.add_argument("--camera-model-ref", default=None, help="camera_model path to record in the file")
+    g.add_argument("--outliers", type=float, default=0.0, help="fraction of gross outliers (30–150 px)")
+    g.add_argument(
+        "--distortion",
+        choices=["none", "plumb_bob", "rational_polynomial", "equidistant"],
+        default="none",
+        help="raw pixels of a real-like measured lens (off-centre principal point, distortion)",
+    )
+    g.add_argument("--camera-info-out", type=Path, default=None, help="write that lens' camera_info YAML here")
+    g.add_argument("--fixed", action="store_true", help="a fixed camera (views without pan/tilt/zoom)")
     g.set_defaults(func=_cmd_synth)
     c = sub.add_parser("capture", help="record views (PTZ state, image, laser snapshot) from the running ROS system")
     c.add_argument("out", type=Path, help="correspondence YAML to append the views to (created if missing)")

@@ -384,7 +384,7 @@ def pick_view(
     (the laser does not see it: occluded or out of range) are dropped. The dot radius of the ``"blob"``
     refinement is the feature's."""
     H, W = image.shape[:2]
-    K = camera_model.zoom.intrinsics(zoom, W, H)
+    K = camera_model.intrinsics(zoom, W, H)  # the measured K when the model has a camera_info
     T_guess = T_base_ptz_guess @ camera_model.head.optical_in_ptz_base(pan, tilt)
     out: list[PickedPoint] = []
     for dot, feat in associate_dots(detect_dots(image), features, T_guess, K, max_angle_deg=max_angle_deg):
