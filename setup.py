@@ -14,7 +14,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PKG}"]),
         (f"share/{PKG}", ["package.xml"]),
-        (f"share/{PKG}/config", glob("config/*.yaml")),
+        (f"share/{PKG}/config", glob("config/*.yaml") + glob("config/*.xml")),
         (f"share/{PKG}/launch", glob("launch/*.launch.py")),
         (f"share/{PKG}/urdf", glob("urdf/*.urdf") + glob("urdf/*.xacro")),
     ],

@@ -199,7 +199,7 @@ class CameraProfile:
         api = f"VAPIX HTTP API v{self.api_version}" if self.api_version is not None else "VAPIX version unknown"
         return (
             f"camera: {self.product} (ProdNbr {self.prod_nbr or '?'}, firmware {self.firmware}), {api}, "
-            f"{'HTTPS' if self.https else 'HTTP'} auth {self.auth}; video {video}, {pixels}; {ptz}; "
+            f"{'HTTPS' if self.https else 'HTTP'} with {self.auth} auth; video {video}, {pixels}; {ptz}; "
             f"{len(self.presets)} presets; camera model {self.model.name!r} from {self.model_source}"
         )
 
@@ -218,6 +218,12 @@ def _video_standard(client: VapixClient, resolutions: tuple[Resolution, ...]) ->
             return "NTSC"
         return "PAL"
     return "digital"
+
+
+def _auth_in_use(client: VapixClient) -> str:
+    """The scheme the camera made us use (Digest/Basic), or anonymous if it asked for none."""
+    scheme = getattr(getattr(client, "_auth", None), "scheme", None)  # negotiated on the first 401
+    return str(scheme.value) if scheme is not None else "anonymous"
 
 
 def discover(client: VapixClient, model_file: str = "", auth_label: str = "") -> CameraProfile:
@@ -263,7 +269,7 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
         optics=optics,
         presets=presets,
         https=client.config.use_https,
-        auth=auth_label or client.config.auth,
+        auth=auth_label or _auth_in_use(client),
         model=model,
         model_source=source,
     )

@@ -36,6 +36,8 @@ from axis_ptz_ros2.vapix import CameraConfig
 STREAM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Commands: the newest wins; a small queue absorbs bursts.
 COMMAND_QOS = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: Consumer feedback (video/feedback): periodic reports, only the newest matters, never repaired late.
+FEEDBACK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Latched values (video/params): late joiners get the value in effect.
 LATCHED_QOS = QoSProfile(
     depth=1,

@@ -9,14 +9,18 @@ the parent process (in another network namespace) sees arrivals live:
 - ``{"t": "joint_states", "rx": ..., "names": [...]}``
 - ``{"t": "video/params", "rx": ..., "fps": ..., "resolution": ..., "compression": ..., "source": ...}``
 
-Commands arrive as JSON lines on stdin: ``{"cmd": "relative", "pan": <rad>, "tilt": <rad>, "zoom": <units>,
-"id": <n>}`` publishes ``ptz/cmd/relative`` and prints ``{"t": "sent", "id": n, "tx": <time_ns>}``.
+It reports what it receives on ``video/feedback`` like any operator-side viewer (``--no-feedback``: not).
+
+Commands arrive as JSON lines on stdin: ``{"cmd": "relative" | "absolute", "pan": <rad>, "tilt": <rad>,
+"zoom": <units>, "id": <n>}`` publishes ``ptz/cmd/relative`` / ``ptz/cmd/absolute`` (absolute: a missing axis
+is kept) and prints ``{"t": "sent", "id": n, "tx": <time_ns>}``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import threading
 import time
@@ -29,6 +33,7 @@ from sensor_msgs.msg import CompressedImage, JointState
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, VideoParams
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS
+from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.streaming import jpeg_size, sim_stamp
 
 _lock = threading.Lock()
@@ -48,7 +53,7 @@ def _ns(stamp: Any) -> int:
 class LinkProbe(Node):
     """Subscribes to what an operator station uses and reports every arrival."""
 
-    def __init__(self, topics: set[str], image_qos: str) -> None:
+    def __init__(self, topics: set[str], image_qos: str, feedback: bool = True) -> None:
         super().__init__("link_probe")
         qos = STREAM_QOS
         if image_qos == "best_effort":
@@ -64,10 +69,17 @@ class LinkProbe(Node):
         if "video/params" in topics:
             self.create_subscription(VideoParams, "video/params", self._on_params, LATCHED_QOS)
         self._rel = self.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
+        self._abs = self.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS)
+        # the operator's viewer reports what it receives, as the web console does (video/feedback)
+        self.feedback = FeedbackPublisher(self) if feedback and "image" in topics else None
+        if self.feedback is not None:
+            self.feedback.watch()
 
     def _on_image(self, msg: CompressedImage) -> None:
         rx = time.time_ns()
         data = bytes(msg.data)
+        if self.feedback is not None:
+            self.feedback.add(msg, len(data))
         st = sim_stamp(data)
         size = jpeg_size(data) or (0, 0)
         _emit(
@@ -112,13 +124,16 @@ class LinkProbe(Node):
             }
         )
 
-    def send_relative(self, cmd: dict[str, Any]) -> None:
+    def send_command(self, cmd: dict[str, Any]) -> None:
+        """Publish a relative or absolute PTZ command (absolute: NaN keeps an axis)."""
+        keep = 0.0 if cmd["cmd"] == "relative" else math.nan
         msg = PtzCommand()
-        msg.pan = float(cmd.get("pan", 0.0))
-        msg.tilt = float(cmd.get("tilt", 0.0))
-        msg.zoom = float(cmd.get("zoom", 0.0))
+        msg.pan = float(cmd.get("pan", keep))
+        msg.tilt = float(cmd.get("tilt", keep))
+        msg.zoom = float(cmd.get("zoom", keep))
+        msg.speed = math.nan
         tx = time.time_ns()
-        self._rel.publish(msg)
+        (self._rel if cmd["cmd"] == "relative" else self._abs).publish(msg)
         _emit({"t": "sent", "id": cmd.get("id", 0), "tx": tx})
 
 
@@ -132,8 +147,8 @@ def _read_commands(node: LinkProbe) -> None:
         except ValueError:
             _emit({"t": "error", "what": f"bad command line {line[:80]!r}"})
             continue
-        if cmd.get("cmd") == "relative":
-            node.send_relative(cmd)
+        if cmd.get("cmd") in ("relative", "absolute"):
+            node.send_command(cmd)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -141,9 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--topics", default="image,ptz/state,joint_states,video/params")
     ap.add_argument("--image-qos", choices=("reliable", "best_effort"), default="reliable")
+    ap.add_argument("--no-feedback", action="store_true", help="do not publish video/feedback")
     args, ros_args = ap.parse_known_args(argv)
     rclpy.init(args=["link_probe", *ros_args])
-    node = LinkProbe(set(args.topics.split(",")), args.image_qos)
+    node = LinkProbe(set(args.topics.split(",")), args.image_qos, feedback=not args.no_feedback)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     threading.Thread(target=_read_commands, args=(node,), daemon=True).start()

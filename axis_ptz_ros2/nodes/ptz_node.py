@@ -284,6 +284,8 @@ class PtzNode(Node):
         self.create_service(Preset, "ptz/preset", self._srv_preset, callback_group=s)
         self.create_service(ListPresets, "ptz/list_presets", self._srv_list_presets, callback_group=s)
         self._move_goals = Preemption()
+        self._move_orders: dict[bytes, Order] = {}
+        self._move_orders_lock = threading.Lock()
         self._action_server = ActionServer(
             self,
             PtzMove,
@@ -710,7 +712,14 @@ class PtzNode(Node):
         return self._cmd.refuse("move", f"unknown goal kind {g.kind} (0..5: ABSOLUTE..PRESET)")
 
     def _accept_move(self, goal: ServerGoalHandle) -> None:
-        self._move_goals.start(bytes(goal.goal_id.uuid))
+        """Submit the goal's order now; a valid one pre-empts the running goal (an invalid one does not: it
+        ends aborted with the reason and the running goal keeps the head)."""
+        key = bytes(goal.goal_id.uuid)
+        order = self._goal_order(goal.request)
+        with self._move_orders_lock:
+            self._move_orders[key] = order
+        if not order.refused:
+            self._move_goals.start(key)
         goal.execute()
 
     def _execute_move(self, goal: ServerGoalHandle) -> PtzMove.Result:
@@ -718,7 +727,10 @@ class PtzNode(Node):
         key = bytes(goal.goal_id.uuid)
         result = PtzMove.Result()
         try:
-            order = self._goal_order(goal.request)
+            with self._move_orders_lock:
+                order = self._move_orders.pop(key, None)
+            if order is None:
+                order = self._goal_order(goal.request)
 
             def interrupted() -> bool:
                 return goal.is_cancel_requested or self._move_goals.preempted(key)

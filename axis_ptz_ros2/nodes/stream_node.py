@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, CompressedImage
 
-from axis_ptz_interfaces.msg import PtzState
+from axis_ptz_interfaces.msg import LinkFeedback, PtzState
 from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
 from axis_ptz_interfaces.srv import SetVideoParams
 from axis_ptz_ros2.camera_info import fill_camera_info_msg
@@ -38,6 +38,7 @@ from axis_ptz_ros2.camera_models import discover, load_generic_base
 from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.nodes.common import (
     CONNECTION_PARAMS,
+    FEEDBACK_QOS,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
@@ -59,6 +60,7 @@ from axis_ptz_ros2.streaming import (
     StreamState,
     jpeg_size,
 )
+from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter
 from axis_ptz_ros2.vapix import (
     AuthError,
     AxisPtzError,
@@ -92,6 +94,25 @@ PARAMS: tuple[ParamSpec, ...] = (
         60,
         "highest compression the budget may choose before lowering fps",
         int_range=(0, 100),
+    ),
+    ParamSpec(
+        "budget_min_fps",
+        15,
+        "the budget lowers fps only down to this before lowering the resolution (then below it)",
+        "1/s",
+        int_range=(1, 30),
+    ),
+    ParamSpec(
+        "adapt_to_link",
+        True,
+        "follow the consumers' video/feedback: a budget from what arrives at them (see README, Weak link)",
+    ),
+    ParamSpec(
+        "link_release",
+        30.0,
+        "drop the feedback budget after this long without a report (held through shorter silences: link cuts)",
+        "s",
+        float_range=(2.0, 3600.0),
     ),
     ParamSpec(
         "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
@@ -138,7 +159,7 @@ PARAMS: tuple[ParamSpec, ...] = (
 )
 _SPECS = {s.name: s for s in PARAMS}
 _AUTO_PLACEHOLDER = Resolution(704, 576)  # resolution "" while the camera cannot list its sizes (retried)
-_VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression")
+_VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps")
 # DiagnosticStatus.OK etc. are 1-byte ``bytes`` in rclpy; common.diagnostic wants the integer
 _OK, _WARN, _ERROR, _STALE = (
     ord(x) for x in (DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE)
@@ -177,6 +198,8 @@ class StreamNode(Node):
         # Until the camera has said what it is: the named file, else the generic model (replaced on discovery).
         self._model = load_camera_model(self._model_file) if self._model_file else load_generic_base()
         self._profile_logged = False
+        self._learn_lock = threading.Lock()
+        self._learned: tuple[Resolution, ...] = ()  # the camera's resolution list once asked successfully
         self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
         self._params_source = "startup"  # cause of the video parameters in effect (VideoParams.source)
         self._resolutions_pending = False
@@ -211,8 +234,12 @@ class StreamNode(Node):
             requested,
             float(p["max_bitrate_kbps"]),
             AXIS214_PAL_RESOLUTIONS,
-            BudgetConfig(max_compression=int(p["budget_max_compression"])),
+            BudgetConfig(max_compression=int(p["budget_max_compression"]), min_fps=int(p["budget_min_fps"])),
         )
+        self._hand_budget = float(p["max_bitrate_kbps"])
+        self._adapt = bool(p["adapt_to_link"])
+        self._link = LinkAdapter(AdapterConfig(release_s=float(p["link_release"])))
+        self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)
         self._lazy = bool(p["lazy"])
         self._image_wanted = False
         self._info_wanted = False
@@ -237,7 +264,11 @@ class StreamNode(Node):
         self.add_post_set_parameters_callback(self._apply_params)
         self._publish_params("startup")
         self._budget_check = 0.0
+        self._link_decision: Decision | None = None
         self._reader.start()
+        self._stopping = threading.Event()
+        self._learner = threading.Thread(target=self._learn_loop, name="axis-stream-learn", daemon=True)
+        self._learner.start()
         # Activity follows publisher-matched events at once; this 1 Hz timer is only the fallback poll,
         # the byte-trickle watchdog (a silent socket is caught by the read timeout) and diagnostics.
         self._timer = self.create_timer(1.0, self._housekeeping)
@@ -296,22 +327,31 @@ class StreamNode(Node):
             self._update_activity()
         if "zoom" in names:
             self._zoom_param = float(self.get_parameter("zoom").value)
+        if "adapt_to_link" in names or "link_release" in names:
+            with self._lock:
+                self._adapt = bool(self.get_parameter("adapt_to_link").value)
+                self._link = LinkAdapter(AdapterConfig(release_s=float(self.get_parameter("link_release").value)))
+                self._budget.set_budget(self._effective_budget(), time.monotonic())
         if names & set(_VIDEO):
             values = self._current_values()
             requested = self._requested_from(values)
             with self._lock:
-                if "budget_max_compression" in names:
+                self._hand_budget = float(values["max_bitrate_kbps"])
+                if names & {"budget_max_compression", "budget_min_fps"}:
                     self._budget = BandwidthController(
                         requested,
-                        float(values["max_bitrate_kbps"]),
+                        self._effective_budget(),
                         self._known_resolutions(),
-                        BudgetConfig(max_compression=int(values["budget_max_compression"])),
+                        BudgetConfig(
+                            max_compression=int(values["budget_max_compression"]),
+                            min_fps=int(values["budget_min_fps"]),
+                        ),
                     )
                     current = self._budget.current
                 else:
                     current = self._budget.configure(
                         requested=requested,
-                        budget_kbps=float(values["max_bitrate_kbps"]),
+                        budget_kbps=self._effective_budget(),
                         now=time.monotonic(),
                     )
             self._reader.set_params(current)
@@ -385,22 +425,46 @@ class StreamNode(Node):
 
     def _open_http(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
         if self._resolutions is None:
-            listed = self._learn_camera()
-            if listed:
-                with self._lock:
-                    self._resolutions = listed
-                    self._resolutions_pending = True
-                    if not str(self.get_parameter("resolution").value).strip():  # auto: the camera's largest
-                        auto = VideoParams(
-                            self._resolution_from(""), params.fps, params.compression, camera=params.camera
-                        )
-                        if auto.resolution != params.resolution:
-                            params = self._budget.configure(requested=auto, resolutions=listed, now=time.monotonic())
-                            self._reader.set_params(params)  # the reader adopts it; this stream already has it
+            params = self._adopt(self._learn_camera(), params)
         return self._client.open_mjpeg(params, read_timeout_s)
+
+    def _adopt(self, listed: tuple[Resolution, ...], params: VideoParams) -> VideoParams:
+        """Take the camera's resolution list (once); with resolution '' switch to its largest size."""
+        if not listed:
+            return params
+        with self._lock:
+            if self._resolutions is not None:
+                return self._reader.params
+            self._resolutions = listed
+            self._resolutions_pending = True  # housekeeping republishes video/params
+            if not str(self.get_parameter("resolution").value).strip():  # auto: the camera's largest
+                auto = VideoParams(self._resolution_from(""), params.fps, params.compression, camera=params.camera)
+                if auto.resolution != params.resolution:
+                    params = self._budget.configure(requested=auto, resolutions=listed, now=time.monotonic())
+                    self._reader.set_params(params)  # the reader adopts it (a stream open now already has it)
+        return params
+
+    def _learn_loop(self) -> None:
+        """Learn the camera at start-up even while nobody subscribes (lazy): video/params then advertises the
+        camera's real sizes at once. Retries with back-off until the camera answers (or the stream did it)."""
+        delay = 0.5
+        while not self._stopping.is_set() and self._resolutions is None:
+            try:
+                self._adopt(self._learn_camera(), self._reader.params)
+            except AuthError:
+                return  # a refused login: the reader reports it and retries at its own pace (and learns then)
+            if self._resolutions is not None or self._stopping.wait(delay):
+                return
+            delay = min(10.0, delay * 2.0)
 
     def _learn_camera(self) -> tuple[Resolution, ...]:
         """Ask the camera what it is (once): resolutions, pixel aspect, model; one summary line in the log."""
+        with self._learn_lock:  # the start-up learner and the reader's first connection: one asks, one waits
+            if not self._learned:
+                self._learned = self._learn_camera_locked()
+            return self._learned
+
+    def _learn_camera_locked(self) -> tuple[Resolution, ...]:
         try:
             profile = discover(self._client, self._model_file)
         except AuthError:
@@ -443,13 +507,43 @@ class StreamNode(Node):
                 self._info_cache[key] = info
             info.header.stamp = stamp
             self._info_pub.publish(info)
-        if self._budget.budget_kbps > 0:
+        if self._budget.budget_kbps > 0 or self._budget.level != 0:
             now = time.monotonic()
             if now - self._budget_check >= 0.25:
                 self._check_budget(now)
 
     def _on_ptz_state(self, msg: PtzState) -> None:
         self._zoom_ptz = float(msg.zoom)
+
+    # -- link adaptation ---------------------------------------------------------------------------------------
+    def _effective_budget(self) -> float:
+        """The tighter of the hand-set budget and the link's (0 = none); call with the lock held."""
+        budgets = [b for b in (self._hand_budget, self._link.budget_kbps if self._adapt else 0.0) if b > 0]
+        return min(budgets) if budgets else 0.0
+
+    def _on_feedback(self, msg: LinkFeedback) -> None:
+        """A consumer's report: what it receives, against what was sent over the same window."""
+        if not self._adapt:
+            return
+        now = time.monotonic()
+        sent = self._reader.meter.rate(now)
+        if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
+            return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
+        report = FeedbackReport(
+            consumer=str(msg.consumer),
+            frames=int(msg.frames),
+            fps=float(msg.fps),
+            kbps=float(msg.kbps),
+            delay_p95_s=float(msg.delay_p95_s),
+            delay_min_s=float(msg.delay_min_s),
+            gap_s=float(msg.gap_s),
+        )
+        with self._lock:
+            level = self._budget.level
+            step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
+            decision = self._link.report(now, report, sent.fps, sent.kbps, step_up)
+            self._link_decision = decision
+            self._budget.set_budget(self._effective_budget(), now)
 
     # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------
     def _want_active(self) -> bool:
@@ -467,6 +561,11 @@ class StreamNode(Node):
         self._update_activity()
         self._reader.check_watchdog()
         with self._lock:
+            if self._adapt:
+                before = self._link.budget_kbps
+                self._link.tick(time.monotonic())
+                if self._link.budget_kbps != before:  # released after a long silence: back to the hand budget
+                    self._budget.set_budget(self._effective_budget(), time.monotonic())
             learned = self._resolutions_pending and bool(self._resolutions)
             if learned:
                 self._resolutions_pending = False
@@ -480,7 +579,7 @@ class StreamNode(Node):
         self._budget_check = now
         reader = self._reader
         with self._lock:
-            if self._budget.budget_kbps <= 0:
+            if self._budget.budget_kbps <= 0 and self._budget.level == 0:
                 return
             rate = reader.meter.rate(now)
             choice = self._budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
@@ -495,7 +594,13 @@ class StreamNode(Node):
             return
         self._log_throttle[key] = now
         logger = self.get_logger()
-        {"info": logger.info, "warn": logger.warning, "error": logger.error}[level](text)
+        # One call site per severity: rclpy refuses a second severity from the same caller line.
+        if level == "info":
+            logger.info(text)
+        elif level == "warn":
+            logger.warning(text)
+        else:
+            logger.error(text)
 
     def _on_reader_event(self, state: StreamState, message: str) -> None:
         """Reader state changes and errors (reader thread); throttled so an absent camera is not spammed."""
@@ -536,6 +641,9 @@ class StreamNode(Node):
             "requested": f"{vp.resolution} @ {vp.fps} fps, compression {vp.compression}",
             "max_bitrate_kbps": int(self._budget.budget_kbps),
             "budget level": self._budget.level,
+            "link budget [kbit/s]": self._link.budget_kbps if self._adapt else 0.0,
+            "link state": self._link.state if self._adapt else "off",
+            "link queue delay [s]": self._link_decision.queue_delay_s if self._link_decision else float("nan"),
             "last error": s.last_error,
             **self._client.auth_counters.as_dict(),
         }
@@ -552,9 +660,15 @@ class StreamNode(Node):
 
     def destroy_node(self) -> None:
         """Stop and join the reader thread (closing the stream from outside), then the node."""
+        stopping = getattr(self, "_stopping", None)
+        if stopping is not None:
+            stopping.set()
         reader = getattr(self, "_reader", None)
         if reader is not None:
             reader.stop(1.5)
+        learner = getattr(self, "_learner", None)
+        if learner is not None:
+            learner.join(2.0)
         client = getattr(self, "_client", None)
         if client is not None:
             client.close()

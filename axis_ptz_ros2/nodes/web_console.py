@@ -45,6 +45,7 @@ from axis_ptz_interfaces.msg import PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoParams
 from axis_ptz_ros2.config import RobotConfig, load_robot
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import panorama_ray, point_along_ray
 from axis_ptz_ros2.teleop import keymap
@@ -232,6 +233,8 @@ class WebConsole(Node):
         self._set_video = self.create_client(SetVideoParams, "video/set_params", callback_group=self._cli_group)
         self._param_clients: dict[str, Client] = {}
         self._vel_pub = self.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
+        # what the relayed PTZ video looks like on arrival, for the stream's link adaptation (video/feedback)
+        self._feedback = FeedbackPublisher(self, self.p["ptz_topic"], callback_group=self._in_group)
 
         # --- HTTP
         token = self._load_token()
@@ -312,8 +315,12 @@ class WebConsole(Node):
                     # whenever the last viewer leaves
                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                 )
+                if name == "ptz":
+                    self._feedback.watch()
             elif have and not want:
                 self.destroy_subscription(self._image_subs.pop(name))
+                if name == "ptz":
+                    self._feedback.stop()
 
     def _frame_callback(self, name: str) -> Callable[[CompressedImage], None]:
         slot, meter = self._slots[name], self._meters[name]
@@ -322,6 +329,7 @@ class WebConsole(Node):
             data = msg.data.tobytes() if hasattr(msg.data, "tobytes") else bytes(msg.data)
             meter.add(len(data))
             if name == "ptz":
+                self._feedback.add(msg, len(data))
                 stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
                 if stamp > 0:
                     with self._lock:
@@ -401,6 +409,8 @@ class WebConsole(Node):
                 "zoom": s.zoom, "magnification": s.magnification, "hfov_deg": math.degrees(s.hfov),
                 "vfov_deg": math.degrees(s.vfov), "moving": bool(s.moving), "age_s": now - s_t,
                 "zoom_min": s.zoom_min, "zoom_max": s.zoom_max,
+                # drive-safe zoom (the PTZ node's drive_* parameters): NaN cap = off, shown as null
+                "zoom_capped": bool(s.zoom_capped), "zoom_cap": s.zoom_cap, "requested_zoom": s.requested_zoom,
             }  # fmt: skip
         video: dict[str, Any] | None = None
         if v is not None:

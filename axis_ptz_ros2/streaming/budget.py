@@ -40,6 +40,7 @@ class BudgetConfig:
     compression_step: int = 10
     max_compression: int = 60  # thesis §6: "values greater than 60 should not be used"
     fps_steps: tuple[int, ...] = (25, 20, 15, 10, 5, 2, 1)
+    min_fps: int = 1  # lower fps only down to this before lowering the resolution (then below it)
     down_fraction: float = 0.9  # after stepping down, aim at a predicted rate below this
     up_fraction: float = 0.8  # step up only if the prediction stays below this ...
     up_hold_s: float = 3.0  # ... for this long
@@ -54,7 +55,8 @@ class BandwidthController:
 
     The ladder starts at the requested parameters (level 0) and degrades one knob at a time:
     compression in steps of ``compression_step`` up to ``max_compression``, then fps through
-    ``fps_steps``, then resolution through the smaller supported sizes. Over budget, it jumps straight
+    ``fps_steps`` down to ``min_fps``, then resolution through the smaller supported sizes, then fps below
+    ``min_fps``. Over budget, it jumps straight
     to the first level predicted under ``down_fraction`` of the budget; with room, it climbs one level
     once the prediction for it has stayed under ``up_fraction`` for ``up_hold_s``. Predictions scale
     the observed bytes per frame (per resolution and compression, learned as it goes) by pixel count
@@ -124,6 +126,17 @@ class BandwidthController:
         self._up_since = None
         return self.current
 
+    def set_budget(self, budget_kbps: float, now: float) -> None:
+        """Change the budget but keep the level (the next :meth:`update` re-judges it): for a budget that
+        follows the link, where restarting from the request at every change would flood the link."""
+        budget = float(budget_kbps)
+        if budget == self._budget:
+            return
+        self._budget = budget
+        self._up_since = None
+        if self._changed_at is None:
+            self._changed_at = now
+
     def _build_ladder(self) -> tuple[VideoParams, ...]:
         cfg = self._config
         p = self._requested
@@ -134,7 +147,7 @@ class BandwidthController:
             ladder.append(replace(p, compression=comp))
         last = ladder[-1]
         for fps in cfg.fps_steps:
-            if fps < last.fps:
+            if cfg.min_fps <= fps < last.fps:
                 last = replace(last, fps=fps)
                 ladder.append(last)
         pixels = p.resolution.width * p.resolution.height
@@ -144,7 +157,12 @@ class BandwidthController:
             reverse=True,
         )
         for res in smaller:
-            ladder.append(replace(last, resolution=res))
+            last = replace(last, resolution=res)
+            ladder.append(last)
+        for fps in cfg.fps_steps:
+            if fps < min(cfg.min_fps, last.fps):
+                last = replace(last, fps=fps)
+                ladder.append(last)
         return tuple(ladder)
 
     # -- prediction ----------------------------------------------------------------------------------------

@@ -35,6 +35,8 @@ from typing import Any
 
 import httpx
 
+from axis_ptz_ros2.vapix.errors import ResponseParseError, describe_request
+
 __all__ = [
     "AuthCounters",
     "AuthMode",
@@ -139,6 +141,28 @@ _HASHES: dict[str, Callable[[bytes], Any]] = {
     "SHA-256": hashlib.sha256,
     "SHA-256-SESS": hashlib.sha256,
 }
+
+
+MAX_CHALLENGE_BODY_BYTES = 64 << 10  #: a 401 page bigger than this is not a camera's challenge page
+
+
+def _read_challenge_body(response: httpx.Response) -> None:
+    """Read the body of a 401 we answer with another request, capped: httpx would otherwise read all of it
+    (to reuse the connection) and an endless 401 body would grow without bound."""
+    if hasattr(response, "_content"):
+        return
+    chunks: list[bytes] = []
+    size = 0
+    for chunk in response.iter_bytes():
+        size += len(chunk)
+        if size > MAX_CHALLENGE_BODY_BYTES:
+            response.close()
+            raise ResponseParseError(
+                f"{describe_request(response.request)}: 401 reply larger than {MAX_CHALLENGE_BODY_BYTES} bytes: "
+                "not a camera's challenge (check the port)"
+            )
+        chunks.append(chunk)
+    response._content = b"".join(chunks)  # noqa: SLF001 - httpx then re-uses it instead of reading again
 
 
 class AuthCounters:
@@ -338,6 +362,7 @@ class NegotiatingAuth(httpx.Auth):
                 del request.headers["Authorization"]
                 if not self._sign(request, AuthScheme.DIGEST):
                     return
+                _read_challenge_body(response)
                 retry = yield request
                 self._note_final(retry, signed=True)
                 return
@@ -358,6 +383,7 @@ class NegotiatingAuth(httpx.Auth):
         if not self._sign(request, chosen):
             return
         self._scheme = chosen
+        _read_challenge_body(response)
         retry = yield request
         self._note_final(retry, signed=True)
 

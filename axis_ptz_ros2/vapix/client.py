@@ -241,19 +241,20 @@ class VapixClient:
     def _secrets(self) -> tuple[str | None, ...]:
         return (self._config.password,)
 
-    def _get(self, path_query: str, max_bytes: int = MAX_REPLY_BYTES) -> httpx.Response:
+    def _get(self, path_query: str, max_bytes: int = MAX_REPLY_BYTES, total_s: float | None = None) -> httpx.Response:
         """GET, map transport errors and non-2xx statuses; returns a 2xx response with its body read.
 
-        The body is read with a size cap and a total-time cap (``timeout_s``): a port that serves a video
-        stream or an endless page gives a clear :class:`ResponseParseError`, never memory growth or a
-        thread blocked for ever.
+        The body is read with a size cap and a total-time cap (``total_s``, default ``timeout_s``): a port
+        that serves a video stream or an endless page gives a clear :class:`ResponseParseError`, never memory
+        growth or a thread blocked for ever.
         """
         with self._lock:
             try:
                 response = self._http.send(self._http.build_request("GET", path_query), stream=True)
                 try:
                     ok = 200 <= response.status_code < 300
-                    body = self._read_capped(response, max_bytes if ok else MAX_ERROR_BODY_BYTES, strict=ok)
+                    cap = max_bytes if ok else MAX_ERROR_BODY_BYTES
+                    body = self._read_capped(response, cap, strict=ok, total_s=total_s)
                 finally:
                     response.close()
             except httpx.HTTPError as err:
@@ -263,7 +264,9 @@ class VapixClient:
         self._check(read)
         return read
 
-    def _read_capped(self, response: httpx.Response, max_bytes: int, *, strict: bool) -> bytes:
+    def _read_capped(
+        self, response: httpx.Response, max_bytes: int, *, strict: bool, total_s: float | None = None
+    ) -> bytes:
         where = describe_request(response.request)
         ctype = response.headers.get("content-type", "")
         if strict and ctype.lower().startswith("multipart/"):
@@ -271,7 +274,8 @@ class VapixClient:
                 f"{where}: the camera answers with a stream ({ctype!r}), not a reply: is this the camera's "
                 "VAPIX port, or a video/stream port?"
             )
-        deadline = time.monotonic() + self._config.timeout_s
+        total = self._config.timeout_s if total_s is None else total_s
+        deadline = time.monotonic() + total
         chunks: list[bytes] = []
         size = 0
         for chunk in response.iter_bytes():
@@ -289,7 +293,7 @@ class VapixClient:
                 if not strict:
                     break
                 raise CameraTimeout(
-                    f"{where}: reply still arriving after {self._config.timeout_s:g} s ({size} bytes): not a "
+                    f"{where}: reply still arriving after {total:g} s ({size} bytes): not a "
                     "VAPIX reply (a stream or a trickling page; check the port)"
                 )
         return b"".join(chunks)
@@ -362,15 +366,11 @@ class VapixClient:
 
     def _list_at(self, path: str, group: str) -> dict[str, str]:
         _, text = self._get_text(build_path(path, {"action": "list", "group": group}))
-        errors = [
-            line.strip().lstrip("#").strip() for line in text.splitlines() if line.lstrip().startswith("#")
-        ]
+        errors = [line.strip().lstrip("#").strip() for line in text.splitlines() if line.lstrip().startswith("#")]
         errors = [e for e in errors if e.startswith("Error")]
         if errors:
             message = errors[0].partition(":")[2].strip() or errors[0]
-            raise CommandRejected(
-                f"{path}?action=list&group={group}: camera says {message!r}", camera_message=message
-            )
+            raise CommandRejected(f"{path}?action=list&group={group}: camera says {message!r}", camera_message=message)
         return parse_key_values(text)
 
     def list_params(self, group: str) -> dict[str, str]:
@@ -545,7 +545,12 @@ class VapixClient:
     def snapshot(self, params: VideoParams) -> bytes:
         """One JPEG from ``jpg/image.cgi`` (``fps`` is not sent)."""
         params.validate(self._resolutions)
-        response = self._get(build_path(IMAGE_CGI, params.query(include_fps=False)), MAX_SNAPSHOT_BYTES)
+        # a large JPEG over a slow link may take a while: the time cap only has to end an endless reply
+        response = self._get(
+            build_path(IMAGE_CGI, params.query(include_fps=False)),
+            MAX_SNAPSHOT_BYTES,
+            total_s=max(30.0, 4.0 * self._config.timeout_s),
+        )
         body = response.content
         if not body.startswith(b"\xff\xd8"):
             message = parse_error_body(_text(response))

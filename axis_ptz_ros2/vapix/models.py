@@ -197,9 +197,7 @@ class VideoParams:
             raise InvalidArgument(f"camera must be >= 1, got {self.camera}")
         if supported_resolutions and self.resolution not in supported_resolutions:
             listed = ", ".join(str(r) for r in supported_resolutions)
-            raise InvalidArgument(
-                f"resolution {self.resolution} not supported by the camera (supported: {listed})"
-            )
+            raise InvalidArgument(f"resolution {self.resolution} not supported by the camera (supported: {listed})")
 
     def query(self, *, include_fps: bool = True) -> dict[str, str]:
         """Query arguments in wire order; ``camera`` only when not 1 (§12), ``squarepixel=1`` if set."""

@@ -207,9 +207,7 @@ class RelativeMove(PtzRequest):
             rzoom = _integer("rzoom", self.rzoom)
             _in_range("rzoom", rzoom, -max_zoom, max_zoom)
             if limits is not None and current is not None:
-                _in_range(
-                    "target zoom", current.zoom + rzoom, limits.min_zoom, limits.max_zoom, "camera limits"
-                )
+                _in_range("target zoom", current.zoom + rzoom, limits.min_zoom, limits.max_zoom, "camera limits")
 
     def query(self) -> dict[str, str]:
         """``rpan``/``rtilt`` with 4 decimals, ``rzoom`` as integer."""

@@ -778,6 +778,16 @@ def test_move_action_newer_goal_preempts_the_older(ros: Any, node: PtzNode, cam:
     res2 = mc.result(second)
     assert res2.status == GoalStatus.STATUS_SUCCEEDED, res2.result.message
     assert cam.position() == pytest.approx((20.0, 5.0, 1500.0), abs=1e-3)  # the newer goal won
+    # an invalid newer goal ends aborted with its reason and does not take the head from the running goal
+    fb.clear()
+    running = mc.send(absolute_goal(30.0, speed=0.1), fb)
+    ros.wait_for(lambda: len(fb) >= 2, 10.0)
+    bad = mc.result(mc.send(absolute_goal(0.0, 0.0, 99999.0)))
+    assert bad.status == GoalStatus.STATUS_ABORTED
+    assert "limits" in bad.result.message
+    res = mc.result(running)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert cam.position()[0] == pytest.approx(-30.0, abs=1e-3)
     # a topic command pre-empts a running goal as well (the head obeys the latest command)
     probe = ros.probe()
     pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))

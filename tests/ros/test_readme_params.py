@@ -34,6 +34,7 @@ def test_every_declared_parameter_has_a_description_and_unit_where_numeric():
         "axis_ptz_ros2.nodes.virtual_camera",
         "axis_ptz_ros2.nodes.panorama_sim",
         "axis_ptz_ros2.nodes.laser_sim",
+        "axis_ptz_ros2.nodes.link_monitor",
         "axis_ptz_ros2.nodes.republish",
         "axis_ptz_ros2.nodes.keyboard_teleop",
     ):

@@ -455,9 +455,11 @@ def head_and_commander() -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
     cmd = Commander(head, slot, poller, lambda: LIM, tolerances=Tolerances(0.002, 2.0, 0.5))
     stop = threading.Event()
 
-    def polls() -> None:
+    def polls() -> None:  # what the node's poll thread does
         while not stop.is_set():
-            poller.poll()
+            sample = poller.poll()
+            if sample is not None:
+                cmd.on_sample(sample)
             stop.wait(0.01)
 
     poller.poll()
@@ -678,3 +680,18 @@ def test_preemption_bookkeeping() -> None:
     p.finish(b"b")
     p.start(b"c")
     assert not p.preempted(b"c")
+
+
+def test_zoom_cap_stops_a_continuous_zoom_in_and_pulls_back_an_overshoot(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    _done(cmd.move("abs", 0.0, 0.0, 3999.0))
+    poller.wait_for(lambda s: s.reading.zoom == 3999.0, 2.0)
+    assert cmd.set_zoom_cap(4000.0) is None  # below the cap: nothing to do
+    _done(cmd.velocity(0.1, 0.0, 0.5))  # pan and zoom in: the zoom part is dropped at the cap
+    assert head.calls[-1] == ("velocity", (0.1, 0.0, 0.0))
+    _done(cmd.velocity(0.0, 0.0, -0.5))  # zooming out is always allowed
+    assert head.calls[-1] == ("velocity", (0.0, 0.0, -0.5))
+    _done(cmd.stop())
+    head.pose[2] = 6000.0  # someone zoomed past the cap (another client, a preset)
+    RosFreeWait.until(lambda: head.pose[2] == 4000.0)  # the next samples pull it back to the cap
+    assert head.calls[-1] == ("move_to", (None, None, 4000.0))

@@ -56,9 +56,7 @@ def client(camera: Camera, *, auth: str = "auto", password: str | None = PASSWOR
 def test_offered_schemes_reads_all_headers_and_combined_header():
     response = Camera().challenge()
     assert offered_schemes(response) == ("Digest", "Basic")
-    combined = httpx.Response(
-        401, headers={"WWW-Authenticate": f"{fx.BASIC_CHALLENGE}, {fx.DIGEST_CHALLENGE}"}
-    )
+    combined = httpx.Response(401, headers={"WWW-Authenticate": f"{fx.BASIC_CHALLENGE}, {fx.DIGEST_CHALLENGE}"})
     assert offered_schemes(combined) == ("Basic", "Digest")
 
 
@@ -186,9 +184,7 @@ def test_anonymous_camera_never_gets_credentials():
         seen.append(request.headers.get("authorization"))
         return httpx.Response(200, text=fx.POSITION_RESPONSE)
 
-    with VapixClient(
-        CameraConfig(username=USER, password=PASSWORD), transport=httpx.MockTransport(anonymous)
-    ) as v:
+    with VapixClient(CameraConfig(username=USER, password=PASSWORD), transport=httpx.MockTransport(anonymous)) as v:
         v.query_position()
         v.query_position()
     assert seen == [None, None]

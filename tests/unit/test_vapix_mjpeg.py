@@ -11,9 +11,7 @@ pytestmark = pytest.mark.unit
 F1, F2, F3 = jpeg(b"one" * 20), jpeg(b"\x00two\r\n--my" * 7), jpeg(b"three" * 9)
 
 
-def feed_all(
-    data: bytes, chunk: int = 1 << 16, boundary: bytes = b"myboundary"
-) -> tuple[list[bytes], MjpegParser]:
+def feed_all(data: bytes, chunk: int = 1 << 16, boundary: bytes = b"myboundary") -> tuple[list[bytes], MjpegParser]:
     parser = MjpegParser(boundary)
     frames: list[bytes] = []
     for i in range(0, len(data), chunk):
@@ -36,9 +34,7 @@ def test_boundary_variants(content_type, boundary):
     assert boundary_from_content_type(content_type) == boundary
 
 
-@pytest.mark.parametrize(
-    "content_type", ["multipart/x-mixed-replace", "image/jpeg", 'multipart/x; boundary=""']
-)
+@pytest.mark.parametrize("content_type", ["multipart/x-mixed-replace", "image/jpeg", 'multipart/x; boundary=""'])
 def test_boundary_missing_is_parse_error(content_type):
     with pytest.raises(ResponseParseError, match="boundary"):
         boundary_from_content_type(content_type)
@@ -153,14 +149,7 @@ def test_longer_token_is_not_our_boundary():
 
 
 def test_part_without_headers_and_lf_only_lines():
-    data = (
-        b"--myboundary\r\n\r\n"
-        + F1
-        + b"\r\n"
-        + b"--myboundary\nContent-Length: %d\n\n" % len(F2)
-        + F2
-        + b"\n"
-    )
+    data = b"--myboundary\r\n\r\n" + F1 + b"\r\n" + b"--myboundary\nContent-Length: %d\n\n" % len(F2) + F2 + b"\n"
     data += part(F3)
     frames, _ = feed_all(data, chunk=3)
     assert frames == [F1, F2, F3]

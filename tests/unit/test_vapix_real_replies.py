@@ -201,3 +201,22 @@ def test_big_error_page_is_read_only_partly():
     with pytest.raises(HttpStatusError):
         vapix.query_position()
     assert pulled["n"] <= 2
+
+
+def test_endless_401_body_is_not_read_for_ever():
+    """httpx reads a 401 body before the credentialed retry: ours caps it."""
+    pulled = {"n": 0}
+
+    def body():
+        while True:
+            pulled["n"] += 1
+            yield b"<p>" * 4096
+
+    def reply(request: httpx.Request) -> httpx.Response:
+        challenge = 'Digest realm="AXIS_00408C1A2B3C", nonce="abc=", algorithm=MD5, qop="auth"'
+        return httpx.Response(401, headers={"WWW-Authenticate": challenge, "Content-Type": "text/html"}, content=body())
+
+    vapix, _ = make({PTZ: reply}, username="root", password="pw")
+    with pytest.raises(ResponseParseError, match="401 reply larger"):
+        vapix.query_position()
+    assert pulled["n"] <= (64 << 10) // (3 * 4096) + 2

@@ -29,8 +29,6 @@ print("ok")
 
 def test_vapix_imports_with_rclpy_blocked():
     # A fresh interpreter, so modules already imported by other tests cannot hide a ROS import.
-    result = subprocess.run(
-        [sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=60, check=False
-    )
+    result = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "ok"

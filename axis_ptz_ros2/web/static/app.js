@@ -222,6 +222,16 @@ function render(s) {
     $("r-zoom").textContent = `${fmt(p.zoom, 0, "")} (${fmt(p.magnification, 2, "×")})${p.moving ? " moving" : ""}`;
     $("r-fov").textContent = `${fmt(p.hfov_deg, 1, "°")} × ${fmt(p.vfov_deg, 1, "°")}`;
   }
+  // drive-safe zoom: the PTZ node holds the zoom at its cap while the robot moves
+  const cap = $("cap");
+  const capped = Boolean(p && p.zoom_capped);
+  cap.hidden = !capped;
+  if (capped) {
+    const over = p.requested_zoom !== null && p.requested_zoom > p.zoom_cap;
+    const asked = over ? `, ${fmt(p.requested_zoom, 0, "")} asked` : "";
+    cap.textContent = `zoom capped while driving (at ${fmt(p.zoom_cap, 0, "")}${asked})`;
+    $("r-zoom").textContent += " · capped";
+  }
   const st = s.stream || {};
   const drv = s.driver || {};
   const fps = st.measured_at === "console" ? st.fps : parseFloat(drv.fps);

@@ -1,0 +1,120 @@
+"""Consumer-side feedback for the video over a weak link.
+
+:class:`FeedbackPublisher` is what a node that *views* the video adds to its image callback: it measures what
+arrives (frames/s, kbit/s, delay from the stream node's stamp to receipt) and publishes it on
+``video/feedback`` twice a second, which the stream node turns into a bandwidth budget
+(:mod:`axis_ptz_ros2.streaming.feedback`). The web console does this for the PTZ image it relays.
+
+``axis_link_monitor`` is the same as a node of its own, for viewers that do not report (e.g. a generic image
+viewer on the operator's station). Run it on the *operator's* host only where nothing else reports: every
+subscriber across the link receives its own copy of each frame, so a second subscriber doubles the video's
+share of the link.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.node import Node
+from sensor_msgs.msg import CompressedImage
+
+from axis_ptz_interfaces.msg import LinkFeedback
+from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.streaming.feedback import ReceiveMeter
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("image_topic", "image_raw/compressed", "JPEG topic whose reception is reported", read_only=True),
+    ParamSpec("feedback_topic", "video/feedback", "where the reports go (the stream node listens)", read_only=True),
+    ParamSpec("period", 0.5, "report period", "s", float_range=(0.05, 10.0), read_only=True),
+    ParamSpec("window", 1.0, "measurement window of a report", "s", float_range=(0.1, 30.0), read_only=True),
+)
+
+
+class FeedbackPublisher:
+    """Measure the frames a node receives and report them on ``video/feedback`` (see the module docstring).
+
+    Call :meth:`watch` when the node subscribes to the video (or let the first :meth:`add` do it) and
+    :meth:`stop` when it unsubscribes; :meth:`add` from the image callback. While watching it reports twice a
+    second, also when nothing arrives (frames = 0, ``gap_s`` = time since the last frame or since watching
+    began): a link so swamped that no frame gets through must still be reported.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        image_topic: str = "image_raw/compressed",
+        feedback_topic: str = "video/feedback",
+        period_s: float = 0.5,
+        window_s: float = 1.0,
+        callback_group: Any = None,
+    ) -> None:
+        """Create the publisher and the report timer on ``node``."""
+        self._node = node
+        self._topic = node.resolve_topic_name(image_topic)
+        self._meter = ReceiveMeter(node.get_fully_qualified_name(), window_s)
+        self._pub = node.create_publisher(LinkFeedback, feedback_topic, FEEDBACK_QOS)
+        self._timer = node.create_timer(period_s, self._report, callback_group=callback_group)
+        self._since: float | None = None
+        self.reports = 0
+
+    def watch(self) -> None:
+        """The node subscribed to the video: report from now on (idempotent)."""
+        if self._since is None:
+            self._since = time.time()
+
+    def stop(self) -> None:
+        """The node unsubscribed: no more reports until :meth:`watch` or the next frame."""
+        self._since = None
+
+    def add(self, msg: CompressedImage, nbytes: int | None = None) -> None:
+        """One image received now (any thread)."""
+        rx = time.time()
+        self.watch()
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if stamp <= 0:
+            return
+        self._meter.add(rx, stamp, len(msg.data) if nbytes is None else nbytes)
+
+    def _report(self) -> None:
+        since = self._since
+        if since is None:
+            return
+        now = time.time()
+        r = self._meter.report(now)
+        msg = LinkFeedback()
+        msg.header.stamp = self._node.get_clock().now().to_msg()
+        msg.header.frame_id = self._topic
+        msg.consumer = r.consumer
+        msg.window_s = float(self._meter.window_s)
+        msg.frames = r.frames
+        msg.fps = float(r.fps)
+        msg.kbps = float(r.kbps)
+        msg.delay_p95_s = float(r.delay_p95_s)
+        msg.delay_min_s = float(r.delay_min_s)
+        msg.gap_s = float(min(r.gap_s, now - since))
+        self._pub.publish(msg)
+        self.reports += 1
+
+
+class LinkMonitorNode(Node):
+    """``axis_link_monitor``: subscribe to the image topic and report its reception on ``video/feedback``."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """``kwargs`` go to :class:`rclpy.node.Node`."""
+        super().__init__("axis_link_monitor", **kwargs)
+        p = declare_params(self, PARAMS)
+        self.feedback = FeedbackPublisher(
+            self, str(p["image_topic"]), str(p["feedback_topic"]), float(p["period"]), float(p["window"])
+        )
+        self.create_subscription(CompressedImage, str(p["image_topic"]), self.feedback.add, STREAM_QOS)
+        self.feedback.watch()
+
+
+def main(args: list[str] | None = None) -> int:
+    """``axis_link_monitor``."""
+    return run_nodes([LinkMonitorNode], args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

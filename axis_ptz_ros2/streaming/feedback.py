@@ -1,0 +1,237 @@
+"""Link adaptation: turn what the video's consumers *receive* into a bandwidth budget. ROS-free.
+
+The stream node knows what it sends; only the consumers (the operator's station, across a weak link) know
+what arrives and how late. They report it (``video/feedback``: frames and kbit/s received, and the delay
+from the stream node's stamp to receipt). :class:`LinkAdapter` keeps a budget for the
+:class:`~axis_ptz_ros2.streaming.budget.BandwidthController` so the stream never sends more than the link
+delivers:
+
+- **congested** — the queueing delay (the delay's p95 above its own minimum over ``base_window_s``: a clock
+  offset between the hosts cancels out) exceeds ``delay_high_s``, or the consumer receives less than
+  ``delivery_low`` of the frames sent: the budget drops to ``decrease`` × the rate the consumer received
+  (the link's capacity just measured; halved instead when almost nothing arrives), at most once per
+  ``decrease_hold_s``;
+- **clear** — the queueing delay is under ``delay_low_s`` and at least ``delivery_clear`` of the frames
+  arrive: the budget grows
+  by ``increase`` per report, but never past ``headroom`` × what is sent now or ``step_margin`` × the next
+  better setting's predicted rate, so the stream climbs one step at a time and each step is judged; for
+  ``probe_backoff_s`` after a congestion it stays under the rate that congested (doubling, up to
+  ``probe_backoff_max_s``, when the next try congests again: a link that cannot carry the next step is
+  not hammered with it);
+- **silent** — no report for ``silence_s`` (a cut link, or the consumer has gone): the budget is held, so a
+  healed link does not receive a burst at the full request; after ``release_s`` the adapter lets go (0 = no
+  limit from feedback).
+
+Several consumers may report; the most constrained one decides (each one's last report is kept for
+``silence_s``).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class FeedbackReport:
+    """One consumer's measurement over its window (delays in seconds, rates as received)."""
+
+    consumer: str
+    frames: int
+    fps: float
+    kbps: float
+    delay_p95_s: float
+    delay_min_s: float  # smallest delay seen over a longer window (clock offset + fixed transmission delay)
+    gap_s: float = 0.0  # time since that consumer's last frame
+
+
+class ReceiveMeter:
+    """The consumer's side: what arrives, and how late (thread-safe).
+
+    ``add(rx_s, stamp_s, nbytes)`` per frame received (``rx_s`` and ``stamp_s`` on the wall clocks of the
+    consumer and of the stream node: their offset cancels in the queueing delay the adapter uses);
+    ``report(now_s)`` summarises the last ``window_s`` seconds, with the smallest delay of the last
+    ``base_window_s`` seconds as the reference.
+    """
+
+    def __init__(self, consumer: str, window_s: float = 1.0, base_window_s: float = 10.0) -> None:
+        """``window_s`` > 0, ``base_window_s`` >= ``window_s``."""
+        if window_s <= 0 or base_window_s < window_s:
+            raise ValueError("need 0 < window_s <= base_window_s")
+        self.consumer = consumer
+        self.window_s = window_s
+        self.base_window_s = base_window_s
+        self._frames: deque[tuple[float, float, int]] = deque()  # (rx, delay, bytes)
+        self._lock = threading.Lock()
+
+    def add(self, rx_s: float, stamp_s: float, nbytes: int) -> None:
+        """One frame stamped ``stamp_s`` by the sender arrived at ``rx_s``."""
+        with self._lock:
+            self._frames.append((rx_s, rx_s - stamp_s, nbytes))
+            cutoff = rx_s - self.base_window_s
+            while self._frames and self._frames[0][0] < cutoff:
+                self._frames.popleft()
+
+    def report(self, now_s: float) -> FeedbackReport:
+        """The last ``window_s`` seconds as a :class:`FeedbackReport`."""
+        with self._lock:
+            frames = list(self._frames)
+        recent = [f for f in frames if f[0] > now_s - self.window_s]
+        gap = now_s - frames[-1][0] if frames else math.inf
+        base = [f[1] for f in frames if f[0] > now_s - self.base_window_s]
+        if not recent:
+            return FeedbackReport(self.consumer, 0, 0.0, 0.0, 0.0, min(base) if base else 0.0, gap)
+        delays = sorted(f[1] for f in recent)
+        p95 = delays[min(len(delays) - 1, int(math.ceil(0.95 * len(delays))) - 1)]
+        nbytes = sum(f[2] for f in recent)
+        return FeedbackReport(
+            consumer=self.consumer,
+            frames=len(recent),
+            fps=len(recent) / self.window_s,
+            kbps=nbytes * 8.0 / 1000.0 / self.window_s,
+            delay_p95_s=p95,
+            delay_min_s=min(base),
+            gap_s=gap,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class AdapterConfig:
+    """Tuning of :class:`LinkAdapter` (seconds, fractions, kbit/s)."""
+
+    delay_high_s: float = 0.15
+    delay_low_s: float = 0.06
+    delivery_low: float = 0.7  # received fps below this fraction of sent fps = frames are being lost
+    delivery_clear: float = 0.85  # ... at or above it (and a short queue): room to grow
+    decrease: float = 0.8
+    increase: float = 1.1
+    headroom: float = 1.6  # the budget grows to at most this × what is sent ...
+    step_margin: float = 1.35  # ... or this × the next better setting's predicted rate (room to try it)
+    decrease_hold_s: float = 1.5
+    min_kbps: float = 100.0
+    probe_backoff_s: float = 5.0  # after congestion, stay under what was sent then for this long ...
+    probe_backoff_max_s: float = 40.0  # ... doubled (up to this) each time a new try congests again
+    silence_s: float = 2.0
+    release_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        """Refuse settings that would not converge."""
+        if not 0.0 < self.delay_low_s < self.delay_high_s:
+            raise ValueError("need 0 < delay_low_s < delay_high_s")
+        if not 0.0 < self.decrease < 1.0 or self.increase <= 1.0 or self.headroom <= 1.0 or self.step_margin <= 1.0:
+            raise ValueError("need 0 < decrease < 1 < increase and headroom, step_margin > 1")
+        if not 0.0 < self.delivery_low <= self.delivery_clear <= 1.0:
+            raise ValueError("need 0 < delivery_low <= delivery_clear <= 1")
+        if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
+            raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """What :meth:`LinkAdapter.report` concluded (for diagnostics and logs)."""
+
+    budget_kbps: float
+    state: str  # "congested", "clear", "steady", "silent", "released", "off"
+    queue_delay_s: float
+    delivery: float
+
+
+class LinkAdapter:
+    """A bandwidth budget that follows what the consumers receive (see the module docstring)."""
+
+    def __init__(self, config: AdapterConfig | None = None) -> None:
+        """Start without a budget (0 = no limit) until the first report says otherwise."""
+        self.config = config or AdapterConfig()
+        self._budget = 0.0
+        self._last_decrease = -1e18
+        self._last_report = -1e18
+        self._reports: dict[str, tuple[float, FeedbackReport]] = {}
+        self._bad_kbps = 0.0  # what was sent when the link last congested ...
+        self._bad_until = -1e18  # ... and until when not to try it again
+        self._backoff = self.config.probe_backoff_s
+        self.state = "off"
+
+    @property
+    def budget_kbps(self) -> float:
+        """The budget to enforce (kbit/s); 0 = the link has not asked for one."""
+        return self._budget
+
+    def reset(self) -> None:
+        """Forget everything (adaptation switched off)."""
+        self._budget = 0.0
+        self._reports.clear()
+        self._last_report = -1e18
+        self.state = "off"
+
+    def report(
+        self, now: float, report: FeedbackReport, sent_fps: float, sent_kbps: float, step_up_kbps: float = 0.0
+    ) -> Decision:
+        """Take one consumer's report (``now`` = monotonic seconds at the sender, ``sent_*`` = what the
+        sender measured over about the same window, ``step_up_kbps`` = the predicted rate of the next better
+        setting, 0 if none); returns the decision with the new budget."""
+        cfg = self.config
+        self._last_report = now
+        self._reports[report.consumer] = (now, report)
+        for name, (t, _r) in list(self._reports.items()):
+            if now - t > cfg.silence_s:
+                del self._reports[name]
+        worst = max(
+            (r for _t, r in self._reports.values()),
+            key=lambda r: (self._queue_delay(r), -self._delivery(r, sent_fps)),
+        )
+        queue = self._queue_delay(worst)
+        delivery = self._delivery(worst, sent_fps)
+        received = min(r.kbps for _t, r in self._reports.values())
+        if queue > cfg.delay_high_s or delivery < cfg.delivery_low:
+            state = "congested"
+            if now - self._last_decrease >= cfg.decrease_hold_s:
+                current = self._budget if self._budget > 0 else max(sent_kbps, received)
+                # the link delivered ``received``: stay a margin under it; if almost nothing arrives (the sender
+                # swamps the link), halve until something does
+                delivered = worst.frames >= 2 and received > 0
+                new = cfg.decrease * min(received, current) if delivered else 0.5 * current
+                self._budget = max(new, cfg.min_kbps)
+                # remember the rate that congested; a new try soon after that congests again backs off longer
+                again = now < self._bad_until + cfg.probe_backoff_max_s
+                self._backoff = min(self._backoff * 2.0, cfg.probe_backoff_max_s) if again else cfg.probe_backoff_s
+                self._bad_kbps = max(sent_kbps, received)
+                self._bad_until = now + self._backoff
+                self._last_decrease = now
+        elif queue < cfg.delay_low_s and delivery >= cfg.delivery_clear:
+            state = "clear"
+            if self._budget > 0:
+                ceiling = max(cfg.headroom * max(sent_kbps, received, cfg.min_kbps), cfg.step_margin * step_up_kbps)
+                if now < self._bad_until:
+                    ceiling = min(ceiling, cfg.decrease * self._bad_kbps)
+                self._budget = min(self._budget * cfg.increase, max(ceiling, self._budget))
+        else:
+            state = "steady"
+        self.state = state
+        return Decision(self._budget, state, queue, delivery)
+
+    def tick(self, now: float) -> Decision:
+        """Called periodically without a report: hold the budget through a silence, release it after
+        ``release_s``."""
+        cfg = self.config
+        silent_for = now - self._last_report
+        if self._budget > 0 and silent_for > cfg.release_s:
+            self._budget = 0.0
+            self._reports.clear()
+            self.state = "released"
+        elif self._budget > 0 and silent_for > cfg.silence_s:
+            self.state = "silent"
+        return Decision(self._budget, self.state, 0.0, 1.0)
+
+    @staticmethod
+    def _queue_delay(r: FeedbackReport) -> float:
+        if r.frames == 0:
+            return r.gap_s
+        return max(r.delay_p95_s - r.delay_min_s, 0.0)
+
+    @staticmethod
+    def _delivery(r: FeedbackReport, sent_fps: float) -> float:
+        if sent_fps <= 0.5:
+            return 1.0
+        return min(r.fps / sent_fps, 1.0)

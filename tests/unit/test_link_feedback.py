@@ -1,0 +1,222 @@
+"""Link adaptation (streaming/feedback.py) and the budget ladder's fps floor: pure Python, no ROS."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from axis_ptz_ros2.streaming import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
+from axis_ptz_ros2.streaming.feedback import AdapterConfig, FeedbackReport, LinkAdapter, ReceiveMeter
+from axis_ptz_ros2.vapix import Resolution, VideoParams
+
+pytestmark = pytest.mark.unit
+
+P704 = VideoParams(Resolution(704, 576), 30, 30)
+
+
+def _report(fps: float = 15.0, kbps: float = 1000.0, queue: float = 0.0, frames: int = 15, who: str = "op"):
+    return FeedbackReport(who, frames, fps, kbps, delay_p95_s=100.0 + queue, delay_min_s=100.0, gap_s=0.01)
+
+
+# -- ReceiveMeter ---------------------------------------------------------------------------------------------
+def test_receive_meter_rates_and_offset_free_queue_delay():
+    m = ReceiveMeter("op", window_s=1.0, base_window_s=10.0)
+    offset = 1234.5  # the two hosts' clocks disagree by this much: the queueing delay must not see it
+    for i in range(60):  # 30 frames/s for 2 s, 10 kB each, 40 ms transit
+        rx = 1000.0 + i / 30.0
+        m.add(rx, rx - 0.040 - offset, 10_000)
+    r = m.report(1000.0 + 59 / 30.0)
+    assert r.frames == 30
+    assert r.fps == pytest.approx(30.0)
+    assert r.kbps == pytest.approx(2400.0)
+    assert r.delay_p95_s - r.delay_min_s == pytest.approx(0.0, abs=1e-9)
+    assert r.delay_min_s == pytest.approx(offset + 0.040)
+
+
+def test_receive_meter_sees_a_growing_queue_and_a_gap():
+    m = ReceiveMeter("op", window_s=1.0)
+    for i in range(40):
+        rx = float(i) / 10.0
+        m.add(rx, rx - 0.02 - 0.02 * i, 5000)  # each frame 20 ms later than the one before
+    r = m.report(3.9)
+    assert r.delay_p95_s - r.delay_min_s > 0.5
+    later = m.report(6.0)
+    assert later.frames == 0
+    assert later.gap_s == pytest.approx(2.1)
+    assert math.isinf(ReceiveMeter("x").report(1.0).gap_s)
+
+
+# -- LinkAdapter ----------------------------------------------------------------------------------------------
+def test_congestion_sets_the_budget_under_what_arrived_once_per_hold():
+    a = LinkAdapter(AdapterConfig(decrease=0.8, decrease_hold_s=1.5))
+    assert a.budget_kbps == 0.0
+    d = a.report(10.0, _report(kbps=1800.0, queue=0.4), sent_fps=30, sent_kbps=9000)
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 1800.0)
+    a.report(10.5, _report(kbps=1700.0, queue=0.4), sent_fps=30, sent_kbps=9000)
+    assert a.budget_kbps == pytest.approx(1440.0), "a second cut before the hold would double-count one event"
+    a.report(11.6, _report(kbps=1300.0, queue=0.4), sent_fps=20, sent_kbps=1500)
+    assert a.budget_kbps == pytest.approx(0.8 * 1300.0)
+
+
+def test_lost_frames_count_as_congestion_and_nothing_arriving_halves():
+    a = LinkAdapter()
+    d = a.report(1.0, _report(fps=10.0, kbps=800.0), sent_fps=30, sent_kbps=2000)  # a third arrives
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 800.0)
+    b = LinkAdapter()
+    b.report(1.0, FeedbackReport("op", 0, 0.0, 0.0, 0.0, 0.0, gap_s=1.5), sent_fps=30, sent_kbps=9000)
+    assert b.budget_kbps == pytest.approx(4500.0)
+    b.report(3.0, FeedbackReport("op", 0, 0.0, 0.0, 0.0, 0.0, gap_s=3.5), sent_fps=30, sent_kbps=9000)
+    assert b.budget_kbps == pytest.approx(2250.0)
+
+
+def test_clear_link_grows_the_budget_but_only_ahead_of_what_is_sent():
+    a = LinkAdapter(AdapterConfig(increase=1.1, headroom=1.6))
+    a.report(0.0, _report(kbps=1000.0, queue=0.5), sent_fps=15, sent_kbps=3000)
+    assert a.budget_kbps == pytest.approx(800.0)
+    budgets = []
+    for i in range(1, 40):
+        d = a.report(0.5 * i, _report(kbps=780.0, queue=0.0), sent_fps=15, sent_kbps=780.0)
+        assert d.state == "clear"
+        budgets.append(a.budget_kbps)
+    assert budgets == sorted(budgets), "grows monotonically while the link is clear"
+    assert budgets[0] == pytest.approx(880.0)
+    assert budgets[-1] == pytest.approx(1.6 * 780.0), "never more than the headroom above what is sent"
+
+
+def test_no_budget_is_invented_on_a_clear_link():
+    a = LinkAdapter()
+    for i in range(10):
+        a.report(float(i), _report(), sent_fps=15, sent_kbps=1000)
+    assert a.budget_kbps == 0.0
+
+
+def test_silence_holds_the_budget_then_releases_it():
+    a = LinkAdapter(AdapterConfig(silence_s=2.0, release_s=30.0))
+    a.report(0.0, _report(kbps=1000.0, queue=0.5), sent_fps=15, sent_kbps=3000)
+    held = a.budget_kbps
+    assert held > 0
+    assert a.tick(1.0).budget_kbps == held
+    d = a.tick(10.0)  # a cut link: the budget is held so the heal gets no burst
+    assert d.state == "silent"
+    assert d.budget_kbps == held
+    d = a.tick(31.0)
+    assert d.state == "released"
+    assert a.budget_kbps == 0.0
+
+
+def test_the_most_constrained_consumer_decides_and_stale_ones_are_forgotten():
+    a = LinkAdapter(AdapterConfig(silence_s=2.0))
+    a.report(0.0, _report(kbps=3000.0, who="near"), sent_fps=15, sent_kbps=3000)
+    d = a.report(0.1, _report(kbps=900.0, queue=0.5, who="far"), sent_fps=15, sent_kbps=3000)
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 900.0)
+    # "far" stops reporting; "near" alone is clear, so the budget may grow again
+    d = a.report(5.0, _report(kbps=700.0, who="near"), sent_fps=15, sent_kbps=700)
+    assert d.state == "clear"
+    assert a.budget_kbps > 0.8 * 900.0
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"delay_low_s": 0.2, "delay_high_s": 0.1},
+        {"decrease": 1.0},
+        {"increase": 1.0},
+        {"headroom": 0.9},
+        {"step_margin": 1.0},
+        {"delivery_low": 0.9, "delivery_clear": 0.8},
+        {"min_kbps": 0.0},
+        {"silence_s": 5.0, "release_s": 1.0},
+    ],
+)
+def test_adapter_config_refuses_settings_that_cannot_converge(kwargs):
+    with pytest.raises(ValueError, match="need|must"):
+        AdapterConfig(**kwargs)
+
+
+# -- the budget ladder's floor and set_budget ---------------------------------------------------------------
+def test_ladder_keeps_min_fps_before_lowering_resolution():
+    c = BandwidthController(P704, 0.0, AXIS214_PAL_RESOLUTIONS, BudgetConfig(max_compression=60, min_fps=15))
+    steps = [(str(p.resolution), p.fps, p.compression) for p in c.ladder]
+    assert steps == [
+        ("704x576", 30, 30),
+        ("704x576", 30, 40),
+        ("704x576", 30, 50),
+        ("704x576", 30, 60),
+        ("704x576", 25, 60),
+        ("704x576", 20, 60),
+        ("704x576", 15, 60),
+        ("704x288", 15, 60),
+        ("352x288", 15, 60),
+        ("176x144", 15, 60),
+        ("176x144", 10, 60),
+        ("176x144", 5, 60),
+        ("176x144", 2, 60),
+        ("176x144", 1, 60),
+    ]
+
+
+def test_set_budget_keeps_the_level_and_update_rejudges_it():
+    c = BandwidthController(P704, 2000.0, AXIS214_PAL_RESOLUTIONS, BudgetConfig(min_fps=15))
+    c.update(0.0, 9000.0, 30.0, 37_500.0, 30)
+    c.update(1.0, 9000.0, 30.0, 37_500.0, 30)
+    level = c.level
+    assert level > 0
+    c.set_budget(1000.0, now=1.1)
+    assert c.level == level, "a new budget alone does not restart from the request"
+    bpf = 37_500.0 * 0.5
+    kbps = bpf * c.current.fps * 8 / 1000
+    choice = c.update(2.5, kbps, float(c.current.fps), bpf, 30)
+    if kbps > 1000.0:
+        assert choice is not None
+        assert c.level > level
+
+
+# -- closed loop: a link of capacity C, the adapter and the controller --------------------------------------
+def _frame_bytes(p: VideoParams) -> float:
+    """A camera whose frames shrink with compression and pixel count (37.5 kB at 704x576, compression 30)."""
+    pixels = p.resolution.width * p.resolution.height / (704 * 576)
+    return 37_500.0 * pixels * (1.0 - 0.009 * (p.compression - 30))
+
+
+def _run_link(controller: BandwidthController, adapter: LinkAdapter, capacity, t0: float, t1: float, log: list):
+    """Step 50 ms at a time: the sender streams ``controller.current``; a link of ``capacity(t)`` kbit/s with a
+    bounded queue delivers; the consumer reports every 0.5 s; the controller is fed every 0.25 s."""
+    queue_s = 0.0
+    t = t0
+    while t < t1:
+        p = controller.current
+        sent = _frame_bytes(p) * p.fps * 8 / 1000
+        cap = capacity(t)
+        queue_s = min(max(queue_s + (sent - cap) / cap * 0.05, 0.0), 0.5)
+        delivered = min(sent, cap) if queue_s < 0.5 else cap
+        fps_rx = p.fps * min(1.0, cap / sent)
+        if round(t * 20) % 10 == 0:
+            r = FeedbackReport("op", int(fps_rx), fps_rx, delivered, 0.05 + queue_s, 0.05, 0.02)
+            nxt = controller.predict_kbps(controller.level - 1, _frame_bytes(p)) if controller.level > 0 else 0.0
+            adapter.report(t, r, p.fps, sent, nxt)
+            controller.set_budget(adapter.budget_kbps, t)
+        if round(t * 20) % 5 == 0:
+            controller.update(t, sent, float(p.fps), _frame_bytes(p), 30)
+        log.append((t, sent, queue_s, controller.level))
+        t = round(t + 0.05, 3)
+
+
+def test_feedback_brings_the_stream_under_a_narrow_link_and_back_up_when_it_widens():
+    controller = BandwidthController(P704, 0.0, AXIS214_PAL_RESOLUTIONS, BudgetConfig(min_fps=15))
+    adapter = LinkAdapter()
+    log: list = []
+    _run_link(controller, adapter, lambda t: 2000.0, 0.0, 30.0, log)
+    late = [row for row in log if row[0] >= 15.0]
+    over = sum(1 for row in late if row[1] > 2000.0) / len(late)
+    assert over < 0.2, f"sending more than the link carries {over:.0%} of the time"
+    queued = sum(1 for row in late if row[2] > 0.15) / len(late)
+    assert queued < 0.1, f"a queue over 150 ms {queued:.0%} of the time"
+    assert min(row[3] for row in late) > 0
+    narrow_level = log[-1][3]
+    assert controller.current.fps >= 15, "the floor keeps the frame rate; resolution gives way first"
+    _run_link(controller, adapter, lambda t: 8000.0, 30.0, 50.0, log)
+    assert log[-1][3] < narrow_level, "quality climbs back when the link widens"
