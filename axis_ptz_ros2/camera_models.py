@@ -168,6 +168,7 @@ class CameraProfile:
     auth: str
     model: CameraModel
     model_source: str
+    ptz_enabled: bool | None = None  # PTZ.ImageSource.I<camera-1>.PTZEnabled (newer firmware), None = not listed
 
     @property
     def pan_wraps(self) -> bool:
@@ -196,6 +197,8 @@ class CameraProfile:
             ptz = f"{pan}, tilt {lim.min_tilt_deg:g}..{lim.max_tilt_deg:g} deg, zoom {lim.min_zoom}..{lim.max_zoom}"
             if o.digital_zoom:
                 ptz += " (digital above 9999)"
+        if self.ptz_enabled is False:
+            ptz += "; PTZ DISABLED for this image source (PTZEnabled=false)"
         api = f"VAPIX HTTP API v{self.api_version}" if self.api_version is not None else "VAPIX version unknown"
         return (
             f"camera: {self.product} (ProdNbr {self.prod_nbr or '?'}, firmware {self.firmware}), {api}, "
@@ -249,6 +252,13 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
     except AxisPtzError:
         presets = ()
     digital_zoom = "DigitalZoom" in info.supports
+    ptz_enabled: bool | None = None
+    try:  # newer firmware: PTZ can be switched off per image source (vapix.md S5 fixtures)
+        flag = client.list_params("PTZ.ImageSource").get(f"PTZ.ImageSource.I{client.config.camera - 1}.PTZEnabled")
+        if flag is not None:
+            ptz_enabled = flag.strip().lower() in ("true", "yes", "on", "1")
+    except AxisPtzError:
+        pass  # not listed (the 214)
     optics = Optics(
         resolutions=info.resolutions,
         video_standard=_video_standard(client, info.resolutions),
@@ -272,6 +282,7 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
         auth=auth_label or _auth_in_use(client),
         model=model,
         model_source=source,
+        ptz_enabled=ptz_enabled,
     )
 
 

@@ -364,12 +364,13 @@ ROS_FREE_PROBE = """
 import sys
 class _Blocker:
     def find_spec(self, name, path=None, target=None):
-        if name.split(".")[0] in {"rclpy", "sensor_msgs", "std_msgs", "geometry_msgs", "axis_ptz_interfaces"}:
+        if name.split(".")[0] in {"rclpy", "sensor_msgs", "std_msgs", "geometry_msgs", "nav_msgs", "action_msgs",
+                                  "axis_ptz_interfaces"}:
             raise ImportError(f"ROS module {name} imported by the ROS-free PTZ core")
         return None
 sys.meta_path.insert(0, _Blocker())
 import axis_ptz_ros2.ptz.axis_backend, axis_ptz_ros2.ptz.command_slot, axis_ptz_ros2.ptz.control
-import axis_ptz_ros2.ptz.state
+import axis_ptz_ros2.ptz.state, axis_ptz_ros2.ptz.commander, axis_ptz_ros2.ptz.drive_safe
 print("ok")
 """
 
@@ -397,6 +398,7 @@ class MemoryHead:
         self.fail_next = 0  # fail this many of the next commands
         self.gate: threading.Event | None = None
         self.stamp = 0
+        self.speeds: list[float | None] = []
 
     def _cmd(self, name: str, *args: object) -> None:
         if self.gate is not None:
@@ -417,6 +419,7 @@ class MemoryHead:
 
     def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
         self._cmd("move_to", pan, tilt, zoom)
+        self.speeds.append(speed)
         self.rates = [0.0, 0.0, 0.0]
         for i, v in enumerate((pan, tilt, zoom)):
             if v is not None:
@@ -695,3 +698,12 @@ def test_zoom_cap_stops_a_continuous_zoom_in_and_pulls_back_an_overshoot(head_an
     head.pose[2] = 6000.0  # someone zoomed past the cap (another client, a preset)
     RosFreeWait.until(lambda: head.pose[2] == 4000.0)  # the next samples pull it back to the cap
     assert head.calls[-1] == ("move_to", (None, None, 4000.0))
+
+
+def test_a_slow_move_does_not_leave_the_camera_slow(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    _done(cmd.move("abs", 0.1, None, None))
+    _done(cmd.move("abs", 0.2, None, None, speed=0.1))
+    _done(cmd.move("abs", 0.3, None, None))  # no speed given: full speed again (VAPIX speed persists)
+    _done(cmd.move("abs", 0.4, None, None))
+    assert head.speeds == [None, 0.1, 1.0, None]
