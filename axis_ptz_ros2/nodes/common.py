@@ -298,7 +298,14 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     code = 0
     try:
         for f in factories:
-            n = f()
+            try:
+                n = f()
+            except Exception:
+                if rclpy.ok():
+                    raise
+                # Ctrl-C / SIGTERM arrived while the node was being built (rclpy's handler invalidated the
+                # context under the constructor): a clean stop, not a traceback and exit 1
+                return code
             nodes.append(n)
             executor.add_node(n)
         executor.spin()

@@ -45,6 +45,13 @@ def cam() -> Iterator[SimulatedCamera]:
         c.stop()
 
 
+def stays(value, seconds: float) -> bool:  # noqa: ANN001
+    """True if ``value()`` does not change for ``seconds``."""
+    v = value()
+    time.sleep(seconds)
+    return value() == v
+
+
 class Pty:
     """The teleop program on the slave side of a pseudo-terminal; the test types on the master side."""
 
@@ -224,14 +231,16 @@ def test_sigterm_restores_the_terminal_and_stops(ros, stack):
         # The teleop's velocity publisher is discovered by our probe before we type (volatile topic).
         probe = stack["probe"]
         ros.wait_for(lambda: probe.count_publishers("/ptz/cmd/velocity") > 0)
-        time.sleep(0.3)
         n = len(seen["velocity"])
-        pty.type("x")  # explicit stop key
-        ros.wait_for(lambda: len(seen["velocity"]) > n)
+        # Seeing its publisher does not mean it has matched our subscription yet (discovery runs on both
+        # sides): type the explicit stop key until one arrives, then let any still in flight land.
+        ros.wait_for(lambda: (pty.type("x"), len(seen["velocity"]) > n)[1], timeout=10, period=0.5)
+        ros.wait_for(lambda: stays(lambda: len(seen["velocity"]), 1.0), timeout=10)
+        m = len(seen["velocity"])
         pty.proc.send_signal(signal.SIGTERM)
         assert pty.proc.wait(10) == 128 + signal.SIGTERM
         assert termios.tcgetattr(pty.slave) == pty.attrs_before
-        ros.wait_for(lambda: len(seen["velocity"]) > n + 1)
+        ros.wait_for(lambda: len(seen["velocity"]) > m)  # the stop it sends on the way out
     finally:
         pty.close()
 
