@@ -168,6 +168,7 @@ class CameraProfile:
     auth: str
     model: CameraModel
     model_source: str
+    ptz_enabled: bool | None = None  # PTZ.ImageSource.I<camera-1>.PTZEnabled (newer firmware), None = not listed
 
     @property
     def pan_wraps(self) -> bool:
@@ -196,10 +197,12 @@ class CameraProfile:
             ptz = f"{pan}, tilt {lim.min_tilt_deg:g}..{lim.max_tilt_deg:g} deg, zoom {lim.min_zoom}..{lim.max_zoom}"
             if o.digital_zoom:
                 ptz += " (digital above 9999)"
+        if self.ptz_enabled is False:
+            ptz += "; PTZ DISABLED for this image source (PTZEnabled=false)"
         api = f"VAPIX HTTP API v{self.api_version}" if self.api_version is not None else "VAPIX version unknown"
         return (
             f"camera: {self.product} (ProdNbr {self.prod_nbr or '?'}, firmware {self.firmware}), {api}, "
-            f"{'HTTPS' if self.https else 'HTTP'} auth {self.auth}; video {video}, {pixels}; {ptz}; "
+            f"{'HTTPS' if self.https else 'HTTP'} with {self.auth} auth; video {video}, {pixels}; {ptz}; "
             f"{len(self.presets)} presets; camera model {self.model.name!r} from {self.model_source}"
         )
 
@@ -218,6 +221,12 @@ def _video_standard(client: VapixClient, resolutions: tuple[Resolution, ...]) ->
             return "NTSC"
         return "PAL"
     return "digital"
+
+
+def _auth_in_use(client: VapixClient) -> str:
+    """The scheme the camera made us use (Digest/Basic), or anonymous if it asked for none."""
+    scheme = getattr(getattr(client, "_auth", None), "scheme", None)  # negotiated on the first 401
+    return str(scheme.value) if scheme is not None else "anonymous"
 
 
 def discover(client: VapixClient, model_file: str = "", auth_label: str = "") -> CameraProfile:
@@ -243,6 +252,13 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
     except AxisPtzError:
         presets = ()
     digital_zoom = "DigitalZoom" in info.supports
+    ptz_enabled: bool | None = None
+    try:  # newer firmware: PTZ can be switched off per image source (vapix.md S5 fixtures)
+        flag = client.list_params("PTZ.ImageSource").get(f"PTZ.ImageSource.I{client.config.camera - 1}.PTZEnabled")
+        if flag is not None:
+            ptz_enabled = flag.strip().lower() in ("true", "yes", "on", "1")
+    except AxisPtzError:
+        pass  # not listed (the 214)
     optics = Optics(
         resolutions=info.resolutions,
         video_standard=_video_standard(client, info.resolutions),
@@ -263,9 +279,10 @@ def discover(client: VapixClient, model_file: str = "", auth_label: str = "") ->
         optics=optics,
         presets=presets,
         https=client.config.use_https,
-        auth=auth_label or client.config.auth,
+        auth=auth_label or _auth_in_use(client),
         model=model,
         model_source=source,
+        ptz_enabled=ptz_enabled,
     )
 
 

@@ -1,7 +1,9 @@
 """The whole suite on the simulated camera, for a first look and for end-to-end tests.
 
 Starts, as child processes on this machine only (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, servers on
-127.0.0.1): the simulated Axis 214 (``axis_camera_sim`` on a free port), the camera driver (``axis_camera``:
+127.0.0.1): the simulated camera (``axis_camera_sim --model <model>`` on a free port: the Axis 214 by default,
+``--model q6075`` for a modern 1080p dome over HTTPS with Digest, its certificate as the driver's CA and a
+random password handed over in a private file), the camera driver (``axis_camera``:
 stream + PTZ in one process, or ``--split``: ``axis_stream`` + ``axis_ptz``), the simulated panorama camera
 and laser, the visualizer and the web console. Prints the console URL once live video flows through it, runs
 until Ctrl-C / SIGTERM (or ``--duration`` seconds), then stops everything: SIGINT to every child, a grace
@@ -9,6 +11,7 @@ period, then SIGKILL for whatever is left.
 
     ./scripts/demo                 # http://127.0.0.1:8090
     ./scripts/demo --port 0 --duration 30
+    ./scripts/demo --model q6075   # the modern camera: the same driver, nothing configured for it
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import http.client
 import importlib.util
 import os
 import re
+import secrets
 import shutil
 import signal
 import subprocess
@@ -41,7 +45,7 @@ EXECUTABLES = {
     "axis_visualizer": "axis_ptz_ros2.nodes.visualizer",
     "axis_web_console": "axis_ptz_ros2.nodes.web_console",
 }
-SIM_URL = re.compile(r"at (http://127\.0\.0\.1:(\d+))/")
+SIM_URL = re.compile(r"at (https?://127\.0\.0\.1:(\d+))/ \(auth=(\w+)(?:; CA certificate ([^)]+))?\)")
 
 
 class DemoError(RuntimeError):
@@ -102,7 +106,8 @@ class DemoConfig:
 
     console_port: int = 8090
     fps: int = 10
-    resolution: str = "704x576"
+    resolution: str = ""  # '' = the largest the camera lists
+    model: str = "axis214"  # simulated camera persona (axis_camera_sim --model)
     split: bool = False
     panorama_width: int = 2048
     log_dir: Path | None = None
@@ -170,11 +175,22 @@ class Demo:
         if missing:
             raise DemoError("cannot start the demo:\n  " + "\n  ".join(missing))
 
-        sim = self._spawn("axis_camera_sim", exes["axis_camera_sim"], ["--port", "0"])
-        self.sim_url = self._wait_sim_url(sim, 30.0)
+        password = secrets.token_urlsafe(12)
+        self.env["AXIS_SIM_PASSWORD"] = password  # the simulator's; never on a command line
+        sim = self._spawn("axis_camera_sim", exes["axis_camera_sim"], ["--port", "0", "--model", cfg.model])
+        self.sim_url, auth, ca_file = self._wait_sim_url(sim, 30.0)
         port = int(self.sim_url.rsplit(":", 1)[1])
-        video = {"fps": cfg.fps, "resolution": cfg.resolution}
-        connection = {"hostname": "127.0.0.1", "port": port}
+        video: dict[str, Any] = {"fps": cfg.fps}
+        if cfg.resolution:
+            video["resolution"] = cfg.resolution
+        connection: dict[str, Any] = {"hostname": "127.0.0.1", "port": port}
+        if self.sim_url.startswith("https://"):
+            connection.update(use_https=True, verify_tls=True, ca_file=ca_file)
+        if auth != "none":
+            cred = self.log_dir / "camera.cred"
+            cred.touch(mode=0o600)
+            cred.write_text(f"root:{password}\n", encoding="utf-8")
+            connection["password_file"] = str(cred)
         if cfg.split:
             self._spawn("axis_stream", exes["axis_stream"], ros_args({**connection, **video}))
             self._spawn("axis_ptz", exes["axis_ptz"], ros_args(connection))
@@ -197,12 +213,13 @@ class Demo:
         self.config.split = True
         return self.start()
 
-    def _wait_sim_url(self, sim: Child, timeout: float) -> str:
+    def _wait_sim_url(self, sim: Child, timeout: float) -> tuple[str, str, str]:
+        """(base URL, auth mode, CA certificate path or '') from the simulator's start-up line."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             m = SIM_URL.search(sim.log_path.read_text(encoding="utf-8", errors="replace"))
             if m:
-                return m.group(1)
+                return m.group(1), m.group(3), m.group(4) or ""
             self._check_alive()
             time.sleep(0.05)
         raise DemoError(f"the simulator did not report its URL within {timeout:g} s:\n{sim.tail()}")
@@ -266,7 +283,7 @@ def count_mjpeg_frames(base_url: str, path: str, frames: int, timeout: float) ->
     m = re.match(r"http://([^/:]+):(\d+)", base_url)
     if not m:
         raise OSError(f"not a console URL: {base_url!r}")
-    conn = http.client.HTTPConnection(m.group(1), int(m.group(2)), timeout=max(0.5, min(timeout, 10.0)))
+    conn = http.client.HTTPConnection(m.group(1), int(m.group(2)), timeout=max(0.5, timeout))
     try:
         conn.request("GET", path)
         resp = conn.getresponse()
@@ -295,7 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8090, help="web console port (0 = pick a free one)")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0 = until Ctrl-C)")
     p.add_argument("--fps", type=int, default=10, help="PTZ stream frame rate (1..30)")
-    p.add_argument("--resolution", default="704x576", help="PTZ stream resolution")
+    p.add_argument("--resolution", default="", help="PTZ stream resolution ('' = the largest the camera lists)")
+    p.add_argument("--model", default="axis214", help="simulated camera: axis214 (default) or q6075 (modern dome)")
     p.add_argument("--split", action="store_true", help="run axis_stream + axis_ptz instead of axis_camera")
     p.add_argument("--log-dir", type=Path, default=None, help="keep the children's logs here")
     p.add_argument("--ready-timeout", type=float, default=60.0, help="seconds to wait for live video")
@@ -314,7 +332,12 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     demo = Demo(
         DemoConfig(
-            console_port=args.port, fps=args.fps, resolution=args.resolution, split=args.split, log_dir=args.log_dir
+            console_port=args.port,
+            fps=args.fps,
+            resolution=args.resolution,
+            model=args.model,
+            split=args.split,
+            log_dir=args.log_dir,
         )
     )
     code = 0

@@ -5,10 +5,13 @@ Model (geometry-and-calibration.md §1, §6; thesis §6.4)::
     T_base_opt(p_k, t_k) = T_base_ptz · head(p_k + pan_offset, t_k + tilt_offset)
     u_ki = π(K(z_k), T_base_opt(p_k, t_k)⁻¹ · X_i)
 
-with ``head = PtzKinematics.optical_in_ptz_base`` and ``K(z) = ZoomModel.intrinsics(z, W, H)``. The unknowns
-are ``T_base_ptz`` (6 DoF: translation in metres and a rotation vector ``ω`` with ``R = exp([ω]×)·R₀``
-around the current estimate ``R₀``, i.e. a rotation about the *parent* (base_link) axes) and optionally the
-tilt encoder offset.
+with ``head = PtzKinematics.optical_in_ptz_base`` and ``K(z)``, ``π`` from ``CameraModel.camera_info_at``: the
+measured camera_info (K and lens distortion; principal point and distortion kept, focal length scaled with the
+zoom curve) or the nominal zoom curve. Pixels are the raw ones the user clicked; the projection includes the
+distortion. The unknowns are ``T_base_ptz`` (6 DoF: translation in metres and a rotation vector ``ω`` with
+``R = exp([ω]×)·R₀`` around the current estimate ``R₀``, i.e. a rotation about the *parent* (base_link) axes)
+and optionally the tilt encoder offset. For a fixed camera (``fixed=True``) the head is the identity and the
+unknown is ``T_reference_optical``.
 
 The pan encoder offset is *not* separately observable: ``head(p + δ) = Rz(δ)·head(p)`` exactly (the pan axis
 is the ptz_base z axis and the tilt-axis height is on it), so any pan offset is absorbed, without loss, into
@@ -16,18 +19,20 @@ the yaw of ``T_base_ptz``; ``pan_offset`` is therefore reported as 0 and the mou
 
 Pipeline (:func:`calibrate`):
 
-1. Gate the input: enough points (≥ ``min_points`` in total, a view with ≥ 4 for PnP), not a single view of a
-   nearly coplanar point set, enough angular spread of the observed rays.
-2. Per-view PnP (SQPnP, EPnP, iterative; IPPE for planar sets) on the view's zoom-correct K; each camera pose
-   gives a ``T_base_ptz`` candidate through the known head pose. Multi-start from the candidates and their
-   robust average.
+1. Check the input: enough points (≥ ``min_points`` in total, a view with ≥ 4 for PnP), no identical rows,
+   not a single camera pose of a nearly coplanar point set, enough angular spread of the observed rays.
+2. Per-view PnP (SQPnP, EPnP, iterative; IPPE for planar sets) on undistorted pixels; each camera pose gives a
+   ``T_base_ptz`` candidate through the known head pose. Multi-start from the candidates and their robust
+   average.
 3. Joint robust refinement over all views (``scipy.optimize.least_squares``, TRF with a soft-L1 loss on
    residuals whitened by ``σ_i² = σ_px² + (f·σ_3D/Z_i)²``), outlier rejection at ``k·σ_i``, and a final
    non-robust Levenberg–Marquardt refit on the inliers (iterated until the inlier set is stable).
-4. Covariance ``Σ = (JᵀWJ)⁻¹`` at the optimum, inflated by ``covariance_inflation`` (on σ), reported as 6×6
-   (x, y, z, rotX, rotY, rotZ). Gates on the predicted σ (degeneracy), on the normalised RMS (inconsistent
-   data) and on a focal-length check (a global focal scale fitted as a diagnostic).
-5. Held-out reprojection error: leave-one-view-out refits (≥ 3 views) or k random point folds.
+4. Covariance ``Σ = (JᵀWJ)⁻¹`` at the optimum, inflated by ``covariance_inflation`` (on σ) and by the
+   normalised RMS when it exceeds 1, reported as 6×6 (x, y, z, rotX, rotY, rotZ). Refusal only when the data
+   cannot determine the pose (singular normal equations, too few inliers); limits on σ, on the normalised RMS
+   and on the focal check only when the caller sets them.
+5. Diagnostics (:mod:`~axis_ptz_ros2.calibration.diagnostics`): the focal-length check (cross-validated),
+   held-out reprojection error (leave-one-view-out with ≥ 3 views, else k random point folds), per-view poses.
 """
 
 from __future__ import annotations
@@ -224,6 +229,7 @@ def calibrate(
     focal_tolerance: float = 0.02,
     focal_alpha: float = 1e-3,
     refuse_on_focal_mismatch: bool = False,
+    check_focal: bool = True,
     raise_on_refusal: bool = True,
     source: str | None = None,
     seed: int = 0,
@@ -242,7 +248,8 @@ def calibrate(
     set — also before any solution exists, then ``solved`` is False) only when the data cannot determine the
     pose: too few points, identical rows, a single pose of nearly coplanar points, rays in a too narrow cone,
     singular normal equations, too few inliers. ``max_sigma_translation_m`` / ``max_sigma_rotation_deg`` /
-    ``max_normalised_rms`` / ``refuse_on_focal_mismatch`` make it stricter. ``source`` (the file name) is
+    ``max_normalised_rms`` / ``refuse_on_focal_mismatch`` make it stricter. ``check_focal=False`` skips the
+    focal-length diagnostic (ten robust refits; for batch studies). ``source`` (the file name) is
     used in messages that point at rows. Raises :class:`CalibrationInputError` for unusable input.
     """
     notes: list[str] = []
@@ -377,7 +384,21 @@ def calibrate(
         )
 
     # ---- focal check --------------------------------------------------------------------------------
-    focal = focal_check(prob, fit, mask, sig, estimate_encoder_offsets, rms_px, focal_tolerance, focal_alpha, seed)
+    if check_focal:
+        focal = focal_check(
+            prob,
+            fit,
+            mask,
+            sig,
+            estimate_encoder_offsets,
+            rms_px,
+            focal_tolerance,
+            focal_alpha,
+            seed,
+            outlier_k=outlier_k,
+        )
+    else:
+        focal = FocalCheck(math.nan, math.nan, rms_px, math.nan, math.nan, False, "not computed (check_focal=False)")
     if focal.flagged:
         warnings.append(f"focal length: {focal.message}")
 

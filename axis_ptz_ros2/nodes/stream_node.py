@@ -199,6 +199,8 @@ class StreamNode(Node):
         # Until the camera has said what it is: the named file, else the generic model (replaced on discovery).
         self._model = load_camera_model(self._model_file) if self._model_file else load_generic_base()
         self._profile_logged = False
+        self._learn_lock = threading.Lock()
+        self._learned: tuple[Resolution, ...] = ()  # the camera's resolution list once asked successfully
         self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once read
         self._params_source = "startup"  # cause of the video parameters in effect (VideoParams.source)
         self._resolutions_pending = False
@@ -265,6 +267,9 @@ class StreamNode(Node):
         self._budget_check = 0.0
         self._link_decision: Decision | None = None
         self._reader.start()
+        self._stopping = threading.Event()
+        self._learner = threading.Thread(target=self._learn_loop, name="axis-stream-learn", daemon=True)
+        self._learner.start()
         # Activity follows publisher-matched events at once; this 1 Hz timer is only the fallback poll,
         # the byte-trickle watchdog (a silent socket is caught by the read timeout) and diagnostics.
         self._timer = self.create_timer(1.0, self._housekeeping)
@@ -421,22 +426,46 @@ class StreamNode(Node):
 
     def _open_http(self, params: VideoParams, read_timeout_s: float) -> FrameSource:
         if self._resolutions is None:
-            listed = self._learn_camera()
-            if listed:
-                with self._lock:
-                    self._resolutions = listed
-                    self._resolutions_pending = True
-                    if not str(self.get_parameter("resolution").value).strip():  # auto: the camera's largest
-                        auto = VideoParams(
-                            self._resolution_from(""), params.fps, params.compression, camera=params.camera
-                        )
-                        if auto.resolution != params.resolution:
-                            params = self._budget.configure(requested=auto, resolutions=listed, now=time.monotonic())
-                            self._reader.set_params(params)  # the reader adopts it; this stream already has it
+            params = self._adopt(self._learn_camera(), params)
         return self._client.open_mjpeg(params, read_timeout_s)
+
+    def _adopt(self, listed: tuple[Resolution, ...], params: VideoParams) -> VideoParams:
+        """Take the camera's resolution list (once); with resolution '' switch to its largest size."""
+        if not listed:
+            return params
+        with self._lock:
+            if self._resolutions is not None:
+                return self._reader.params
+            self._resolutions = listed
+            self._resolutions_pending = True  # housekeeping republishes video/params
+            if not str(self.get_parameter("resolution").value).strip():  # auto: the camera's largest
+                auto = VideoParams(self._resolution_from(""), params.fps, params.compression, camera=params.camera)
+                if auto.resolution != params.resolution:
+                    params = self._budget.configure(requested=auto, resolutions=listed, now=time.monotonic())
+                    self._reader.set_params(params)  # the reader adopts it (a stream open now already has it)
+        return params
+
+    def _learn_loop(self) -> None:
+        """Learn the camera at start-up even while nobody subscribes (lazy): video/params then advertises the
+        camera's real sizes at once. Retries with back-off until the camera answers (or the stream did it)."""
+        delay = 0.5
+        while not self._stopping.is_set() and self._resolutions is None:
+            try:
+                self._adopt(self._learn_camera(), self._reader.params)
+            except AuthError:
+                return  # a refused login: the reader reports it and retries at its own pace (and learns then)
+            if self._resolutions is not None or self._stopping.wait(delay):
+                return
+            delay = min(10.0, delay * 2.0)
 
     def _learn_camera(self) -> tuple[Resolution, ...]:
         """Ask the camera what it is (once): resolutions, pixel aspect, model; one summary line in the log."""
+        with self._learn_lock:  # the start-up learner and the reader's first connection: one asks, one waits
+            if not self._learned:
+                self._learned = self._learn_camera_locked()
+            return self._learned
+
+    def _learn_camera_locked(self) -> tuple[Resolution, ...]:
         try:
             profile = discover(self._client, self._model_file)
         except AuthError:
@@ -572,7 +601,13 @@ class StreamNode(Node):
             return
         self._log_throttle[key] = now
         logger = self.get_logger()
-        {"info": logger.info, "warn": logger.warning, "error": logger.error}[level](text)
+        # One call site per severity: rclpy refuses a second severity from the same caller line.
+        if level == "info":
+            logger.info(text)
+        elif level == "warn":
+            logger.warning(text)
+        else:
+            logger.error(text)
 
     def _on_reader_event(self, state: StreamState, message: str) -> None:
         """Reader state changes and errors (reader thread); throttled so an absent camera is not spammed."""
@@ -632,9 +667,15 @@ class StreamNode(Node):
 
     def destroy_node(self) -> None:
         """Stop and join the reader thread (closing the stream from outside), then the node."""
+        stopping = getattr(self, "_stopping", None)
+        if stopping is not None:
+            stopping.set()
         reader = getattr(self, "_reader", None)
         if reader is not None:
             reader.stop(1.5)
+        learner = getattr(self, "_learner", None)
+        if learner is not None:
+            learner.join(2.0)
         client = getattr(self, "_client", None)
         if client is not None:
             client.close()

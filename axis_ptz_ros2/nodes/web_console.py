@@ -409,6 +409,8 @@ class WebConsole(Node):
                 "zoom": s.zoom, "magnification": s.magnification, "hfov_deg": math.degrees(s.hfov),
                 "vfov_deg": math.degrees(s.vfov), "moving": bool(s.moving), "age_s": now - s_t,
                 "zoom_min": s.zoom_min, "zoom_max": s.zoom_max,
+                # drive-safe zoom (the PTZ node's drive_* parameters): NaN cap = off, shown as null
+                "zoom_capped": bool(s.zoom_capped), "zoom_cap": s.zoom_cap, "requested_zoom": s.requested_zoom,
             }  # fmt: skip
         video: dict[str, Any] | None = None
         if v is not None:

@@ -13,6 +13,7 @@ import time
 from dataclasses import replace
 
 from axis_ptz_ros2.config import CameraModel
+from axis_ptz_ros2.geometry import wrap_angle
 from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.vapix import (
     AbsoluteMove,
@@ -150,7 +151,10 @@ class AxisBackend:
             raise PtzBackendError(str(err)) from err
 
     def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
-        """``pan=…&tilt=…&zoom=…[&speed=…]`` (degrees rounded to the protocol's 4 decimals)."""
+        """``pan=…&tilt=…&zoom=…[&speed=…]`` (degrees rounded to the protocol's 4 decimals). On an endless-pan
+        head the pan is wrapped first (an encoder offset may push a wrapped joint target past ±180°)."""
+        if pan is not None and self._limits is not None and self._limits.full_turn:
+            pan = wrap_angle(pan)
         pan_deg = None if pan is None else round(self._conv.to_vapix(pan, 0.0)[0], 4)
         tilt_deg = None if tilt is None else round(self._conv.to_vapix(0.0, tilt)[1], 4)
         zoom_units = None if zoom is None else int(round(zoom))

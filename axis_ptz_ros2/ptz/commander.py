@@ -174,6 +174,7 @@ class Commander:
         self._cap: float | None = None  # drive-safe zoom cap in force
         self._requested_zoom: float | None = None  # the operator's zoom (restored when the cap lifts)
         self._last_enforce = -math.inf
+        self._slow = False  # the camera's move speed was last set below full speed
         self.stats = CommanderStats()
 
     # -- state ----------------------------------------------------------------------------------------
@@ -391,10 +392,15 @@ class Commander:
         return self.move(label, target.pan, target.tilt, target.zoom, speed=speed)
 
     def _move_action(self, speed: float | None) -> Callable[[Target | None], None]:
+        """The camera keeps a move speed once set (VAPIX ``speed`` is a setting, not a per-move argument): a move
+        without a speed after one with a speed sends full speed again, so a slow move never leaves the head slow."""
+
         def action(t: Target | None) -> None:
             assert t is not None
             hp, ht = self._offsets.to_head(t.pan, t.tilt)
-            self._backend.move_to(hp, ht, t.zoom, speed)
+            sent = speed if speed is not None else (1.0 if self._slow else None)
+            self._backend.move_to(hp, ht, t.zoom, sent)
+            self._slow = sent is not None and sent < 1.0  # only the command worker runs this
 
         return action
 

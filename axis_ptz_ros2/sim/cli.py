@@ -9,6 +9,7 @@ import os
 import signal
 import sys
 import threading
+import time
 
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import PERSONAS, persona
@@ -119,6 +120,12 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         cam.stop()
+        # Let the request threads (daemons) leave before the interpreter finalises: one still inside OpenCV
+        # at exit aborted the process ("terminate called without an active exception", exit -6).
+        deadline = time.monotonic() + 5.0
+        for t in threading.enumerate():
+            if t is not threading.current_thread() and t.daemon:
+                t.join(max(0.0, deadline - time.monotonic()))
     return 0
 
 

@@ -193,3 +193,17 @@ def test_presets_listed_under_ptz_preset_p0(mc):
     door = next(k for k, v in names.items() if v == "Door")
     assert p[door.replace(".Name", ".Data")].startswith("tilt=")
     assert "presetposno" in mc.get("/axis-cgi/com/ptz.cgi?query=presetposcam").text
+
+
+def test_driver_discovery_reads_ptz_enabled_per_image_source():
+    from axis_ptz_ros2.camera_models import discover
+    from axis_ptz_ros2.vapix import CameraConfig, VapixClient
+
+    with SimulatedCamera(model="q6075", https=False, auth="none") as cam:
+        with VapixClient(CameraConfig(port=cam.port)) as client:
+            assert discover(client).ptz_enabled is True
+        cam.params["PTZ.ImageSource.I0.PTZEnabled"] = "false"
+        with VapixClient(CameraConfig(port=cam.port)) as client:
+            profile = discover(client)
+        assert profile.ptz_enabled is False
+        assert "PTZ DISABLED" in profile.summary()

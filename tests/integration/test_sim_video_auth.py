@@ -44,15 +44,17 @@ def test_stream_wire_format_and_frame_size(client, resolution, extra, size):
 
 
 def test_alias_path_and_rate_is_paced(client):
-    status, _, body, _ = read_stream(client, "/mjpg/video.mjpg?fps=10&nbrofframes=12", max_seconds=30)
+    t0 = time.monotonic()
+    status, _, body, marks = read_stream(client, "/mjpg/video.mjpg?fps=10&nbrofframes=12", max_seconds=30)
     assert status == 200
     assert len(parts(body)) == 12
-    # the camera's own send stamps: 12 frames at 10 fps are never sent faster than 0.1 s apart on average
-    # (first at 0, last at >= 1.1 s), and typically 0.1 s apart (the median ignores a scheduling hiccup)
+    # 12 frames at 10 fps, frame k never before start + (k - 1) * 0.1 s (a camera that fell behind catches up,
+    # it never runs ahead): the last arrives no sooner than 1.1 s after the request, however loaded the machine
+    assert marks[-1][0] - t0 >= 1.1 - 0.005
+    # and the camera's own send stamps are typically 0.1 s apart (the median ignores scheduling hiccups)
     sent_ns = [int(m.group(2)) for m in COM.finditer(body)]
     assert len(sent_ns) == 12
     gaps = [(b - a) / 1e9 for a, b in zip(sent_ns, sent_ns[1:], strict=False)]
-    assert sum(gaps) >= 1.1 - 0.02, gaps
     assert statistics.median(gaps) == pytest.approx(0.1, abs=0.03), gaps
 
 
@@ -60,7 +62,12 @@ def test_duration_and_fps0_unlimited(client):
     status, _, body, marks = read_stream(client, f"{VIDEO}?fps=0&duration=1&resolution=CIF", max_seconds=4)
     n = len(parts(body))
     assert status == 200
-    assert n > 40
+    assert n >= 5
+    # unlimited: the camera sends frames back to back, faster than its top paced rate (30 fps); its own send
+    # stamps (the median ignores the moments a loaded machine leaves it no CPU)
+    sent_ns = [int(m.group(2)) for m in COM.finditer(body)]
+    gaps = [(b - a) / 1e9 for a, b in zip(sent_ns, sent_ns[1:], strict=False)]
+    assert statistics.median(gaps) < 1 / 30, gaps
     seqs = [int(m.group(1)) for m in COM.finditer(body)]
     assert seqs == list(range(1, len(seqs) + 1))  # every frame distinct, none repeated
 

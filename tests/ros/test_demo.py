@@ -65,6 +65,18 @@ def log_dir(text: str) -> Path:
     return Path(m.group(1))
 
 
+def stop(proc: subprocess.Popen[str]) -> None:
+    """After a failed check: SIGTERM first, so the demo stops its children (each in its own session, so a
+    SIGKILL of the demo alone would leave them running, and on this DDS domain for the tests after)."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
 def refused(url: str) -> bool:
     host, port = url.removeprefix("http://").split(":")
     conn = http.client.HTTPConnection(host, int(port), timeout=2)
@@ -81,7 +93,7 @@ def refused(url: str) -> bool:
 def test_scripts_demo_serves_live_video_and_stops_after_duration(tmp_path: Path) -> None:
     t0 = time.monotonic()
     proc = subprocess.Popen(
-        [str(ROOT / "scripts" / "demo"), "--port", "0", "--duration", "20", "--log-dir", str(tmp_path)],
+        [str(ROOT / "scripts" / "demo"), "--port", "0", "--duration", "40", "--log-dir", str(tmp_path)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -92,13 +104,13 @@ def test_scripts_demo_serves_live_video_and_stops_after_duration(tmp_path: Path)
     try:
         url = out.url(60.0)
         assert time.monotonic() - t0 < 60.0
-        assert count_mjpeg_frames(url, "/video/ptz.mjpg", 3, 15.0) == 3
-        assert count_mjpeg_frames(url, "/video/panorama.mjpg", 1, 15.0) == 1
-        code = proc.wait(60.0)
+        # deadlines, not speed bounds (the demo's 40 s start when it serves live PTZ video; the panorama is
+        # rendered after that and has taken 24 s on a loaded machine)
+        assert count_mjpeg_frames(url, "/video/ptz.mjpg", 3, 20.0) == 3
+        assert count_mjpeg_frames(url, "/video/panorama.mjpg", 1, 35.0) == 1
+        code = proc.wait(90.0)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)
     text = out.join()
     assert code == 0, text[-3000:]
     assert "all processes stopped cleanly" in text
@@ -120,16 +132,14 @@ def test_demo_stops_everything_on_sigterm(tmp_path: Path) -> None:
     out = Output(proc)
     try:
         url = out.url(60.0)
-        assert count_mjpeg_frames(url, "/video/ptz.mjpg", 2, 15.0) == 2
+        assert count_mjpeg_frames(url, "/video/ptz.mjpg", 2, 20.0) == 2
         sim_port = int(re.search(r"simulator at http://127\.0\.0\.1:(\d+)", out.text).group(1))  # type: ignore[union-attr]
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         code = proc.wait(30.0)
         stop_s = time.monotonic() - t0
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)
     text = out.join()
     assert code == 0, text[-3000:]
     assert "all processes stopped cleanly" in text

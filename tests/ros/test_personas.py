@@ -164,9 +164,9 @@ def test_ptz_node_learns_limits_and_pans_across_the_seam(ros: Any, cam: Simulate
     assert vapix_to_ros(*cam.position()[:2])[0] == pytest.approx(math.radians(-160.0), abs=1e-3)
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 has end stops
 def test_ptz_moves_take_the_short_way_on_the_modern_dome(ros: Any, cam: SimulatedCamera, connection: list[Parameter]):
-    if not cam.state.pan_wraps:
-        pytest.skip("the 214 has end stops")
+    assert cam.state.pan_wraps
     cam.teleport(-175.0, 0.0, 1)  # REP-103 +175
     ros.add(PtzNode(context=ros.context, parameter_overrides=connection))
     probe = ros.probe("persona_seam_probe")
@@ -192,9 +192,9 @@ def test_ptz_moves_take_the_short_way_on_the_modern_dome(ros: Any, cam: Simulate
     assert all(abs(p) >= 174.9 for p in seen), f"went the long way round: {min(map(abs, seen)):.1f} deg from 0"
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 is an HTTP camera
 def test_verify_tls_false_warns_once(ros: Any, cam: SimulatedCamera, connection: list[Parameter], capfd):
-    if not cam.https:
-        pytest.skip("HTTP camera")
+    assert cam.https
     common._INSECURE_TLS_WARNED.clear()  # noqa: SLF001 - a fresh process
     insecure = [p for p in connection if p.name not in ("verify_tls", "ca_file")] + [
         Parameter("verify_tls", value=False)
@@ -206,14 +206,72 @@ def test_verify_tls_false_warns_once(ros: Any, cam: SimulatedCamera, connection:
     assert err.count("verify_tls is false") == 1, err[-2000:]
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 is an HTTP camera
 def test_https_without_the_camera_certificate_fails_safely(ros: Any, cam: SimulatedCamera, connection: list[Parameter]):
     """Certificate checking against the system store: the self-signed camera is refused, the node keeps running
     and says why; nothing reaches the camera's CGIs."""
-    if not cam.https:
-        pytest.skip("HTTP camera")
+    assert cam.https
     cam.reset_counts()
     strict = [p for p in connection if p.name != "ca_file"] + [Parameter(k, value=v) for k, v in FAST.items()]
     node = ros.add(StreamNode(context=ros.context, parameter_overrides=strict + [Parameter("lazy", value=False)]))
     ros.wait_for(lambda: "certificate" in node._reader.stats().last_error.lower(), timeout=10)  # noqa: SLF001
     assert node._reader.stats().frames == 0  # noqa: SLF001
     assert sum(cam.request_counts.endpoints.values()) == 0
+
+
+def test_demo_with_the_modern_camera_serves_1080p_through_the_console(tmp_path: Path):
+    """``demo --model q6075``: the same executables, nothing configured for the camera but how to reach it; the
+    web console shows the camera's own resolution list and relays its 1920x1080 frames."""
+    import http.client
+    import json
+
+    from axis_ptz_ros2.demo import Demo, DemoConfig
+
+    with Demo(DemoConfig(console_port=0, fps=5, model="q6075", log_dir=tmp_path)) as demo:
+        url = demo.wait_ready(90.0)
+        assert demo.sim_url.startswith("https://")
+        host, port = url.removeprefix("http://").split(":")
+        deadline = time.monotonic() + 30
+        state: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            conn = http.client.HTTPConnection(host, int(port), timeout=5)
+            conn.request("GET", "/api/state")
+            state = json.loads(conn.getresponse().read())
+            conn.close()
+            if "1920x1080" in json.dumps(state):
+                break
+            time.sleep(0.5)
+        assert "1920x1080" in json.dumps(state), state
+        assert "704x576" not in json.dumps(state.get("resolutions", state))
+        logs = "".join(p.read_text(errors="replace") for p in tmp_path.glob("axis_camera*.log"))
+        assert "AXIS Q6075-E" in logs
+        assert "HTTPS with Digest auth" in logs
+        assert "square pixels" in logs
+        assert "verify_tls is false" not in logs  # the certificate is checked
+        codes = demo.stop()
+    assert all(c in (0, -2) for c in codes.values()), codes
+
+
+def test_keyboard_teleop_drives_either_camera(ros: Any, cam: SimulatedCamera, connection: list[Parameter]):
+    """The real ``axis_keyboard_teleop`` in a pty: A turns left, G walks down the camera's OWN resolution list."""
+    from tests.ros.test_keyboard_teleop import Pty
+
+    cam.teleport(0.0, 0.0, 1)
+    ptz = ros.add(PtzNode(context=ros.context, parameter_overrides=connection))
+    stream = ros.add(StreamNode(context=ros.context, parameter_overrides=connection))
+    ros.wait_for(lambda: ptz.poller.latest is not None, 10.0)
+    listed = sorted(set(cam.persona.resolutions.values()), key=lambda s: (s[0] * s[1], s[0]))
+    top, below = (f"{w}x{h}" for w, h in (listed[-1], listed[-2]))
+    pty = Pty()
+    try:
+        pty.wait_output(f"video: 15 fps {top} compression 30", timeout=30)
+        pty.wait_output("pan   +0.00 deg")
+        pty.type("5a")  # left 5 deg: REP-103 +5, VAPIX -5 on both cameras
+        ros.wait_for(lambda: abs(cam.position()[0] + 5.0) < 0.05 and not cam.state.moving(), timeout=10)
+        m = pty.type("g")
+        ros.wait_for(lambda: stream.get_parameter("resolution").value == below, timeout=10)
+        pty.wait_output(f"video: 15 fps {below} compression 30", since=m, timeout=15)
+        pty.type("\x03")
+        assert pty.proc.wait(10) == 0
+    finally:
+        pty.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import threading
 import time
 from collections.abc import Iterator
@@ -102,7 +103,7 @@ def config_files(cam: SimulatedCamera, tmp_path_factory: pytest.TempPathFactory)
 def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNode:
     cam.set_faults(FaultConfig())
     cam.teleport(0.0, 0.0, 1)
-    cam.state.speed = 100  # VAPIX speed is a persistent setting: undo a slow move of an earlier test
+    cam.state.speed = 100  # VAPIX speed is a persistent setting (an earlier test may have slowed the sim itself)
     cam.reset_counts()
     model, mount = config_files
     overrides = [
@@ -568,7 +569,10 @@ def test_preset_goto_reports_where_the_head_stopped(ros: Any, node: PtzNode, cam
     r = fut.result()
     assert not r.success, r.message
     assert "stopped at" in r.message, r.message
-    assert f"{-stopped[0]:.1f}" in r.message  # where it stopped, REP-103 degrees
+    where = re.search(r"stopped at pan (-?[\d.]+) deg, tilt (-?[\d.]+) deg", r.message)
+    assert where is not None, r.message
+    assert float(where.group(1)) == pytest.approx(-stopped[0], abs=0.01)  # where it stopped, REP-103 degrees
+    assert float(where.group(2)) == pytest.approx(stopped[1], abs=0.01)
     # a preset the node never saw stored: arrival = the head settled there; its pose is learned
     r = ros.call(preset, Preset.Request(action="goto", name="Home", wait=True, timeout_s=10.0), timeout=15.0)
     assert r.success, r.message
@@ -698,6 +702,11 @@ class MoveClient:
         return fut.result()
 
 
+@pytest.fixture
+def mc(ros: Any, node: PtzNode) -> MoveClient:
+    return MoveClient(ros)  # destroyed with its probe node by the harness
+
+
 def absolute_goal(pan_deg: float, tilt_deg: float = 0.0, zoom: float = 1.0, speed: float = NAN) -> PtzMove.Goal:
     return PtzMove.Goal(
         kind=PtzMove.Goal.ABSOLUTE,
@@ -706,8 +715,9 @@ def absolute_goal(pan_deg: float, tilt_deg: float = 0.0, zoom: float = 1.0, spee
     )
 
 
-def test_move_action_feedback_and_result_land_on_the_sim(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
-    mc = MoveClient(ros)
+def test_move_action_feedback_and_result_land_on_the_sim(
+    ros: Any, node: PtzNode, cam: SimulatedCamera, mc: MoveClient
+) -> None:
     feedback: list[Any] = []
     handle = mc.send(absolute_goal(40.0, 10.0, 2000.0, speed=0.2), feedback)  # 60 deg/s: ~0.7 s of motion
     res = mc.result(handle)
@@ -748,8 +758,7 @@ def test_move_action_feedback_and_result_land_on_the_sim(ros: Any, node: PtzNode
     assert motion_requests(cam) == []
 
 
-def test_move_action_cancel_stops_the_head(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
-    mc = MoveClient(ros)
+def test_move_action_cancel_stops_the_head(ros: Any, node: PtzNode, cam: SimulatedCamera, mc: MoveClient) -> None:
     feedback: list[Any] = []
     handle = mc.send(absolute_goal(-90.0, speed=0.05), feedback)  # 15 deg/s: 6 s to get there
     ros.wait_for(lambda: len(feedback) >= 3 and cam.state.moving(), 10.0)
@@ -763,11 +772,12 @@ def test_move_action_cancel_stops_the_head(ros: Any, node: PtzNode, cam: Simulat
     assert 1.0 < stopped[0] < 89.0  # VAPIX +pan = right = REP-103 -90: stopped on the way
     time.sleep(0.5)
     assert cam.position() == pytest.approx(stopped, abs=1e-6)  # and stays stopped
-    assert res.result.state.pan == pytest.approx(-math.radians(stopped[0]), abs=1e-3)
+    assert res.result.state.pan == pytest.approx(-math.radians(stopped[0]), abs=1e-3), res.result.message
 
 
-def test_move_action_newer_goal_preempts_the_older(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
-    mc = MoveClient(ros)
+def test_move_action_newer_goal_preempts_the_older(
+    ros: Any, node: PtzNode, cam: SimulatedCamera, mc: MoveClient
+) -> None:
     fb: list[Any] = []
     first = mc.send(absolute_goal(80.0, speed=0.05), fb)
     ros.wait_for(lambda: len(fb) >= 2 and cam.state.moving(), 10.0)
@@ -778,6 +788,8 @@ def test_move_action_newer_goal_preempts_the_older(ros: Any, node: PtzNode, cam:
     res2 = mc.result(second)
     assert res2.status == GoalStatus.STATUS_SUCCEEDED, res2.result.message
     assert cam.position() == pytest.approx((20.0, 5.0, 1500.0), abs=1e-3)  # the newer goal won
+    assert move(ros, ros.probe(), "ptz/move_absolute", cmd(pan=math.radians(-21.0))).success
+    assert cam.state.speed == 100  # the slow goal did not leave the camera's persistent speed setting slow
     # an invalid newer goal ends aborted with its reason and does not take the head from the running goal
     fb.clear()
     running = mc.send(absolute_goal(30.0, speed=0.1), fb)

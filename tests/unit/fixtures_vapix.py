@@ -103,9 +103,7 @@ PARAM_PROPERTIES_214 = (
     "root.Properties.Image.Resolution=4CIF,2CIFEXP,2CIF,CIF,QCIF\n"
     "root.Properties.Image.Format=jpeg,mjpeg,mpeg4\n"
 )
-PARAM_BRAND_214 = (
-    "root.Brand.ProdShortName=AXIS 214 PTZ\nroot.Brand.ProdFullName=AXIS 214 PTZ Network Camera\n"
-)
+PARAM_BRAND_214 = "root.Brand.ProdShortName=AXIS 214 PTZ\nroot.Brand.ProdFullName=AXIS 214 PTZ Network Camera\n"
 PARAM_RESOLUTION_P5512_NO_ROOT = "Properties.Image.Resolution=4CIF,2CIF,CIF,QCIF\n"
 PARAM_RESOLUTION_BULLET = "root.Properties.Image.Resolution=1920x1080,1280x960,1280x720,640x480,160x90\n"
 PARAM_PTZ_SUPPORT = (
@@ -153,9 +151,7 @@ class Recorder:
         full = request.url.raw_path.decode()
         handler = self.routes.get(full) or self.routes.get(request.url.path)
         if handler is None:
-            return httpx.Response(
-                404, text=NOT_FOUND_HTML, headers={"Content-Type": "text/html; charset=ISO-8859-1"}
-            )
+            return httpx.Response(404, text=NOT_FOUND_HTML, headers={"Content-Type": "text/html; charset=ISO-8859-1"})
         return handler(request)
 
     @property

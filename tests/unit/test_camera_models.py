@@ -75,3 +75,32 @@ def test_generic_model_learns_the_optics_from_the_camera():
     assert z2.magnification(19999) == pytest.approx(360.0)
     k2 = z2.intrinsics(1, 1280, 720)
     assert k2.fx == pytest.approx(k2.fy)
+
+
+def test_endless_pan_backend_wraps_a_joint_target_pushed_past_the_seam():
+    """An encoder offset can push a wrapped joint target past +-180 deg: the head must still get a valid pan."""
+    import httpx
+
+    from axis_ptz_ros2.ptz.axis_backend import AxisBackend
+    from axis_ptz_ros2.vapix import CameraConfig, VapixClient
+
+    sent: list[str] = []
+
+    def handler(request: httpx.Request) -> httpx.Response:
+        q = request.url.query.decode()
+        if "query=limits" in q:
+            return httpx.Response(
+                200, text="MinPan=-180\nMaxPan=180\nMinTilt=-90\nMaxTilt=20\nMinZoom=1\nMaxZoom=19999\n"
+            )
+        sent.append(q)
+        return httpx.Response(204)
+
+    cfg = CameraConfig(port=80)
+    clients = [VapixClient(cfg, transport=httpx.MockTransport(handler)) for _ in range(2)]
+    backend = AxisBackend(
+        cfg, load_camera_model(default_config_path("q6075.yaml")), command_client=clients[0], state_client=clients[1]
+    )
+    assert backend.limits().full_turn
+    backend.move_to(math.radians(181.0), None, None)  # REP-103 +181 deg = VAPIX +179 after wrapping
+    assert len(sent) == 1
+    assert float(sent[0].removeprefix("pan=")) == pytest.approx(179.0)

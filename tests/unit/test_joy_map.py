@@ -153,3 +153,20 @@ def test_bad_maps_are_refused_with_the_reason(changes, reason):
     base.update(changes)
     with pytest.raises(ValueError, match=reason):
         JoyMap(**base)
+
+
+def test_the_mapping_and_the_urdf_module_import_without_ros():
+    """teleop/joy.py and urdf.py belong to the ROS-free layer (a fresh interpreter with rclpy blocked)."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys\n"
+        "for m in ('rclpy', 'sensor_msgs', 'std_msgs', 'axis_ptz_interfaces'):\n"
+        "    sys.modules[m] = None\n"
+        "import axis_ptz_ros2.teleop.joy, axis_ptz_ros2.urdf\n"
+        "print('ok')\n"
+    )
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=False)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "ok"

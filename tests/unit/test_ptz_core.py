@@ -364,12 +364,13 @@ ROS_FREE_PROBE = """
 import sys
 class _Blocker:
     def find_spec(self, name, path=None, target=None):
-        if name.split(".")[0] in {"rclpy", "sensor_msgs", "std_msgs", "geometry_msgs", "axis_ptz_interfaces"}:
+        if name.split(".")[0] in {"rclpy", "sensor_msgs", "std_msgs", "geometry_msgs", "nav_msgs", "action_msgs",
+                                  "axis_ptz_interfaces"}:
             raise ImportError(f"ROS module {name} imported by the ROS-free PTZ core")
         return None
 sys.meta_path.insert(0, _Blocker())
 import axis_ptz_ros2.ptz.axis_backend, axis_ptz_ros2.ptz.command_slot, axis_ptz_ros2.ptz.control
-import axis_ptz_ros2.ptz.state
+import axis_ptz_ros2.ptz.state, axis_ptz_ros2.ptz.commander, axis_ptz_ros2.ptz.drive_safe
 print("ok")
 """
 
@@ -397,6 +398,7 @@ class MemoryHead:
         self.fail_next = 0  # fail this many of the next commands
         self.gate: threading.Event | None = None
         self.stamp = 0
+        self.speeds: list[float | None] = []
 
     def _cmd(self, name: str, *args: object) -> None:
         if self.gate is not None:
@@ -417,6 +419,7 @@ class MemoryHead:
 
     def move_to(self, pan: float | None, tilt: float | None, zoom: float | None, speed: float | None = None) -> None:
         self._cmd("move_to", pan, tilt, zoom)
+        self.speeds.append(speed)
         self.rates = [0.0, 0.0, 0.0]
         for i, v in enumerate((pan, tilt, zoom)):
             if v is not None:
@@ -455,9 +458,11 @@ def head_and_commander() -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
     cmd = Commander(head, slot, poller, lambda: LIM, tolerances=Tolerances(0.002, 2.0, 0.5))
     stop = threading.Event()
 
-    def polls() -> None:
+    def polls() -> None:  # what the node's poll thread does
         while not stop.is_set():
-            poller.poll()
+            sample = poller.poll()
+            if sample is not None:
+                cmd.on_sample(sample)
             stop.wait(0.01)
 
     poller.poll()
@@ -678,3 +683,27 @@ def test_preemption_bookkeeping() -> None:
     p.finish(b"b")
     p.start(b"c")
     assert not p.preempted(b"c")
+
+
+def test_zoom_cap_stops_a_continuous_zoom_in_and_pulls_back_an_overshoot(head_and_commander: Any) -> None:
+    head, cmd, poller = head_and_commander
+    _done(cmd.move("abs", 0.0, 0.0, 3999.0))
+    poller.wait_for(lambda s: s.reading.zoom == 3999.0, 2.0)
+    assert cmd.set_zoom_cap(4000.0) is None  # below the cap: nothing to do
+    _done(cmd.velocity(0.1, 0.0, 0.5))  # pan and zoom in: the zoom part is dropped at the cap
+    assert head.calls[-1] == ("velocity", (0.1, 0.0, 0.0))
+    _done(cmd.velocity(0.0, 0.0, -0.5))  # zooming out is always allowed
+    assert head.calls[-1] == ("velocity", (0.0, 0.0, -0.5))
+    _done(cmd.stop())
+    head.pose[2] = 6000.0  # someone zoomed past the cap (another client, a preset)
+    RosFreeWait.until(lambda: head.pose[2] == 4000.0)  # the next samples pull it back to the cap
+    assert head.calls[-1] == ("move_to", (None, None, 4000.0))
+
+
+def test_a_slow_move_does_not_leave_the_camera_slow(head_and_commander: Any) -> None:
+    head, cmd, _ = head_and_commander
+    _done(cmd.move("abs", 0.1, None, None))
+    _done(cmd.move("abs", 0.2, None, None, speed=0.1))
+    _done(cmd.move("abs", 0.3, None, None))  # no speed given: full speed again (VAPIX speed persists)
+    _done(cmd.move("abs", 0.4, None, None))
+    assert head.speeds == [None, 0.1, 1.0, None]

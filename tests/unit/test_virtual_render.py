@@ -25,9 +25,7 @@ def _spherical_blob(d_pano: np.ndarray, sigma: float) -> np.ndarray:
     """A float32 panorama, zero except a Gaussian of angular distance (sigma rad) around direction d_pano."""
     pano = np.zeros((PH, PW), np.float32)
     cx, cy = g.direction_to_equirect(d_pano, PW, PH)
-    r = int(
-        math.ceil(5 * sigma / (2 * math.pi / PW) / max(math.cos(g.direction_to_pan_tilt(d_pano)[1]), 0.05))
-    )
+    r = int(math.ceil(5 * sigma / (2 * math.pi / PW) / max(math.cos(g.direction_to_pan_tilt(d_pano)[1]), 0.05)))
     rows = np.arange(max(0, int(cy) - r), min(PH, int(cy) + r + 2))
     cols = np.arange(int(cx) - r, int(cx) + r + 2)  # may run past either end: wrapped below
     xx, yy = np.meshgrid(cols, rows)
