@@ -78,11 +78,31 @@ def pytest_make_collect_report(collector):  # noqa: ANN001, ANN201
         _problems.append(f"{collector.nodeid}: skipped at collection: {reason}")
 
 
+def pytest_configure(config):  # noqa: ANN001, ANN201
+    config.addinivalue_line(
+        "markers",
+        "applies_to(**params): run only for these values of a parametrised fixture or argument, e.g. "
+        "applies_to(cam=['q6075']); other cases are deselected at collection (a case that does not apply is "
+        "not generated, rather than skipped: a skip fails the run under AXIS_REQUIRE_ALL_TIERS=1)",
+    )
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(session, config, items):  # noqa: ANN001, ANN201
-    """Count tests per module before -k/-m deselect any (runs before the deselecting hooks)."""
+    """Count tests per module before -k/-m deselect any; deselect the cases an applies_to marker excludes."""
     for item in items:
         _collected[Path(str(item.path)).resolve()] += 1
+    keep, dropped = [], []
+    for item in items:
+        marker = item.get_closest_marker("applies_to")
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        if marker is not None and any(k in params and params[k] not in v for k, v in marker.kwargs.items()):
+            dropped.append(item)
+        else:
+            keep.append(item)
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = keep
 
 
 def _requested_modules(config: pytest.Config) -> set[Path]:

@@ -148,3 +148,37 @@ def test_page_says_zoom_capped_while_driving(ros: RosHarness, browser: Any) -> N
         if driver is not None:
             driver.close()
         cam.stop()
+
+
+def test_sign_in_form_in_a_real_browser(ros: RosHarness, browser: Any, tmp_path: Any) -> None:
+    """The token page as an operator uses it: a wrong token is refused, the right one signs in (cookie)."""
+    token_file = tmp_path / "token"
+    token_file.write_text("operator-token-1\n")
+    console = ros.add(
+        WebConsole(
+            context=ros.context,
+            namespace="/sign_in_test",
+            parameter_overrides=[Parameter("port", value=0), Parameter("token_file", value=str(token_file))],
+        )
+    )
+    ctx = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = ctx.new_page()
+    try:
+        page.goto(console.url, wait_until="domcontentloaded")
+        assert page.title() == "Axis PTZ console: sign in"
+        page.fill("#token", "a-wrong-guess")
+        page.click("button[type=submit]")
+        page.wait_for_load_state("domcontentloaded")
+        assert "Wrong token." in (page.locator("[role=alert]").text_content() or "")
+        page.fill("#token", "operator-token-1")
+        page.click("button[type=submit]")
+        page.wait_for_load_state("domcontentloaded")
+        assert page.title() == "Axis PTZ console"
+        # the cookie carries on: the page's own state poll is accepted
+        wait_js(page, "document.getElementById('link').textContent === 'connected'", 30)
+        cookie = next(c for c in ctx.cookies() if c["name"] == "axis_token")
+        assert cookie["httpOnly"]
+        assert cookie["sameSite"] == "Strict"
+        assert "operator-token-1" not in page.content()
+    finally:
+        ctx.close()
