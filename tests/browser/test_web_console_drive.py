@@ -27,7 +27,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
-from .test_web_console_browser import CHROMIUM_ARGS, shot  # noqa: E402
+from .test_web_console_browser import CHROMIUM_ARGS, shot, wait_js  # noqa: E402
 
 pytestmark = pytest.mark.browser
 
@@ -118,13 +118,13 @@ def test_page_says_zoom_capped_while_driving(ros: RosHarness, browser: Any) -> N
         errors: list[str] = []
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(console.url, wait_until="domcontentloaded")  # no camera stream here: "load" never fires
-        page.wait_for_function("document.getElementById('r-zoom').textContent.startsWith('8000')", timeout=30_000)
+        wait_js(page, "document.getElementById('r-zoom').textContent.startsWith('8000')", 30)
         assert page.locator("#cap").is_hidden()
 
         # the robot drives: the head comes down to the cap and the page says so
         driver.speed = 1.0
         ros.wait_for(lambda: cam.position()[2] == pytest.approx(CAP) and not cam.state.moving(), 10.0)
-        page.wait_for_function("!document.getElementById('cap').hidden", timeout=30_000)
+        wait_js(page, "!document.getElementById('cap').hidden", 30)
         cap_text = page.locator("#cap").text_content() or ""
         assert "zoom capped while driving" in cap_text
         assert "4000" in cap_text
@@ -140,7 +140,7 @@ def test_page_says_zoom_capped_while_driving(ros: RosHarness, browser: Any) -> N
         # the robot stops: after the hold time the operator's zoom comes back and the notice goes
         driver.speed = 0.0
         ros.wait_for(lambda: cam.position()[2] == pytest.approx(8000.0) and not cam.state.moving(), 10.0)
-        page.wait_for_function("document.getElementById('cap').hidden", timeout=30_000)
+        wait_js(page, "document.getElementById('cap').hidden", 30)
         assert "capped" not in (page.locator("#r-zoom").text_content() or "")
         ctx.close()
         assert not errors, f"JavaScript errors on the page: {errors}"
@@ -148,3 +148,37 @@ def test_page_says_zoom_capped_while_driving(ros: RosHarness, browser: Any) -> N
         if driver is not None:
             driver.close()
         cam.stop()
+
+
+def test_sign_in_form_in_a_real_browser(ros: RosHarness, browser: Any, tmp_path: Any) -> None:
+    """The token page as an operator uses it: a wrong token is refused, the right one signs in (cookie)."""
+    token_file = tmp_path / "token"
+    token_file.write_text("operator-token-1\n")
+    console = ros.add(
+        WebConsole(
+            context=ros.context,
+            namespace="/sign_in_test",
+            parameter_overrides=[Parameter("port", value=0), Parameter("token_file", value=str(token_file))],
+        )
+    )
+    ctx = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = ctx.new_page()
+    try:
+        page.goto(console.url, wait_until="domcontentloaded")
+        assert page.title() == "Axis PTZ console: sign in"
+        page.fill("#token", "a-wrong-guess")
+        page.click("button[type=submit]")
+        page.wait_for_load_state("domcontentloaded")
+        assert "Wrong token." in (page.locator("[role=alert]").text_content() or "")
+        page.fill("#token", "operator-token-1")
+        page.click("button[type=submit]")
+        page.wait_for_load_state("domcontentloaded")
+        assert page.title() == "Axis PTZ console"
+        # the cookie carries on: the page's own state poll is accepted
+        wait_js(page, "document.getElementById('link').textContent === 'connected'", 30)
+        cookie = next(c for c in ctx.cookies() if c["name"] == "axis_token")
+        assert cookie["httpOnly"]
+        assert cookie["sameSite"] == "Strict"
+        assert "operator-token-1" not in page.content()
+    finally:
+        ctx.close()

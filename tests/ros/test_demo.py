@@ -104,9 +104,10 @@ def test_scripts_demo_serves_live_video_and_stops_after_duration(tmp_path: Path)
     try:
         url = out.url(60.0)
         assert time.monotonic() - t0 < 60.0
-        # deadlines, not speed bounds: under load the first panorama frame has taken over 10 s
+        # deadlines, not speed bounds (the demo's 40 s start when it serves live PTZ video; the panorama is
+        # rendered after that and has taken 24 s on a loaded machine)
         assert count_mjpeg_frames(url, "/video/ptz.mjpg", 3, 20.0) == 3
-        assert count_mjpeg_frames(url, "/video/panorama.mjpg", 1, 20.0) == 1
+        assert count_mjpeg_frames(url, "/video/panorama.mjpg", 1, 35.0) == 1
         code = proc.wait(90.0)
     finally:
         stop(proc)

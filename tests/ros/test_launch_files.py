@@ -22,6 +22,7 @@ from axis_ptz_ros2.nodes import (
     joy_teleop,
     keyboard_teleop,
     laser_sim,
+    link_monitor,
     panorama_sim,
     ptz_node,
     republish,
@@ -51,6 +52,7 @@ EXE_NODES: dict[str, dict[str, Any]] = {
     "axis_keyboard_teleop": {"axis_keyboard_teleop": keyboard_teleop.PARAMS},
     "axis_panorama_sim": {"axis_panorama_sim": panorama_sim.PARAMS},
     "axis_laser_sim": {"axis_laser_sim": laser_sim.PARAMS},
+    "axis_link_monitor": {"axis_link_monitor": link_monitor.PARAMS},
     "axis_virtual_camera": {"axis_virtual_camera": virtual_camera.PARAMS, "axis_virtual_camera_ptz": ptz_node.PARAMS},
 }
 #: other packages' executables our launch files may start, with the parameters we may give them

@@ -164,9 +164,9 @@ def test_ptz_node_learns_limits_and_pans_across_the_seam(ros: Any, cam: Simulate
     assert vapix_to_ros(*cam.position()[:2])[0] == pytest.approx(math.radians(-160.0), abs=1e-3)
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 has end stops
 def test_ptz_moves_take_the_short_way_on_the_modern_dome(ros: Any, cam: SimulatedCamera, connection: list[Parameter]):
-    if not cam.state.pan_wraps:
-        pytest.skip("the 214 has end stops")
+    assert cam.state.pan_wraps
     cam.teleport(-175.0, 0.0, 1)  # REP-103 +175
     ros.add(PtzNode(context=ros.context, parameter_overrides=connection))
     probe = ros.probe("persona_seam_probe")
@@ -192,9 +192,9 @@ def test_ptz_moves_take_the_short_way_on_the_modern_dome(ros: Any, cam: Simulate
     assert all(abs(p) >= 174.9 for p in seen), f"went the long way round: {min(map(abs, seen)):.1f} deg from 0"
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 is an HTTP camera
 def test_verify_tls_false_warns_once(ros: Any, cam: SimulatedCamera, connection: list[Parameter], capfd):
-    if not cam.https:
-        pytest.skip("HTTP camera")
+    assert cam.https
     common._INSECURE_TLS_WARNED.clear()  # noqa: SLF001 - a fresh process
     insecure = [p for p in connection if p.name not in ("verify_tls", "ca_file")] + [
         Parameter("verify_tls", value=False)
@@ -206,11 +206,11 @@ def test_verify_tls_false_warns_once(ros: Any, cam: SimulatedCamera, connection:
     assert err.count("verify_tls is false") == 1, err[-2000:]
 
 
+@pytest.mark.applies_to(cam=["q6075"])  # the 214 is an HTTP camera
 def test_https_without_the_camera_certificate_fails_safely(ros: Any, cam: SimulatedCamera, connection: list[Parameter]):
     """Certificate checking against the system store: the self-signed camera is refused, the node keeps running
     and says why; nothing reaches the camera's CGIs."""
-    if not cam.https:
-        pytest.skip("HTTP camera")
+    assert cam.https
     cam.reset_counts()
     strict = [p for p in connection if p.name != "ca_file"] + [Parameter(k, value=v) for k, v in FAST.items()]
     node = ros.add(StreamNode(context=ros.context, parameter_overrides=strict + [Parameter("lazy", value=False)]))

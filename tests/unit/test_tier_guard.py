@@ -106,3 +106,20 @@ def test_a_module_that_collects_nothing_fails_when_required(tmp_path: Path) -> N
     assert r.returncode != 0, out
     assert "no_such_module_xyz" in out, out
     assert "tests collected per tier: tier_a 1" in out, out
+
+
+def test_applies_to_deselects_cases_that_do_not_apply(tmp_path: Path) -> None:
+    """A case that does not apply is not generated (deselected), so it neither skips nor fails the run."""
+    tests = tmp_path / "tests"
+    (tests / "tier_a").mkdir(parents=True)
+    (tests / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+    (tests / "tier_a" / "test_p.py").write_text(
+        "import pytest\n\n"
+        "@pytest.fixture(params=['old', 'new'])\ndef cam(request):\n    return request.param\n\n"
+        "@pytest.mark.applies_to(cam=['new'])\ndef test_only_new(cam):\n    assert cam == 'new'\n\n"
+        "def test_both(cam):\n    assert cam in ('old', 'new')\n"
+    )
+    r = _pytest(["tests"], _hide(tmp_path, "unused"), require=True, cwd=tmp_path)
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out
+    assert "3 passed, 1 deselected" in out, out

@@ -185,22 +185,37 @@ function fillQuality(video, resolutions) {
   $("q-comp").value = video.compression;
   $("q-comp-out").textContent = video.compression;
   $("q-budget").value = video.max_bitrate_kbps;
+  // what the form showed: Apply sends only what the operator changed (never pins values the stream's
+  // bandwidth budget or link adaptation chose for the moment)
+  state.shown = {
+    fps: video.fps,
+    resolution: video.resolution,
+    compression: video.compression,
+    max_bitrate_kbps: video.max_bitrate_kbps,
+  };
 }
 
 async function onQualitySubmit(ev) {
   ev.preventDefault();
-  const fps = parseInt($("q-fps").value, 10);
-  const budget = parseInt($("q-budget").value, 10);
-  if (!(fps >= 1 && fps <= 30)) {
+  const shown = state.shown || {};
+  const form = {
+    fps: parseInt($("q-fps").value, 10),
+    resolution: $("q-res").value,
+    compression: parseInt($("q-comp").value, 10),
+    max_bitrate_kbps: parseInt($("q-budget").value, 10),
+  };
+  const body = {};
+  for (const [k, v] of Object.entries(form)) if (v !== shown[k]) body[k] = v;
+  if ("fps" in body && !(body.fps >= 1 && body.fps <= 30)) {
     say("frame rate must be 1..30", false);
     return;
   }
-  const body = {
-    fps,
-    resolution: $("q-res").value,
-    compression: parseInt($("q-comp").value, 10),
-  };
-  if (budget >= 0) body.max_bitrate_kbps = budget;
+  if ("max_bitrate_kbps" in body && !(body.max_bitrate_kbps >= 0)) delete body.max_bitrate_kbps;
+  if (Object.keys(body).length === 0) {
+    say("nothing changed", false);
+    state.formDirty = false;
+    return;
+  }
   const answer = await post("/api/video", body);
   if (answer && answer.ok) state.formDirty = false;
 }
