@@ -14,8 +14,13 @@ Without the variable a skip stays a skip (a developer without a browser can stil
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
+import signal
+import time
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -25,6 +30,14 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
 # One DDS domain per test session (several sessions may run at once on a machine; they must not cross-talk).
 os.environ["ROS_DOMAIN_ID"] = os.environ.get("AXIS_TEST_DOMAIN_ID", str(100 + os.getpid() % 100))
+
+# Orphaned grandchildren (a node started by a launcher that died) are re-parented to this process instead of
+# init, so the leak guard below can see and stop them: a node left running would publish on this session's
+# DDS domain and corrupt every later test that uses the same names.
+_PR_SET_CHILD_SUBREAPER = 36
+# (not Linux: no subreaper, the guard then sees direct children only)
+with contextlib.suppress(OSError, AttributeError):
+    ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
 
 TESTS = Path(__file__).resolve().parent
 REQUIRE = "AXIS_REQUIRE_ALL_TIERS"
@@ -133,3 +146,59 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ANN0
         terminalreporter.section(f"missing tiers ({REQUIRE}=1)", red=True)
         for p in _problems:
             terminalreporter.write_line(p, red=True)
+
+
+def _descendants(root: int) -> dict[int, str]:
+    """Live (non-zombie) processes below ``root``: pid -> command line. (Exited orphans stay zombies of
+    this process until it ends: reaping them here could steal an exit status a test's Popen waits for.)"""
+    children: dict[int, list[int]] = {}
+    info: dict[int, tuple[str, str]] = {}
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = Path(entry.path, "stat").read_text()
+            cmd = Path(entry.path, "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+        except OSError:
+            continue
+        rest = stat[stat.rindex(")") + 2 :].split()
+        state, ppid = rest[0], int(rest[1])
+        children.setdefault(ppid, []).append(int(entry.name))
+        info[int(entry.name)] = (state, cmd)
+    out: dict[int, str] = {}
+    todo = list(children.get(root, []))
+    while todo:
+        pid = todo.pop()
+        state, cmd = info.get(pid, ("X", ""))
+        if state not in ("Z", "X"):
+            out[pid] = cmd
+        todo.extend(children.get(pid, []))
+    return out
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _no_leaked_processes() -> Iterator[None]:
+    """Every process a test module starts must be gone when the module ends (grace: 5 s after its fixtures).
+
+    A leftover is stopped (SIGTERM, then SIGKILL) and reported as an error of the module's last test."""
+    before = set(_descendants(os.getpid()))
+    yield
+    deadline = time.monotonic() + 5.0
+    left = {p: c for p, c in _descendants(os.getpid()).items() if p not in before}
+    while left and time.monotonic() < deadline:
+        time.sleep(0.2)
+        left = {p: c for p, c in _descendants(os.getpid()).items() if p not in before}
+    if not left:
+        return
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in left:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, sig)
+        end = time.monotonic() + 3.0
+        while time.monotonic() < end and any(p in _descendants(os.getpid()) for p in left):
+            time.sleep(0.1)
+    pytest.fail(
+        "processes left running by this test module (stopped now):\n"
+        + "\n".join(f"  pid {p}: {c[:200]}" for p, c in sorted(left.items())),
+        pytrace=False,
+    )

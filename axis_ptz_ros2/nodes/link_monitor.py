@@ -27,7 +27,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topic", "image_raw/compressed", "JPEG topic whose reception is reported", read_only=True),
     ParamSpec("feedback_topic", "video/feedback", "where the reports go (the stream node listens)", read_only=True),
     ParamSpec("period", 0.5, "report period", "s", float_range=(0.05, 10.0), read_only=True),
-    ParamSpec("window", 1.0, "measurement window of a report", "s", float_range=(0.1, 30.0), read_only=True),
+    ParamSpec("window", 2.0, "measurement window of a report", "s", float_range=(0.1, 30.0), read_only=True),
 )
 
 
@@ -46,7 +46,7 @@ class FeedbackPublisher:
         image_topic: str = "image_raw/compressed",
         feedback_topic: str = "video/feedback",
         period_s: float = 0.5,
-        window_s: float = 1.0,
+        window_s: float = 2.0,
         callback_group: Any = None,
     ) -> None:
         """Create the publisher and the report timer on ``node``."""

@@ -158,6 +158,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
 )
 _SPECS = {s.name: s for s in PARAMS}
+_FEEDBACK_SETTLE_S = 0.5  # s: a feedback report is judged only once its window starts this long after a switch
 _AUTO_PLACEHOLDER = Resolution(704, 576)  # resolution "" while the camera cannot list its sizes (retried)
 _VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps")
 # DiagnosticStatus.OK etc. are 1-byte ``bytes`` in rclpy; common.diagnostic wants the integer
@@ -527,6 +528,11 @@ class StreamNode(Node):
             return
         now = time.monotonic()
         sent = self._reader.meter.rate(now)
+        changed = self._budget.changed_at
+        if changed is not None and now - changed < float(msg.window_s) + _FEEDBACK_SETTLE_S:
+            # the report's window still holds the switch (the reconnect's gap, the old settings): it says
+            # nothing about the new settings yet
+            return
         if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
             return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
         report = FeedbackReport(
@@ -537,6 +543,7 @@ class StreamNode(Node):
             delay_p95_s=float(msg.delay_p95_s),
             delay_min_s=float(msg.delay_min_s),
             gap_s=float(msg.gap_s),
+            window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
         )
         with self._lock:
             level = self._budget.level

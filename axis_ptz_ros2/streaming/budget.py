@@ -102,6 +102,11 @@ class BandwidthController:
         return self._ladder
 
     @property
+    def changed_at(self) -> float | None:
+        """When the level last changed (the ``now`` of that call), None before the first judgement."""
+        return self._changed_at
+
+    @property
     def current(self) -> VideoParams:
         """The parameters to stream with now."""
         return self._ladder[self._level]
@@ -132,8 +137,9 @@ class BandwidthController:
         budget = float(budget_kbps)
         if budget == self._budget:
             return
+        if budget < self._budget or self._budget <= 0:
+            self._up_since = None  # less room: the hold for climbing starts again (more room keeps it)
         self._budget = budget
-        self._up_since = None
         if self._changed_at is None:
             self._changed_at = now
 

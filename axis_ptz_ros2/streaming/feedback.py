@@ -45,6 +45,7 @@ class FeedbackReport:
     delay_p95_s: float
     delay_min_s: float  # smallest delay seen over a longer window (clock offset + fixed transmission delay)
     gap_s: float = 0.0  # time since that consumer's last frame
+    window_s: float = 1.0  # the window ``frames``/``fps``/``kbps`` cover
 
 
 class ReceiveMeter:
@@ -56,7 +57,7 @@ class ReceiveMeter:
     ``base_window_s`` seconds as the reference.
     """
 
-    def __init__(self, consumer: str, window_s: float = 1.0, base_window_s: float = 10.0) -> None:
+    def __init__(self, consumer: str, window_s: float = 2.0, base_window_s: float = 10.0) -> None:
         """``window_s`` > 0, ``base_window_s`` >= ``window_s``."""
         if window_s <= 0 or base_window_s < window_s:
             raise ValueError("need 0 < window_s <= base_window_s")
@@ -82,7 +83,7 @@ class ReceiveMeter:
         gap = now_s - frames[-1][0] if frames else math.inf
         base = [f[1] for f in frames if f[0] > now_s - self.base_window_s]
         if not recent:
-            return FeedbackReport(self.consumer, 0, 0.0, 0.0, 0.0, min(base) if base else 0.0, gap)
+            return FeedbackReport(self.consumer, 0, 0.0, 0.0, 0.0, min(base) if base else 0.0, gap, self.window_s)
         delays = sorted(f[1] for f in recent)
         p95 = delays[min(len(delays) - 1, int(math.ceil(0.95 * len(delays))) - 1)]
         nbytes = sum(f[2] for f in recent)
@@ -94,6 +95,7 @@ class ReceiveMeter:
             delay_p95_s=p95,
             delay_min_s=min(base),
             gap_s=gap,
+            window_s=self.window_s,
         )
 
 
@@ -102,17 +104,20 @@ class AdapterConfig:
     """Tuning of :class:`LinkAdapter` (seconds, fractions, kbit/s)."""
 
     delay_high_s: float = 0.15
-    delay_low_s: float = 0.06
-    delivery_low: float = 0.7  # received fps below this fraction of sent fps = frames are being lost
-    delivery_clear: float = 0.85  # ... at or above it (and a short queue): room to grow
+    delay_low_s: float = 0.05
+    # Received fps below this fraction of the sent fps = frames are being lost beyond what random radio loss
+    # does to large frames (at 2 % packet loss a 26 kB frame, ~18 packets, arrives with probability 0.7) ...
+    delivery_low: float = 0.5
+    delivery_clear: float = 0.6  # ... at or above it (and a short queue): room to grow
+    min_expected_frames: int = 8  # judge delivery only when the window should hold at least this many frames
     decrease: float = 0.8
-    increase: float = 1.1
+    increase: float = 1.2
     headroom: float = 1.6  # the budget grows to at most this × what is sent ...
     step_margin: float = 1.35  # ... or this × the next better setting's predicted rate (room to try it)
     decrease_hold_s: float = 1.5
     min_kbps: float = 100.0
     probe_backoff_s: float = 5.0  # after congestion, stay under what was sent then for this long ...
-    probe_backoff_max_s: float = 40.0  # ... doubled (up to this) each time a new try congests again
+    probe_backoff_max_s: float = 20.0  # ... doubled (up to this) each time a new try congests again
     silence_s: float = 2.0
     release_s: float = 30.0
 
@@ -179,10 +184,10 @@ class LinkAdapter:
                 del self._reports[name]
         worst = max(
             (r for _t, r in self._reports.values()),
-            key=lambda r: (self._queue_delay(r), -self._delivery(r, sent_fps)),
+            key=lambda r: (self._queue_delay(r), -self._delivery(r, sent_fps, cfg.min_expected_frames)),
         )
         queue = self._queue_delay(worst)
-        delivery = self._delivery(worst, sent_fps)
+        delivery = self._delivery(worst, sent_fps, cfg.min_expected_frames)
         received = min(r.kbps for _t, r in self._reports.values())
         if queue > cfg.delay_high_s or delivery < cfg.delivery_low:
             state = "congested"
@@ -194,7 +199,7 @@ class LinkAdapter:
                 new = cfg.decrease * min(received, current) if delivered else 0.5 * current
                 self._budget = max(new, cfg.min_kbps)
                 # remember the rate that congested; a new try soon after that congests again backs off longer
-                again = now < self._bad_until + cfg.probe_backoff_max_s
+                again = now < self._bad_until + cfg.probe_backoff_s
                 self._backoff = min(self._backoff * 2.0, cfg.probe_backoff_max_s) if again else cfg.probe_backoff_s
                 self._bad_kbps = max(sent_kbps, received)
                 self._bad_until = now + self._backoff
@@ -231,7 +236,9 @@ class LinkAdapter:
         return max(r.delay_p95_s - r.delay_min_s, 0.0)
 
     @staticmethod
-    def _delivery(r: FeedbackReport, sent_fps: float) -> float:
-        if sent_fps <= 0.5:
+    def _delivery(r: FeedbackReport, sent_fps: float, min_expected: int) -> float:
+        """Fraction of the frames sent that arrived; 1.0 when too few were expected to judge (a window
+        holding 2 frames at 2 fps would read 0.5 for one frame early or late)."""
+        if sent_fps <= 0 or sent_fps * r.window_s < min_expected:
             return 1.0
         return min(r.fps / sent_fps, 1.0)

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.integration
+# hang guard above the build's own 600 s subprocess timeout (the build alone took > 300 s on a loaded 2-core machine)
+pytestmark = [pytest.mark.integration, pytest.mark.timeout(900)]
 
 ROOT = Path(__file__).resolve().parents[2]
 VENV = Path(sys.prefix)

@@ -220,3 +220,39 @@ def test_feedback_brings_the_stream_under_a_narrow_link_and_back_up_when_it_wide
     assert controller.current.fps >= 15, "the floor keeps the frame rate; resolution gives way first"
     _run_link(controller, adapter, lambda t: 8000.0, 30.0, 50.0, log)
     assert log[-1][3] < narrow_level, "quality climbs back when the link widens"
+
+
+def test_delivery_is_not_judged_from_too_few_frames():
+    """At 2 fps a 1 s window holds one or two frames: one early or late frame is not a lost half."""
+    a = LinkAdapter()
+    r = FeedbackReport("op", 1, 1.0, 20.0, 100.0, 100.0, 0.4, window_s=1.0)
+    d = a.report(0.0, r, sent_fps=2.0, sent_kbps=40.0)
+    assert d.state != "congested"
+    assert a.budget_kbps == 0.0
+    many = FeedbackReport("op", 8, 4.0, 80.0, 100.0, 100.0, 0.1, window_s=2.0)  # 8 of 30 expected frames
+    assert a.report(1.0, many, sent_fps=15.0, sent_kbps=600.0).state == "congested"
+
+
+def test_random_loss_of_large_frames_alone_is_not_congestion():
+    """2 % packet loss delivers ~70 % of 26 kB frames: with a short queue that is not a reason to step down."""
+    a = LinkAdapter()
+    r = FeedbackReport("op", 21, 10.5, 1500.0, 100.02, 100.0, 0.1, window_s=2.0)
+    assert a.report(0.0, r, sent_fps=15.0, sent_kbps=2100.0).state != "congested"
+
+
+def test_a_growing_budget_does_not_restart_the_hold_for_climbing():
+    """The link's budget grows a little with every report; the controller must still climb after its hold."""
+    c = BandwidthController(P704, 0.0, AXIS214_PAL_RESOLUTIONS, BudgetConfig(min_fps=15, up_hold_s=3.0))
+    c.set_budget(500.0, 0.0)
+    bpf = 3000.0
+    for i in range(40):  # 10 s at 4 Hz: settle at the bottom
+        c.update(i * 0.25, bpf * c.current.fps * 8 / 1000, float(c.current.fps), bpf, 30)
+    bottom = c.level
+    assert bottom > 0
+    budget = 500.0
+    for i in range(40, 100):  # the budget grows 5 % every 0.5 s (never still for 3 s): the controller climbs
+        if i % 2 == 0:
+            budget *= 1.05
+            c.set_budget(budget, i * 0.25)
+        c.update(i * 0.25, bpf * c.current.fps * 8 / 1000, float(c.current.fps), bpf, 30)
+    assert c.level < bottom
