@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         cam.stop()
         # Let the request threads (daemons) leave before the interpreter finalises: one still inside OpenCV
         # at exit aborted the process ("terminate called without an active exception", exit -6).
-        deadline = time.monotonic() + 5.0
+        deadline = time.monotonic() + 2.0  # a frame render takes well under that; never hold the exit long
         for t in threading.enumerate():
             if t is not threading.current_thread() and t.daemon:
                 t.join(max(0.0, deadline - time.monotonic()))
