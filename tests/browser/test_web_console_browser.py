@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -31,15 +30,6 @@ ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
 DOCS_IMAGES = Path(__file__).resolve().parents[2] / "docs" / "images"
 #: the screens the console must fit (width, height in CSS px) and the guide's picture of each
 SCREENS = {(1280, 800): "console.png", (1920, 1080): "console_1080p.png"}
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 W, H = 704, 576  # the stream and snapshot size used here
 WORLD = load_world()  # the simulator's own world (its TRUE mount and panorama pose, its targets)
 #: the green marker (config/sim_world.yaml: side_marker), centre in base_link
@@ -140,20 +130,6 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
         yield d
     finally:
         d.stop()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    exe = shutil.which("chromium")
-    if exe is None:
-        pytest.skip("Debian's chromium is not installed (./scripts/bootstrap --browser)")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=exe, args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 @pytest.fixture

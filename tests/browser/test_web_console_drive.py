@@ -8,7 +8,6 @@ The nodes live in their own namespace, so nothing here mixes with the demo of te
 
 from __future__ import annotations
 
-import shutil
 import threading
 from collections.abc import Iterator
 from typing import Any
@@ -27,27 +26,13 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
-from .test_web_console_browser import CHROMIUM_ARGS, shot, wait_js  # noqa: E402
+from .test_web_console_browser import shot, wait_js  # noqa: E402
 
 pytestmark = pytest.mark.browser
 
 NS = "/drive_test"
 CAP = 4000.0
 NAN = float("nan")
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    exe = shutil.which("chromium")
-    if exe is None:
-        pytest.skip("Debian's chromium is not installed (./scripts/bootstrap --browser)")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=exe, args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 @pytest.fixture

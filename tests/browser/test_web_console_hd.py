@@ -9,7 +9,6 @@ The nodes live in their own namespace, so nothing here mixes with the demo of te
 from __future__ import annotations
 
 import math
-import shutil
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -30,27 +29,13 @@ from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
-from .test_web_console_browser import CHROMIUM_ARGS, LAYOUT_JS, green_blob, shot, wait_for, wait_js  # noqa: E402
+from .test_web_console_browser import LAYOUT_JS, green_blob, shot, wait_for, wait_js  # noqa: E402
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
 
 NS = "/hd_test"
 PASSWORD = "hd-secret"
 W, H = 1280, 720  # asked for; the stream node may step down (bandwidth budget, consumer feedback): 16:9 stays
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    exe = shutil.which("chromium")
-    if exe is None:
-        pytest.skip("Debian's chromium is not installed (./scripts/bootstrap --browser)")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=exe, args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 @pytest.fixture

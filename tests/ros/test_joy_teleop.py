@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -32,6 +31,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
 from axis_ptz_ros2.sim.scene import load_world
 from axis_ptz_ros2.sim.server import SimulatedCamera
+from tests.ros.processes import node_process
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
@@ -96,28 +96,8 @@ class Joystick:
 
 @contextlib.contextmanager
 def teleop(*ros_args: str) -> Iterator[subprocess.Popen[bytes]]:
-    env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    proc = subprocess.Popen(
-        [PROGRAM, "--ros-args", "--params-file", str(PARAMS), *ros_args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        stdin=subprocess.DEVNULL,
-        env=env,
-        start_new_session=True,
-    )
-    try:
+    with node_process([PROGRAM, "--ros-args", "--params-file", str(PARAMS), *ros_args]) as proc:
         yield proc
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(5)
-        if proc.stdout:
-            proc.stdout.close()
 
 
 @pytest.fixture

@@ -10,8 +10,6 @@ latched ``video/params`` carries the file's fps, resolution and compression, not
 from __future__ import annotations
 
 import contextlib
-import os
-import signal
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -27,6 +25,7 @@ from axis_ptz_interfaces.msg import VideoParams
 from axis_ptz_ros2.nodes.common import LATCHED_QOS
 from axis_ptz_ros2.sim.scene import load_world
 from axis_ptz_ros2.sim.server import SimulatedCamera
+from tests.ros.processes import node_process
 from tests.ros.test_launch_files import ALL_NODES
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
@@ -46,28 +45,8 @@ def cam() -> Iterator[SimulatedCamera]:
 
 @contextlib.contextmanager
 def process(exe: str, *ros_args: str) -> Iterator[subprocess.Popen[bytes]]:
-    env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # ROS_DOMAIN_ID: this test session's (tests/conftest.py)
-    proc = subprocess.Popen(
-        [str(BIN / exe), "--ros-args", *ros_args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        stdin=subprocess.DEVNULL,
-        env=env,
-        start_new_session=True,
-    )
-    try:
+    with node_process([str(BIN / exe), "--ros-args", *ros_args]) as proc:
         yield proc
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(5)
-        if proc.stdout:
-            proc.stdout.close()
 
 
 def value_of(v: Any) -> Any:
