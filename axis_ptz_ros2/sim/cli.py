@@ -109,7 +109,10 @@ def main(argv: list[str] | None = None) -> int:
         https=args.https,
     )
     done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    # Both stop signals explicitly: a process started in the background by a shell inherits SIGINT ignored,
+    # and Python then never turns it into KeyboardInterrupt (the demo stops its children with SIGINT).
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: done.set())
     cam.start()
     tls = f"; CA certificate {cam.ca_file}" if cam.ca_file else ""
     print(f"Simulated {model.product} at {cam.base_url}/ (auth={cam.auth}{tls}); Ctrl-C to stop", flush=True)
