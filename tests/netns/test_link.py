@@ -18,17 +18,26 @@ def _degraded(params: dict) -> bool:
 
 
 def test_feedback_lowers_the_stream_on_a_narrow_lossy_link_and_frames_keep_arriving(two_hosts: TwoHosts) -> None:
-    two_hosts.link.set_rate(1000)
-    two_hosts.link.set_loss(2)
     two_hosts.start_robot(FULL)
     probe = two_hosts.probe()  # the operator's viewer: reports what it receives on video/feedback
+    # DDS discovery first, on the open link: started on the narrow lossy link, the operator sometimes received
+    # nothing at all within 120 s (2 of 5 runs; discovery over such a link is an open problem, see README)
+    wait_for(lambda: probe.of("image"), 60, "frames over the open link", two_hosts)
+    two_hosts.link.set_rate(1000)
+    two_hosts.link.set_loss(2)
     # the budget in effect comes from the link feedback (none was set by hand) and ends under the link's rate
-    wait_for(
-        lambda: [p for p in probe.of("video/params") if _degraded(p) and 0 < p["budget"] < 1000],
-        120,
-        "the stream to step down under the link's rate",
-        two_hosts,
-    )
+    try:
+        wait_for(
+            lambda: [p for p in probe.of("video/params") if _degraded(p) and 0 < p["budget"] < 1000],
+            120,
+            "the stream to step down under the link's rate",
+            two_hosts,
+        )
+    except AssertionError as err:  # say what the operator did see, for whoever reads the failure
+        seen = probe.of("video/params")[-5:]
+        raise AssertionError(
+            f"{err}; last video/params at the operator: {seen}; images received: {len(probe.of('image'))}"
+        ) from None
     # frames keep arriving at the operator after the adaptation, each one the camera's (stamped, in order)
     t0 = time.time_ns()
     wait_for(lambda: len(probe.of("image", t0)) >= 20, 90, "frames over the narrow link", two_hosts)
