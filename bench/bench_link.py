@@ -111,6 +111,7 @@ class Run:
     marks: dict[str, int] = field(default_factory=dict)
     abs_cmds: dict[str, int] = field(default_factory=dict)  # VAPIX query key -> publish time (ns)
     keys: list[int] = field(default_factory=list)  # teleop key write times (ns)
+    discovery_s: float = math.nan  # probe start -> its first image (s)
 
     def t(self, ns: int) -> float:
         return (ns - self.t0) / NS
@@ -142,7 +143,7 @@ def run_mode(mode: str, phase: float, logs: Path, profile: str) -> Run:
             "robot",
             "axis_camera",
             ["axis_camera", "--ros-args", "-p", "hostname:=127.0.0.1", "-p", f"port:={SIM_PORT}", *FULL]
-            + ["-p", f"adapt_to_link:={adapt}", "--log-level", "warn"],
+            + ["-p", f"adapt_to_link:={adapt}", "--log-level", os.environ.get("BENCH_LINK_LOG_LEVEL", "warn")],
             env,
         )
         hosts.start("operator", "web_console", ["axis_web_console", "--ros-args", "-p", "port:=8090"], env)
@@ -157,7 +158,12 @@ def run_mode(mode: str, phase: float, logs: Path, profile: str) -> Run:
         )
         hosts.procs.append(("teleop", teleop))
         probe = hosts.probe("operator", env=env)
+        started = time.monotonic()
         wait_for(lambda: probe.of("ptz/state"), 120, "ptz/state at the operator", hosts)
+        # discovery over the already narrow, lossy link can be slow (README: open); the timeline measures
+        # the link once the video reaches the operator
+        wait_for(lambda: probe.of("image"), 120, "the first image at the operator", hosts)
+        run.discovery_s = time.monotonic() - started
         time.sleep(2.0)
         run.t0 = time.time_ns()
 
@@ -245,7 +251,7 @@ def settings(params: list[dict[str, Any]]) -> str:
 
 def report(run: Run, phase: float) -> dict[str, Any]:
     m = run.marks
-    out: dict[str, Any] = {"mode": run.mode}
+    out: dict[str, Any] = {"mode": run.mode, "discovery_s": run.discovery_s}
     # 1. steady 2 Mbit/s, 2 % loss (the first 10 s are the adaptation's start, reported apart)
     a, b = run.t0 + 10 * NS, m["1 Mbit/s"]
     steady = window(run, a, b)
@@ -270,17 +276,20 @@ def report(run: Run, phase: float) -> dict[str, Any]:
     out["narrow_fps"] = len(narrow) / ((widen - drop) / NS)
     tail = [age_ms(r) for r in narrow if r["rx"] >= drop + 5 * NS]
     out["narrow_age_p95_after5s"] = pct(tail, 0.95)
-    # 3. widen to 4 Mbit/s: first change of the stream's settings to better ones
-    before = [p for p in run.params if p["rx"] <= widen]
-    after = [p for p in run.params if p["rx"] > widen and p["rx"] < m["cut"]]
+    # 3. widen to 4 Mbit/s: first change of the stream's settings to better ones, by when the stream node
+    # switched (the message's stamp; both namespaces share one clock): over a congested link the message
+    # announcing a switch made just before the widening may arrive after it
+    params = sorted(run.params, key=lambda p: p["stamp"])
+    before = [p for p in params if p["stamp"] <= widen]
+    after = [p for p in params if widen < p["stamp"] < m["cut"]]
     out["climb_s"] = math.nan
     if before and after:
         q0 = quality(before[-1])
         better = [p for p in after if quality(p) > q0]
         if better:
-            out["climb_s"] = (better[0]["rx"] - widen) / NS
+            out["climb_s"] = (better[0]["stamp"] - widen) / NS
     out["settings_narrow"] = settings(before)
-    out["settings_wide"] = settings([p for p in run.params if p["rx"] < m["cut"]])
+    out["settings_wide"] = settings([p for p in params if p["stamp"] < m["cut"]])
     # 4. cut and heal
     heal = m["heal, 2 Mbit/s"]
     healed = window(run, heal, m["end"])
@@ -322,6 +331,7 @@ def print_table(results: list[dict[str, Any]], phase: float) -> None:
         print(f"{label:<58}" + "".join(cells) + (f"   target {target}" if target else ""))
 
     print(f"{'':<58}" + "".join(f"{r['mode']:>24}" for r in results))
+    row("start: first image at the operator [s] (discovery)", "{:.1f}", "discovery_s")
     row(f"2 Mbit/s 2 % loss, {phase - 10:.0f} s: frame age p50 [ms]", "{:.0f}", "age_p50")
     row("  frame age p95 [ms]", "{:.0f}", "age_p95", "<= 300", lambda v: v <= 300)
     row("  frame age max [ms]", "{:.0f}", "age_max")
@@ -494,6 +504,7 @@ def main() -> int:
         default=str(ROOT / "config/fastdds_weak_link.xml"),
         help="Fast DDS profile for every process on both hosts ('' = Fast DDS defaults)",
     )
+    ap.add_argument("--dump", default="", help="directory for every run's raw records as JSON ('' = none)")
     ap.add_argument("--robot-sim", type=int, default=0, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.robot_sim:
@@ -513,6 +524,13 @@ def main() -> int:
     for mode in a.modes.split(","):
         print(f"== {mode}: running {phase + 65:.0f} s of link timeline ...", flush=True)
         runs.append(run_mode(mode, phase, ROOT / "artifacts" / "bench_link", a.fastdds_profile))
+    if a.dump:
+        dump = Path(a.dump)
+        dump.mkdir(parents=True, exist_ok=True)
+        for r in runs:
+            records = {"t0": r.t0, "events": r.events, "marks": r.marks, "images": r.images, "params": r.params}
+            (dump / f"link-{r.mode}.json").write_text(json.dumps(records))
+        print(f"records: {dump}/link-<mode>.json")
     results = [report(r, phase) for r in runs]
     print()
     print_table(results, phase)

@@ -116,6 +116,7 @@ class LinkProbe(Node):
             {
                 "t": "video/params",
                 "rx": time.time_ns(),
+                "stamp": _ns(msg.header.stamp),  # when the stream node switched (its clock)
                 "fps": msg.fps,
                 "resolution": msg.resolution,
                 "compression": msg.compression,

@@ -159,6 +159,9 @@ PARAMS: tuple[ParamSpec, ...] = (
 )
 _SPECS = {s.name: s for s in PARAMS}
 _FEEDBACK_SETTLE_S = 0.5  # s: a feedback report is judged only once its window starts this long after a switch
+# s: ... except when a step up has streamed this long and the consumer has received nothing for as long (it swamps
+# the link: waiting for a clean window would lose every frame for window + settle, 2.5 s, on each failed step up)
+_SWAMPED_AFTER_STEP_UP_S = 1.0
 _AUTO_PLACEHOLDER = Resolution(704, 576)  # resolution "" while the camera cannot list its sizes (retried)
 _VIDEO = ("fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps")
 # DiagnosticStatus.OK etc. are 1-byte ``bytes`` in rclpy; common.diagnostic wants the integer
@@ -265,6 +268,7 @@ class StreamNode(Node):
         self.add_post_set_parameters_callback(self._apply_params)
         self._publish_params("startup")
         self._budget_check = 0.0
+        self._stepped_up = False  # the budget's last switch was to better settings
         self._link_decision: Decision | None = None
         self._reader.start()
         self._stopping = threading.Event()
@@ -355,6 +359,7 @@ class StreamNode(Node):
                         budget_kbps=self._effective_budget(),
                         now=time.monotonic(),
                     )
+                self._stepped_up = False  # the user's change, not a step the link must prove
             self._reader.set_params(current)
             self._publish_params(self._pending_source)
 
@@ -529,28 +534,59 @@ class StreamNode(Node):
         now = time.monotonic()
         sent = self._reader.meter.rate(now)
         changed = self._budget.changed_at
-        if changed is not None and now - changed < float(msg.window_s) + _FEEDBACK_SETTLE_S:
-            # the report's window still holds the switch (the reconnect's gap, the old settings): it says
-            # nothing about the new settings yet
+        if msg.frames == 0 and not self._subscribed(str(msg.consumer)):
+            # "nothing received" from a consumer whose subscription has not been discovered here: the writer
+            # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
             return
-        if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
-            return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
-        report = FeedbackReport(
-            consumer=str(msg.consumer),
-            frames=int(msg.frames),
-            fps=float(msg.fps),
-            kbps=float(msg.kbps),
-            delay_p95_s=float(msg.delay_p95_s),
-            delay_min_s=float(msg.delay_min_s),
-            gap_s=float(msg.gap_s),
-            window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
+        window_s = float(msg.window_s) if msg.window_s > 0 else 1.0
+        # the meter restarts with each connection: its span is how long the new settings have been streaming
+        swamped = (
+            self._stepped_up
+            and sent.frames >= 2
+            and sent.span_s >= _SWAMPED_AFTER_STEP_UP_S
+            and float(msg.gap_s) >= _SWAMPED_AFTER_STEP_UP_S
         )
+        if swamped:
+            # a step up that stopped the video: judge it now as "nothing arrives" (the window's frames are
+            # mostly the old settings')
+            gap, base = float(msg.gap_s), float(msg.delay_min_s)
+            report = FeedbackReport(str(msg.consumer), 0, 0.0, 0.0, 0.0, base, gap, window_s)
+        else:
+            if changed is not None and now - changed < window_s + _FEEDBACK_SETTLE_S:
+                # the report's window still holds the switch (the reconnect's gap, the old settings): it says
+                # nothing about the new settings yet
+                return
+            if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
+                return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
+            report = FeedbackReport(
+                consumer=str(msg.consumer),
+                frames=int(msg.frames),
+                fps=float(msg.fps),
+                kbps=float(msg.kbps),
+                delay_p95_s=float(msg.delay_p95_s),
+                delay_min_s=float(msg.delay_min_s),
+                gap_s=float(msg.gap_s),
+                window_s=window_s,
+            )
         with self._lock:
             level = self._budget.level
             step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
             decision = self._link.report(now, report, sent.fps, sent.kbps, step_up)
             self._link_decision = decision
             self._budget.set_budget(self._effective_budget(), now)
+        self.get_logger().debug(
+            f"link {decision.state}: budget {decision.budget_kbps:.0f} kbit/s; {report.consumer} received "
+            f"{report.fps:.1f} fps {report.kbps:.0f} kbit/s (queue {decision.queue_delay_s * 1000:.0f} ms, "
+            f"delivery {decision.delivery:.2f}); sent {sent.fps:.1f} fps {sent.kbps:.0f} kbit/s; level {level}"
+        )
+
+    def _subscribed(self, consumer: str) -> bool:
+        """Whether the node named ``consumer`` (fully qualified) has a discovered image subscription."""
+        for info in self.get_subscriptions_info_by_topic(self._image_pub.topic_name):
+            ns = info.node_namespace.rstrip("/")
+            if f"{ns}/{info.node_name}" == consumer:
+                return True
+        return False
 
     # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------
     def _want_active(self) -> bool:
@@ -589,7 +625,10 @@ class StreamNode(Node):
             if self._budget.budget_kbps <= 0 and self._budget.level == 0:
                 return
             rate = reader.meter.rate(now)
+            before = self._budget.level
             choice = self._budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
+            if choice is not None:
+                self._stepped_up = self._budget.level < before
         if choice is not None:
             reader.set_params(choice)  # closes this stream: the reader reconnects with the new request
             self._publish_params("bandwidth_budget")

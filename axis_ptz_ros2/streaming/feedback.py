@@ -10,7 +10,11 @@ delivers:
   offset between the hosts cancels out) exceeds ``delay_high_s``, or the consumer receives less than
   ``delivery_low`` of the frames sent: the budget drops to ``decrease`` × the rate the consumer received
   (the link's capacity just measured; halved instead when almost nothing arrives), at most once per
-  ``decrease_hold_s``;
+  ``decrease_hold_s``. When the congestion follows a step up from a rate the consumers received cleanly
+  less than ``good_memory_s`` ago, the budget goes back to that rate (× ``good_margin``) instead: on a
+  lossy link the received rate counts only *whole* frames, so a swamped link reads as far narrower than it is
+  (a 2 Mbit/s link swamped at 1.9 Mbit/s delivered 0.4 Mbit/s of whole frames), and the rate just below
+  was measured to work. One return per clean rate: if it congests too, the received rate decides;
 - **clear** — the queueing delay is under ``delay_low_s`` and at least ``delivery_clear`` of the frames
   arrive: the budget grows
   by ``increase`` per report, but never past ``headroom`` × what is sent now or ``step_margin`` × the next
@@ -18,9 +22,10 @@ delivers:
   ``probe_backoff_s`` after a congestion it stays under the rate that congested (doubling, up to
   ``probe_backoff_max_s``, when the next try congests again: a link that cannot carry the next step is
   not hammered with it);
-- **silent** — no report for ``silence_s`` (a cut link, or the consumer has gone): the budget is held, so a
-  healed link does not receive a burst at the full request; after ``release_s`` the adapter lets go (0 = no
-  limit from feedback).
+- **silent** — no report for ``silence_s`` (a cut link, or the consumer has gone): the budget is held at
+  (``good_margin`` ×) what was being sent, so a healed link does not receive a burst at the full request and
+  the ladder does not climb through the silence; after ``release_s`` the adapter lets go (0 = no limit from
+  feedback).
 
 Several consumers may report; the most constrained one decides (each one's last report is kept for
 ``silence_s``).
@@ -116,6 +121,8 @@ class AdapterConfig:
     step_margin: float = 1.35  # ... or this × the next better setting's predicted rate (room to try it)
     decrease_hold_s: float = 1.5
     min_kbps: float = 100.0
+    good_memory_s: float = 10.0  # a congested step up returns to the rate received cleanly this recently ...
+    good_margin: float = 1.15  # ... times this (the ladder picks a setting predicted under its budget's fraction)
     probe_backoff_s: float = 5.0  # after congestion, stay under what was sent then for this long ...
     probe_backoff_max_s: float = 20.0  # ... doubled (up to this) each time a new try congests again
     silence_s: float = 2.0
@@ -129,6 +136,8 @@ class AdapterConfig:
             raise ValueError("need 0 < decrease < 1 < increase and headroom, step_margin > 1")
         if not 0.0 < self.delivery_low <= self.delivery_clear <= 1.0:
             raise ValueError("need 0 < delivery_low <= delivery_clear <= 1")
+        if self.good_memory_s < 0 or self.good_margin < 1.0:
+            raise ValueError("need good_memory_s >= 0 and good_margin >= 1")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -156,6 +165,8 @@ class LinkAdapter:
         self._bad_kbps = 0.0  # what was sent when the link last congested ...
         self._bad_until = -1e18  # ... and until when not to try it again
         self._backoff = self.config.probe_backoff_s
+        self._good: deque[tuple[float, float]] = deque()  # (when, what was sent) of the recent clear reports
+        self._sent_kbps = 0.0  # what was sent at the last report
         self.state = "off"
 
     @property
@@ -168,6 +179,7 @@ class LinkAdapter:
         self._budget = 0.0
         self._reports.clear()
         self._last_report = -1e18
+        self._good.clear()
         self.state = "off"
 
     def report(
@@ -178,6 +190,7 @@ class LinkAdapter:
         setting, 0 if none); returns the decision with the new budget."""
         cfg = self.config
         self._last_report = now
+        self._sent_kbps = sent_kbps
         self._reports[report.consumer] = (now, report)
         for name, (t, _r) in list(self._reports.items()):
             if now - t > cfg.silence_s:
@@ -197,6 +210,10 @@ class LinkAdapter:
                 # swamps the link), halve until something does
                 delivered = worst.frames >= 2 and received > 0
                 new = cfg.decrease * min(received, current) if delivered else 0.5 * current
+                good = [k for t, k in self._good if now - t <= cfg.good_memory_s and k < cfg.decrease * sent_kbps]
+                if good:  # a step up congested: the rate before it was received cleanly, go back there
+                    new = max(new, min(cfg.good_margin * max(good), cfg.decrease * sent_kbps))
+                self._good.clear()
                 self._budget = max(new, cfg.min_kbps)
                 # remember the rate that congested; a new try soon after that congests again backs off longer
                 again = now < self._bad_until + cfg.probe_backoff_s
@@ -206,6 +223,9 @@ class LinkAdapter:
                 self._last_decrease = now
         elif queue < cfg.delay_low_s and delivery >= cfg.delivery_clear:
             state = "clear"
+            self._good.append((now, sent_kbps))
+            while self._good and now - self._good[0][0] > cfg.good_memory_s:
+                self._good.popleft()
             if self._budget > 0:
                 ceiling = max(cfg.headroom * max(sent_kbps, received, cfg.min_kbps), cfg.step_margin * step_up_kbps)
                 if now < self._bad_until:
@@ -226,6 +246,9 @@ class LinkAdapter:
             self._reports.clear()
             self.state = "released"
         elif self._budget > 0 and silent_for > cfg.silence_s:
+            if self.state != "silent" and self._sent_kbps > 0:
+                # hold what was sent: room under a grown budget would let the ladder climb blind
+                self._budget = max(min(self._budget, cfg.good_margin * self._sent_kbps), cfg.min_kbps)
             self.state = "silent"
         return Decision(self._budget, self.state, 0.0, 1.0)
 

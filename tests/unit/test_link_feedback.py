@@ -130,6 +130,7 @@ def test_the_most_constrained_consumer_decides_and_stale_ones_are_forgotten():
         {"delivery_low": 0.9, "delivery_clear": 0.8},
         {"min_kbps": 0.0},
         {"silence_s": 5.0, "release_s": 1.0},
+        {"good_margin": 0.9},
     ],
 )
 def test_adapter_config_refuses_settings_that_cannot_converge(kwargs):
@@ -256,3 +257,53 @@ def test_a_growing_budget_does_not_restart_the_hold_for_climbing():
             c.set_budget(budget, i * 0.25)
         c.update(i * 0.25, bpf * c.current.fps * 8 / 1000, float(c.current.fps), bpf, 30)
     assert c.level < bottom
+
+
+def test_a_congested_step_up_returns_to_the_rate_received_cleanly_once():
+    """On a lossy link a swamped step up delivers few *whole* frames (2 Mbit/s swamped at 1.9 Mbit/s gave
+    0.4 Mbit/s of whole frames): the budget goes back to the rate just received cleanly, not to 0.8 × that
+    0.4 Mbit/s; if that rate congests too, the received rate decides."""
+    a = LinkAdapter(AdapterConfig(good_memory_s=10.0, good_margin=1.15))
+    a.report(0.0, _report(kbps=2000.0, queue=0.5), sent_fps=30, sent_kbps=9000)  # start: far over
+    for i in range(6):  # clean at 1100 kbit/s
+        assert a.report(1.0 + 0.5 * i, _report(kbps=1000.0), sent_fps=15, sent_kbps=1100).state == "clear"
+    # the step up to 1900 kbit/s swamps the link: 3 fps of whole frames arrive
+    d = a.report(7.0, _report(fps=3.0, kbps=380.0, frames=6), sent_fps=15, sent_kbps=1900)
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(1.15 * 1100.0)
+    # that rate congests as well (the link narrowed): no second return, the received rate decides
+    d = a.report(9.0, _report(fps=5.0, kbps=300.0, frames=10), sent_fps=15, sent_kbps=1100)
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 300.0)
+
+
+def test_a_narrowing_link_at_a_steady_rate_is_not_a_step_up():
+    """Congestion at the very rate that was clean (the link narrowed under it) follows the received rate."""
+    a = LinkAdapter()
+    a.report(0.0, _report(kbps=2000.0, queue=0.5), sent_fps=30, sent_kbps=9000)
+    for i in range(4):
+        a.report(1.0 + 0.5 * i, _report(kbps=1000.0), sent_fps=15, sent_kbps=1100)
+    a.report(4.0, _report(fps=6.0, kbps=400.0, frames=12), sent_fps=15, sent_kbps=1100)
+    assert a.budget_kbps == pytest.approx(0.8 * 400.0)
+
+
+def test_a_clean_rate_is_forgotten_after_good_memory():
+    a = LinkAdapter(AdapterConfig(good_memory_s=5.0))
+    a.report(0.0, _report(kbps=2000.0, queue=0.5), sent_fps=30, sent_kbps=9000)
+    a.report(1.0, _report(kbps=1000.0), sent_fps=15, sent_kbps=1100)
+    a.report(20.0, _report(fps=3.0, kbps=380.0, frames=6), sent_fps=15, sent_kbps=1900)
+    assert a.budget_kbps == pytest.approx(0.8 * 380.0)
+
+
+def test_silence_holds_what_was_sent_not_the_room_above_it():
+    """A clear link grows the budget ahead of what is sent; through a cut that room would let the ladder climb
+    blind and hit the healed link with a burst (seen: 704x288 before a cut, 704x576 @ 20 at the heal)."""
+    a = LinkAdapter(AdapterConfig(silence_s=2.0, good_margin=1.15))
+    a.report(0.0, _report(kbps=1000.0, queue=0.5), sent_fps=15, sent_kbps=3000)
+    for i in range(20):
+        a.report(1.0 + 0.5 * i, _report(kbps=1900.0), sent_fps=15, sent_kbps=1900.0, step_up_kbps=3000.0)
+    assert a.budget_kbps > 3000.0
+    d = a.tick(14.0)
+    assert d.state == "silent"
+    assert d.budget_kbps == pytest.approx(1.15 * 1900.0)
+    assert a.tick(20.0).budget_kbps == pytest.approx(1.15 * 1900.0)
