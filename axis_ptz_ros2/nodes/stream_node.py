@@ -537,6 +537,8 @@ class StreamNode(Node):
         if msg.frames == 0 and not self._subscribed(str(msg.consumer)):
             # "nothing received" from a consumer whose subscription has not been discovered here: the writer
             # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
+            with self._lock:
+                self._link.heard(now)
             return
         window_s = float(msg.window_s) if msg.window_s > 0 else 1.0
         # the meter restarts with each connection: its span is how long the new settings have been streaming
@@ -554,9 +556,13 @@ class StreamNode(Node):
         else:
             if changed is not None and now - changed < window_s + _FEEDBACK_SETTLE_S:
                 # the report's window still holds the switch (the reconnect's gap, the old settings): it says
-                # nothing about the new settings yet
+                # nothing about the new settings yet, only that the link is alive
+                with self._lock:
+                    self._link.heard(now)
                 return
             if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
+                with self._lock:
+                    self._link.heard(now)
                 return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
             report = FeedbackReport(
                 consumer=str(msg.consumer),
@@ -627,11 +633,17 @@ class StreamNode(Node):
             rate = reader.meter.rate(now)
             before = self._budget.level
             choice = self._budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
-            if choice is not None:
-                self._stepped_up = self._budget.level < before
-        if choice is not None:
-            reader.set_params(choice)  # closes this stream: the reader reconnects with the new request
-            self._publish_params("bandwidth_budget")
+            if choice is None:
+                return
+            after, budget = self._budget.level, self._budget.budget_kbps
+            self._stepped_up = after < before
+        self.get_logger().debug(
+            f"budget {budget:.0f} kbit/s: level {before} -> {after} ({choice.resolution} @ {choice.fps} "
+            f"c{choice.compression}); measured {rate.kbps:.0f} kbit/s {rate.fps:.1f} fps "
+            f"{rate.bytes_per_frame:.0f} B/frame over {rate.span_s:.2f} s"
+        )
+        reader.set_params(choice)  # closes this stream: the reader reconnects with the new request
+        self._publish_params("bandwidth_budget")
 
     # -- events and diagnostics ------------------------------------------------------------------------------
     def _throttled_log(self, level: str, key: str, text: str, period: float) -> None:

@@ -182,6 +182,11 @@ class LinkAdapter:
         self._good.clear()
         self.state = "off"
 
+    def heard(self, now: float) -> None:
+        """A consumer's report arrived that the sender does not judge (e.g. its window still holds a switch of
+        settings): the link is alive, so this is no silence."""
+        self._last_report = max(self._last_report, now)
+
     def report(
         self, now: float, report: FeedbackReport, sent_fps: float, sent_kbps: float, step_up_kbps: float = 0.0
     ) -> Decision:

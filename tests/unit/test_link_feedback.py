@@ -307,3 +307,18 @@ def test_silence_holds_what_was_sent_not_the_room_above_it():
     assert d.state == "silent"
     assert d.budget_kbps == pytest.approx(1.15 * 1900.0)
     assert a.tick(20.0).budget_kbps == pytest.approx(1.15 * 1900.0)
+
+
+def test_reports_heard_but_not_judged_are_no_silence():
+    """After a switch the sender skips judging reports for a while; they still prove the link alive, so the
+    budget is not clamped as if the link had been cut (that clamp undid every step up)."""
+    a = LinkAdapter(AdapterConfig(silence_s=2.0))
+    a.report(0.0, _report(kbps=1000.0, queue=0.5), sent_fps=15, sent_kbps=3000)
+    for i in range(20):
+        a.report(1.0 + 0.5 * i, _report(kbps=440.0), sent_fps=15, sent_kbps=440.0, step_up_kbps=1100.0)
+    grown = a.budget_kbps
+    assert grown > 1.15 * 440.0
+    for i in range(6):  # 3 s of reports the sender does not judge (its switch is in their window)
+        a.heard(11.0 + 0.5 * i)
+        assert a.tick(11.0 + 0.5 * i).state != "silent"
+    assert a.budget_kbps == grown
