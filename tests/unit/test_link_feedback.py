@@ -234,11 +234,13 @@ def test_delivery_is_not_judged_from_too_few_frames():
     assert a.report(1.0, many, sent_fps=15.0, sent_kbps=600.0).state == "congested"
 
 
-def test_random_loss_of_large_frames_alone_is_not_congestion():
-    """2 % packet loss delivers ~70 % of 26 kB frames: with a short queue that is not a reason to step down."""
+def test_some_random_loss_is_not_congestion_but_losing_a_third_is():
+    """A short queue and 3 frames in 4 arriving is no reason to step down; 2 in 3 is (trade size for rate)."""
     a = LinkAdapter()
-    r = FeedbackReport("op", 21, 10.5, 1500.0, 100.02, 100.0, 0.1, window_s=2.0)
-    assert a.report(0.0, r, sent_fps=15.0, sent_kbps=2100.0).state != "congested"
+    r = FeedbackReport("op", 23, 11.5, 1500.0, 100.02, 100.0, 0.1, window_s=2.0)  # 0.77 of 15 fps
+    assert a.report(0.0, r, sent_fps=15.0, sent_kbps=2100.0).state == "steady"
+    r = FeedbackReport("op", 20, 10.0, 1300.0, 100.02, 100.0, 0.1, window_s=2.0)  # 0.67
+    assert a.report(1.0, r, sent_fps=15.0, sent_kbps=2100.0).state == "congested"
 
 
 def test_a_growing_budget_does_not_restart_the_hold_for_climbing():
