@@ -184,7 +184,8 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     assert node._reader.stats().state.value == "idle-lazy"
     rec, subs = subscribe(ros, probe, info=False)
     ros.wait_for(lambda: rec.count() >= 3, timeout=5)  # (how promptly is a speed figure: bench_stream)
-    assert video_count(camera) == 1
+    # one stream; a reconnect by the stall watchdog (a stalled machine, 0.4 s at 15 fps) is the only other kind
+    assert video_count(camera) == 1 + node._reader.stats().stalls
     # camera_info alone also keeps it streaming
     info_rec = Recorder()
     info_sub = probe.create_subscription(CameraInfo, "camera_info", info_rec.on_info, STREAM_QOS)
@@ -198,7 +199,7 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     # the camera notices the closed socket on its next write or two: then it sends nothing more (at 15 fps a
     # streaming camera never goes 0.5 s without a frame)
     ros.wait_for(lambda: frames_stay(camera, 0.5), timeout=5)
-    assert video_count(camera) == 1
+    assert video_count(camera) == 1 + node._reader.stats().stalls, "one stream for image and camera_info"
 
 
 def test_parameters_change_the_frames_live(ros, camera):
@@ -411,14 +412,14 @@ def test_camera_info_matches_frames_and_follows_zoom(ros, camera):
 
 
 def test_bandwidth_budget_holds_the_bitrate(ros, camera):
-    make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
+    node = make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
     probe = ros.probe()
     params_seen: list[VideoParams] = []
     probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
     rec, _ = subscribe(ros, probe, info=False)
     ros.wait_for(lambda: rec.count() >= 10, timeout=5)
-    time.sleep(1.0)
-    t = time.monotonic() - 1.0
+    t = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t)) >= 15, timeout=5)  # the full rate, from frames (a stall only lowers it)
     full = rec.since(t)
     full_kbps = sum(len(f.data) for f in full[1:]) * 8 / 1000 / (full[-1].t_rx - full[0].t_rx)
     budget = int(full_kbps * 0.4)
@@ -426,9 +427,17 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     assert res.successful
     ros.wait_for(lambda: params_seen and params_seen[-1].source == "bandwidth_budget", timeout=5)
     assert params_seen[-1].max_bitrate_kbps == budget
-    time.sleep(4.0)  # room for the controller's hysteresis (3 s) to step back up after a cautious first step
-    t = time.monotonic()
-    time.sleep(2.0)
+
+    # measure 2 s of one setting, from 1 s after the controller's last switch (a cautious first step may be
+    # followed by a climb after its 3 s hysteresis; a stall of the machine restarts its judgement): wait on
+    # that condition, not on a fixed sleep
+    def settled() -> bool:
+        last = len(params_seen)
+        time.sleep(3.0)
+        return len(params_seen) == last
+
+    ros.wait_for(settled, timeout=30)
+    t = time.monotonic() - 2.0
     got = rec.since(t)
     kbps = sum(len(f.data) for f in got[1:]) * 8 / 1000 / (got[-1].t_rx - got[0].t_rx)
     print(f"budget {budget} kbit/s (full {full_kbps:.0f}): held {kbps:.0f} kbit/s with {params_seen[-1]}")
@@ -438,7 +447,12 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     # not stuck far below: 40 % of the full bitrate is reachable by compression alone, so the controller must
     # keep the frame rate and the resolution (the delivered rate of this in-process simulator depends on the
     # load, so the choice is checked, not a lower bound on the measured bitrate; bench_stream measures that)
-    assert (last.fps, last.resolution) == (20, "704x576"), f"stepped too far: {last}"
+    steps = [(p.resolution, p.fps, p.compression, p.max_bitrate_kbps) for p in params_seen]
+    if node._reader.stats().stalls == 0:
+        assert (last.fps, last.resolution) == (20, "704x576"), f"stepped too far: {steps}"
+    else:  # a stall of this process (the in-process simulator shares its GIL) ends in a burst of frames that the
+        # meter reads as over the budget, one step more is then right by what was measured: keep the resolution
+        assert last.resolution == "704x576", f"stepped too far after a stall: {steps}"
     # switched off: back to the request
     (res,) = set_params(ros, probe, max_bitrate_kbps=0)
     assert res.successful
