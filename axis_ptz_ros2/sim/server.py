@@ -1007,7 +1007,10 @@ class _Handler(BaseHTTPRequestHandler):
         last_render = -1.0
         stop = cam._stopping
         gen = cam._reboot_gen
-        while not stop.is_set() and gen == cam._reboot_gen:
+        muted = cam._blackholed
+        # a stream whose handler got here just after a reboot began reads the new generation: the blackhole flag
+        # mutes it all the same (seen: a stream that kept sending through a packet-dropping reboot)
+        while not stop.is_set() and gen == cam._reboot_gen and not muted.is_set():
             now = time.monotonic()
             if duration and now - start >= duration:
                 return
