@@ -533,47 +533,11 @@ class StreamNode(Node):
             return
         now = time.monotonic()
         sent = self._reader.meter.rate(now)
-        changed = self._budget.changed_at
-        if msg.frames == 0 and not self._subscribed(str(msg.consumer)):
-            # "nothing received" from a consumer whose subscription has not been discovered here: the writer
-            # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
+        report = self._judgeable(msg, now, sent)
+        if report is None:  # not evidence about the link, but the link is alive
             with self._lock:
                 self._link.heard(now)
             return
-        window_s = float(msg.window_s) if msg.window_s > 0 else 1.0
-        # the meter restarts with each connection: its span is how long the new settings have been streaming
-        swamped = (
-            self._stepped_up
-            and sent.frames >= 2
-            and sent.span_s >= _SWAMPED_AFTER_STEP_UP_S
-            and float(msg.gap_s) >= _SWAMPED_AFTER_STEP_UP_S
-        )
-        if swamped:
-            # a step up that stopped the video: judge it now as "nothing arrives" (the window's frames are
-            # mostly the old settings')
-            gap, base = float(msg.gap_s), float(msg.delay_min_s)
-            report = FeedbackReport(str(msg.consumer), 0, 0.0, 0.0, 0.0, base, gap, window_s)
-        else:
-            if changed is not None and now - changed < window_s + _FEEDBACK_SETTLE_S:
-                # the report's window still holds the switch (the reconnect's gap, the old settings): it says
-                # nothing about the new settings yet, only that the link is alive
-                with self._lock:
-                    self._link.heard(now)
-                return
-            if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
-                with self._lock:
-                    self._link.heard(now)
-                return  # nothing received, but the stream has only just (re)started: not evidence of a swamped link
-            report = FeedbackReport(
-                consumer=str(msg.consumer),
-                frames=int(msg.frames),
-                fps=float(msg.fps),
-                kbps=float(msg.kbps),
-                delay_p95_s=float(msg.delay_p95_s),
-                delay_min_s=float(msg.delay_min_s),
-                gap_s=float(msg.gap_s),
-                window_s=window_s,
-            )
         with self._lock:
             level = self._budget.level
             step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
@@ -584,6 +548,41 @@ class StreamNode(Node):
             f"link {decision.state}: budget {decision.budget_kbps:.0f} kbit/s; {report.consumer} received "
             f"{report.fps:.1f} fps {report.kbps:.0f} kbit/s (queue {decision.queue_delay_s * 1000:.0f} ms, "
             f"delivery {decision.delivery:.2f}); sent {sent.fps:.1f} fps {sent.kbps:.0f} kbit/s; level {level}"
+        )
+
+    def _judgeable(self, msg: LinkFeedback, now: float, sent: Any) -> FeedbackReport | None:
+        """The report to judge, or None when it says nothing about the link yet."""
+        if msg.frames == 0 and not self._subscribed(str(msg.consumer)):
+            # "nothing received" from a consumer whose subscription has not been discovered here: the writer
+            # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
+            return None
+        window_s = float(msg.window_s) if msg.window_s > 0 else 1.0
+        # the meter restarts with each connection: its span is how long the new settings have been streaming
+        if (
+            self._stepped_up
+            and sent.frames >= 2
+            and sent.span_s >= _SWAMPED_AFTER_STEP_UP_S
+            and float(msg.gap_s) >= _SWAMPED_AFTER_STEP_UP_S
+        ):
+            # a step up that stopped the video: judge it now as "nothing arrives" (the window's frames are
+            # mostly the old settings')
+            return FeedbackReport(
+                str(msg.consumer), 0, 0.0, 0.0, 0.0, float(msg.delay_min_s), float(msg.gap_s), window_s
+            )
+        changed = self._budget.changed_at
+        if changed is not None and now - changed < window_s + _FEEDBACK_SETTLE_S:
+            return None  # the report's window still holds the switch (the reconnect's gap, the old settings)
+        if msg.frames == 0 and sent.span_s < 0.75 * self._reader.meter.window_s:
+            return None  # nothing received, but the stream has only just (re)started: not a swamped link
+        return FeedbackReport(
+            consumer=str(msg.consumer),
+            frames=int(msg.frames),
+            fps=float(msg.fps),
+            kbps=float(msg.kbps),
+            delay_p95_s=float(msg.delay_p95_s),
+            delay_min_s=float(msg.delay_min_s),
+            gap_s=float(msg.gap_s),
+            window_s=window_s,
         )
 
     def _subscribed(self, consumer: str) -> bool:
