@@ -844,7 +844,14 @@ def test_drive_safe_zoom_caps_while_moving_and_restores(
     else:
         pub = connect(ros, probe.create_publisher(Twist, "cmd_vel", 10))
 
-    def drive(linear: float, angular: float) -> None:
+    # the robot's speed streams at 20 Hz like real odometry; no message for drive_hold_time counts as stopped,
+    # so single messages would race the hold against the test's own waits
+    speed: list[tuple[float, float] | None] = [None]
+
+    def publish_speed() -> None:
+        if speed[0] is None:
+            return
+        linear, angular = speed[0]
         if kind == "odometry":
             m = Odometry()
             m.twist.twist.linear.x, m.twist.twist.angular.z = linear, angular
@@ -852,6 +859,11 @@ def test_drive_safe_zoom_caps_while_moving_and_restores(
             m = Twist()
             m.linear.x, m.angular.z = linear, angular
         pub.publish(m)
+
+    probe.create_timer(0.05, publish_speed)
+
+    def drive(linear: float, angular: float) -> None:
+        speed[0] = (linear, angular)
 
     assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 8000.0)).success
     ros.wait_for(lambda: states and not states[-1].zoom_capped and states[-1].zoom_cap == 4000.0, 5.0)
@@ -862,7 +874,6 @@ def test_drive_safe_zoom_caps_while_moving_and_restores(
     assert cam.position()[0] == pytest.approx(-10.0, abs=1e-3)  # pan untouched
     ros.wait_for(lambda: states[-1].zoom_capped and states[-1].requested_zoom == 8000.0, 5.0)
     # while driving, a zoom above the cap is held at the cap and remembered as the operator's zoom
-    drive(*fast)
     resp = move(ros, probe, "ptz/move_absolute", cmd(zoom=9000.0))
     assert resp.success, resp.message
     assert cam.position()[2] == pytest.approx(4000.0)

@@ -184,8 +184,9 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     assert node._reader.stats().state.value == "idle-lazy"
     rec, subs = subscribe(ros, probe, info=False)
     ros.wait_for(lambda: rec.count() >= 3, timeout=5)  # (how promptly is a speed figure: bench_stream)
-    # one stream; a reconnect by the stall watchdog (a stalled machine, 0.4 s at 15 fps) is the only other kind
-    assert video_count(camera) == 1 + node._reader.stats().stalls
+    # one stream; a reconnect by the stall watchdog (a stalled machine, 0.4 s at 15 fps) is the only other kind,
+    # and a stall noticed as the last subscriber leaves ends in idle, not in a reconnect: at most one per stall
+    assert 1 <= video_count(camera) <= 1 + node._reader.stats().stalls
     # camera_info alone also keeps it streaming
     info_rec = Recorder()
     info_sub = probe.create_subscription(CameraInfo, "camera_info", info_rec.on_info, STREAM_QOS)
@@ -199,7 +200,7 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     # the camera notices the closed socket on its next write or two: then it sends nothing more (at 15 fps a
     # streaming camera never goes 0.5 s without a frame)
     ros.wait_for(lambda: frames_stay(camera, 0.5), timeout=5)
-    assert video_count(camera) == 1 + node._reader.stats().stalls, "one stream for image and camera_info"
+    assert 1 <= video_count(camera) <= 1 + node._reader.stats().stalls, "one stream for image and camera_info"
 
 
 def test_parameters_change_the_frames_live(ros, camera):

@@ -92,7 +92,9 @@ class Probe:
         self.infos: dict[tuple[int, int], CameraInfo] = {}
         self.state: PtzState | None = None
         self.transform: TransformStamped | None = None
+        self.transforms: dict[tuple[int, int], TransformStamped] = {}  # by stamp: pair it with a joint state
         self.joints: JointState | None = None
+        self.joints_by_stamp: dict[tuple[int, int], JointState] = {}
         self.node.create_subscription(TransformStamped, "ptz/transform", self._on_tf, STREAM_QOS)
         self.node.create_subscription(JointState, "joint_states", self._on_joints, STREAM_QOS)
         self.node.create_subscription(CompressedImage, "image_raw/compressed", self._on_image, STREAM_QOS)
@@ -116,10 +118,26 @@ class Probe:
         self.state = msg
 
     def _on_tf(self, msg: TransformStamped) -> None:
+        with self.lock:
+            self.transforms[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = msg
         self.transform = msg
 
     def _on_joints(self, msg: JointState) -> None:
+        with self.lock:
+            self.joints_by_stamp[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = msg
         self.joints = msg
+
+    def joints_with_transform(self, pan: float) -> tuple[JointState, TransformStamped] | None:
+        """The newest joint state at ``pan`` and the transform published with it (same stamp), if both arrived.
+
+        Topics keep only the newest sample (depth 1), so one stamp's joint state or transform may be replaced
+        before it is taken; the head is still, so the next poll's pair serves."""
+        with self.lock:
+            for key in sorted(self.joints_by_stamp, reverse=True):
+                js = self.joints_by_stamp[key]
+                if abs(js.position[0] - pan) < 1e-9 and key in self.transforms:
+                    return js, self.transforms[key]
+        return None
 
     def publish_panorama(self, bgr: np.ndarray) -> None:
         if self.raw:
@@ -226,10 +244,9 @@ def test_marker_lands_at_K_R_inv_d_through_the_node(ros, tmp_path):
         assert state.hfov == pytest.approx(2 * math.atan((W / 2) / info.k[0]), abs=1e-12)
         assert state.vfov == pytest.approx(2 * math.atan((H / 2) / info.k[4]), abs=1e-12)
         # joint_states and ptz/transform (base_link -> optical frame) describe the rendered view
-        js = ros.wait_for(lambda p=pan: (j := probe.joints) is not None and abs(j.position[0] - p) < 1e-9 and j)
+        js, tf = ros.wait_for(lambda p=pan: probe.joints_with_transform(p))
         assert list(js.name) == ["virtual_camera_pan_joint", "virtual_camera_tilt_joint"]
         assert js.position[1] == pytest.approx(tilt, abs=1e-9)
-        tf = ros.wait_for(lambda st=js.header.stamp: (m := probe.transform) is not None and m.header.stamp == st and m)
         assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "virtual_camera_optical_frame")
         t, q = tf.transform.translation, tf.transform.rotation
         assert (t.x, t.y, t.z) == pytest.approx(T_PANO, abs=1e-12)  # the view's centre is the panorama's
