@@ -56,23 +56,36 @@ def _sign(params: dict[str, str], target: str, nc: int = 1) -> str:
     )
 
 
+def _expire_nonces_issued_before(cam: SimulatedCamera, t_issued: float, lifetime_s: float = 0.05) -> None:
+    """Shorten the nonce lifetime and wait until every nonce issued before monotonic ``t_issued`` is past it.
+
+    Nonces are used under a long lifetime and expired only here, when the test wants it: a short lifetime from the
+    start could also expire a nonce between its challenge and the signed request on a loaded machine."""
+    cam.set_auth_options(nonce_lifetime_s=lifetime_s)
+    while time.monotonic() <= t_issued + lifetime_s:
+        time.sleep(0.01)
+
+
 def test_nonce_expires_with_stale_true_then_fresh_nonce_works():
-    with SimulatedCamera(auth="digest", password=PASSWORD, nonce_lifetime_s=0.4) as cam:
+    with SimulatedCamera(auth="digest", password=PASSWORD, nonce_lifetime_s=600.0) as cam:
         status, headers, _ = _get(cam, POSITION)
+        t_issued = time.monotonic()  # the nonce was issued before this
         assert status == 401
         assert "stale" not in headers["www-authenticate"]
         params = _challenge(headers)
         assert _get(cam, POSITION, _sign(params, POSITION))[0] == 200
-        time.sleep(0.6)
+        _expire_nonces_issued_before(cam, t_issued)
         status, headers, _ = _get(cam, POSITION, _sign(params, POSITION, 2))
         assert status == 401
         fresh = _challenge(headers)
         assert fresh["stale"] == "true"
         assert fresh["nonce"] != params["nonce"]
-        assert _get(cam, POSITION, _sign(fresh, POSITION))[0] == 200
         # A wrong password on an expired nonce is not "stale": the credentials are wrong.
         bad = _sign(params, POSITION, 3).replace('response="', 'response="0')
         assert "stale" not in _get(cam, POSITION, bad)[1]["www-authenticate"]
+        # the fresh nonce works (long lifetime again: it must not expire on its way back)
+        cam.set_auth_options(nonce_lifetime_s=600.0)
+        assert _get(cam, POSITION, _sign(fresh, POSITION))[0] == 200
 
 
 def test_restart_and_reboot_forget_every_nonce():
@@ -104,15 +117,16 @@ def test_nonce_lifetime_and_challenge_style_over_sim_control():
 
 
 def test_legacy_401_form():
-    with SimulatedCamera(auth="digest", password=PASSWORD, challenge_style="legacy", nonce_lifetime_s=0.3) as cam:
+    with SimulatedCamera(auth="digest", password=PASSWORD, challenge_style="legacy", nonce_lifetime_s=600.0) as cam:
         status, headers, body = _get(cam, POSITION)
+        t_issued = time.monotonic()
         assert status == 401
         assert body == b""
         value = headers["www-authenticate"]
         assert re.fullmatch(r'Digest realm="AXIS_[0-9A-F]{12}", nonce="[^"]+", stale=FALSE, qop="auth"', value)
         params = _challenge(headers)
         assert _get(cam, POSITION, _sign(params, POSITION))[0] == 200
-        time.sleep(0.5)
+        _expire_nonces_issued_before(cam, t_issued)
         status, headers, _ = _get(cam, POSITION, _sign(params, POSITION, 2))
         assert status == 401
         assert "stale=TRUE" in headers["www-authenticate"]
@@ -134,15 +148,22 @@ def test_double_slash_target_is_signed_and_served_as_sent():
 
 
 def test_vapix_client_survives_expiry_and_restart_against_the_simulator():
+    # The client takes the stale challenge and retries at once: the fresh nonce must outlive that round trip,
+    # so the lifetime stays long and the nonces handed out so far are aged past it instead (the camera's clock).
     with (
-        SimulatedCamera(auth="digest", password=PASSWORD, nonce_lifetime_s=0.3) as cam,
+        SimulatedCamera(auth="digest", password=PASSWORD, nonce_lifetime_s=600.0) as cam,
         VapixClient(CameraConfig(cam.host, cam.port, username=USER, password=PASSWORD)) as vapix,
     ):
         for i in range(8):
             vapix.query_position()
-            time.sleep(0.15)
+            if i == 2:
+                with cam._nonce_lock:  # noqa: SLF001 - test hook: expire every nonce issued so far
+                    for nonce in cam._nonces:  # noqa: SLF001
+                        cam._nonces[nonce] -= 601.0  # noqa: SLF001
             if i == 4:
                 cam.stop()
                 cam.start()
-        assert vapix.auth_counters.rechallenges >= 2
-        assert vapix.auth_counters.refusals == 0
+        counters = vapix.auth_counters
+        assert counters.stale == 1  # the expiry
+        assert counters.rechallenges == 2  # the expiry and the restart
+        assert counters.refusals == 0

@@ -141,31 +141,49 @@ def test_214_has_no_attributes_and_stays_default():
 
 
 def test_pan_wraps_the_short_way_across_the_seam(modern, mc):
-    modern.teleport(170.0, 0.0, 1.0)
-    assert mc.get("/axis-cgi/com/ptz.cgi?pan=-170").status_code == 204
-    seen = []
-    t_end = time.monotonic() + 3.0
-    while modern.state.moving() and time.monotonic() < t_end:
-        seen.append(modern.position()[0])
-        time.sleep(0.01)
-    final = modern.position()[0]
-    assert final == pytest.approx(-170.0, abs=1e-6)
-    assert all(abs(p) >= 169.9 for p in seen), "went the long way through 0"
-    assert any(p > 170.0 for p in seen) or any(p < -170.0 for p in seen)
-    assert all(-180.0 <= p < 180.0 for p in seen)
-    # relative moves wrap too, and the reading stays in [-180, 180)
-    mc.get("/axis-cgi/com/ptz.cgi?rpan=-30")
-    t_end = time.monotonic() + 3.0
-    while modern.state.moving() and time.monotonic() < t_end:
-        time.sleep(0.01)
-    pos = _kv(mc.get("/axis-cgi/com/ptz.cgi?query=position").text)
-    assert float(pos["pan"]) == pytest.approx(160.0, abs=1e-3)
-    # continuous pan runs through the seam without stopping
-    modern.teleport(175.0, 0.0, 1.0)
-    mc.get("/axis-cgi/com/ptz.cgi?continuouspantiltmove=100,0")
-    time.sleep(0.2)
-    mc.get("/axis-cgi/com/ptz.cgi?continuouspantiltmove=0,0")
-    assert -180.0 < modern.position()[0] < -160.0
+    # The head's dynamics run on a test clock that advances only when told to: every position below is exact,
+    # however long the HTTP requests take on a loaded machine (real-time dynamics: test_sim_protocol).
+    now = [0.0]
+    modern.state.clock = lambda: now[0]
+
+    def run(seconds: float, step: float = 0.01) -> list[float]:
+        """Advance the head's clock in steps while it moves (at most ``seconds``); the pans seen on the way."""
+        seen = []
+        for _ in range(round(seconds / step)):
+            if not modern.state.moving():
+                break
+            now[0] += step
+            seen.append(modern.position()[0])
+        return seen
+
+    try:
+        modern.teleport(170.0, 0.0, 1.0)
+        assert mc.get("/axis-cgi/com/ptz.cgi?pan=-170").status_code == 204
+        seen = run(3.0)  # 20 deg at 90 deg/s: 23 steps of 10 ms
+        assert not modern.state.moving()
+        assert modern.position()[0] == pytest.approx(-170.0, abs=1e-6)
+        assert len(seen) == math.ceil(20.0 / 0.9)
+        assert all(abs(p) >= 169.9 for p in seen), "went the long way through 0"
+        assert any(p > 170.0 for p in seen)
+        assert any(p < -170.0 for p in seen)
+        assert all(-180.0 <= p < 180.0 for p in seen)
+        # relative moves wrap too, and the reading stays in [-180, 180)
+        assert mc.get("/axis-cgi/com/ptz.cgi?rpan=-30").status_code == 204
+        run(3.0)
+        assert not modern.state.moving()
+        pos = _kv(mc.get("/axis-cgi/com/ptz.cgi?query=position").text)
+        assert float(pos["pan"]) == pytest.approx(160.0, abs=1e-3)
+        # continuous pan runs through the seam without stopping: 175 + 90 deg/s * 0.2 s = 193 = -167
+        modern.teleport(175.0, 0.0, 1.0)
+        assert mc.get("/axis-cgi/com/ptz.cgi?continuouspantiltmove=100,0").status_code == 204
+        now[0] += 0.2
+        assert mc.get("/axis-cgi/com/ptz.cgi?continuouspantiltmove=0,0").status_code == 204
+        assert modern.position()[0] == pytest.approx(-167.0, abs=1e-6)
+        now[0] += 1.0
+        assert modern.position()[0] == pytest.approx(-167.0, abs=1e-6)  # and it stopped there
+    finally:
+        modern.state.clock = time.monotonic
+        modern.state.reset()  # stopped at home, its time base back on the real clock
 
 
 def test_tilt_range_and_v3_move_step(modern, mc):

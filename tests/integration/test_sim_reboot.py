@@ -29,11 +29,13 @@ def _wait(pred, timeout: float) -> None:
 
 
 def test_blackhole_connects_hang_and_open_streams_go_mute():
+    # Long phases (4 s mute, 3 s errors) so that each step below fits in its phase on a loaded machine: the mute
+    # phase holds the 0.3 s drain and the 0.5 s connect probe, the error phase two requests.
     with SimulatedCamera() as cam:
-        stream = socket.create_connection((cam.host, cam.port), timeout=2.0)
+        stream = socket.create_connection((cam.host, cam.port), timeout=5.0)
         stream.sendall(f"GET {VIDEO} HTTP/1.1\r\nHost: x\r\n\r\n".encode())
         assert stream.recv(4096).startswith(b"HTTP/1.")
-        cam.reboot(1.5, blackhole=True, errors_s=0.6, error_kind="503")
+        cam.reboot(4.0, blackhole=True, errors_s=3.0, error_kind="503")
         assert cam.rebooting
         # the open stream: whatever was in flight, then silence, never an end of stream
         stream.settimeout(0.3)
@@ -46,6 +48,8 @@ def test_blackhole_connects_hang_and_open_streams_go_mute():
         with pytest.raises(TimeoutError):
             drain()
         # a new connection: no refusal, the SYN is dropped and connect times out
+        assert cam.rebooting
+        assert not cam.serving_errors()
         probe = socket.socket()
         probe.settimeout(0.5)
         t0 = time.monotonic()
@@ -54,13 +58,13 @@ def test_blackhole_connects_hang_and_open_streams_go_mute():
         assert time.monotonic() - t0 >= 0.45
         probe.close()
         # back: errors first, then video
-        _wait(lambda: cam.serving_errors(), 5.0)
+        _wait(lambda: cam.serving_errors(), 15.0)
         r = httpx.get(f"{cam.base_url}/axis-cgi/com/ptz.cgi?query=position", timeout=2.0)
         assert r.status_code == 503
         state = httpx.get(f"{cam.base_url}/sim/state", timeout=2.0).json()
         assert state["serving_errors"]
         assert state["video_ok_at"] > time.time()
-        _wait(lambda: not cam.rebooting, 5.0)
+        _wait(lambda: not cam.rebooting, 15.0)
         assert time.time() >= state["video_ok_at"]
         assert httpx.get(f"{cam.base_url}/axis-cgi/com/ptz.cgi?query=position", timeout=2.0).status_code == 200
         # the muted connection is reset once the camera is back (it knows nothing of it)

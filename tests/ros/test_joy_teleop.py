@@ -67,6 +67,7 @@ class Joystick:
         self.axes = [0.0] * 6
         self.buttons = [0] * 15
         self.sending = True
+        self.sent = 0  # messages published with the current state (since the last set())
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._t = threading.Thread(target=self._run, daemon=True)
@@ -80,14 +81,20 @@ class Joystick:
                 self.axes[i] = v
             for i, v in (buttons or {}).items():
                 self.buttons[i] = v
+            self.sent = 0
+
+    def published(self, n: int) -> bool:
+        """True once ``n`` messages with the current state have been published."""
+        with self._lock:
+            return self.sent >= n
 
     def _run(self) -> None:
         while not self._stop.wait(0.05):
             if not self.sending:
                 continue
-            with self._lock:
-                msg = Joy(axes=list(self.axes), buttons=list(self.buttons))
-            self.pub.publish(msg)
+            with self._lock:  # published under the lock: ``sent`` counts messages of exactly this state
+                self.pub.publish(Joy(axes=list(self.axes), buttons=list(self.buttons)))
+                self.sent += 1
 
     def close(self) -> None:
         self._stop.set()
@@ -215,14 +222,14 @@ def test_zoom_home_and_preset_buttons(ros, cam, rig):
     stick.set(buttons={PRESET_1: 1})  # without the dead-man: ignored
     time.sleep(0.8)
     assert sim_pose(cam)[0] == pytest.approx(-30.0, abs=0.05)
-    stick.set(buttons={DEADMAN: 1})
-    time.sleep(0.3)
+    stick.set(buttons={DEADMAN: 1})  # A released first: the preset fires on its rising edge
+    ros.wait_for(lambda: stick.published(2), 5.0)
     stick.set(buttons={DEADMAN: 1, PRESET_1: 1})
     ros.wait_for(lambda: sim_pose(cam) == pytest.approx((25.0, -5.0, 300), abs=0.05), 10.0, 0.02)
 
     # Y with the dead-man: home (pan 0, tilt 0, zoom 1)
     stick.set(buttons={DEADMAN: 1})
-    time.sleep(0.3)
+    ros.wait_for(lambda: stick.published(2), 5.0)
     stick.set(buttons={DEADMAN: 1, HOME: 1})
     ros.wait_for(lambda: sim_pose(cam) == pytest.approx((0.0, 0.0, 1), abs=0.05), 10.0, 0.02)
     assert ros.call(probe.create_client(Trigger, "ptz/home"), Trigger.Request()).success

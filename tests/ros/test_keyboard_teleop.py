@@ -145,13 +145,16 @@ def _wait_pose(ros: Any, cam: SimulatedCamera, pan: float, tilt: float, zoom: fl
 
 
 def test_keys_move_the_simulated_head_and_change_the_stream_and_the_terminal_is_restored(ros, cam, stack):
-    stream, seen = stack["stream"], stack["seen"]
+    ptz, stream, seen = stack["ptz"], stack["stream"], stack["seen"]
     pty = Pty()
     try:
         # Live status line once ptz/state and video/params are in.
         pty.wait_output("video: 15 fps 704x576 compression 30")
         pty.wait_output("pan   +0.00 deg")
         assert termios.tcgetattr(pty.slave) != pty.attrs_before  # raw mode while running
+        # The PTZ node has discovered the teleop's relative-move publisher (volatile topic: a move sent
+        # before that is lost).
+        ros.wait_for(lambda: ptz.count_publishers("/ptz/cmd/relative") > 0)
 
         # Step 3, A: the view turns LEFT by 3 deg (REP-103 +3; VAPIX -3 on the 214, thesis "pan -x").
         pty.type("3a")
@@ -248,10 +251,14 @@ def test_sigterm_restores_the_terminal_and_stops(ros, stack):
 def test_namespace_remap_reaches_nodes_in_that_namespace(ros, cam):
     """``--ros-args -r __ns:=/robot1``: the program talks to /robot1/ptz/*, not to /ptz/*."""
     cam.teleport(0.0, 0.0, 1)
-    ros.add(PtzNode(context=ros.context, namespace="robot1", parameter_overrides=[Parameter("port", value=cam.port)]))
+    ptz = ros.add(
+        PtzNode(context=ros.context, namespace="robot1", parameter_overrides=[Parameter("port", value=cam.port)])
+    )
     pty = Pty(("--ros-args", "-r", "__ns:=/robot1"))
     try:
         pty.wait_output("pan   +0.00 deg")
+        # the PTZ node in /robot1 has discovered the teleop's relative-move publisher before the first key
+        ros.wait_for(lambda: ptz.count_publishers("/robot1/ptz/cmd/relative") > 0)
         pty.type("5d")
         _wait_pose(ros, cam, -5.0, 0.0, 1)
         pty.type("\x11")  # Ctrl-Q

@@ -266,6 +266,8 @@ def test_keyboard_teleop_drives_either_camera(ros: Any, cam: SimulatedCamera, co
     try:
         pty.wait_output(f"video: 15 fps {top} compression 30", timeout=30)
         pty.wait_output("pan   +0.00 deg")
+        # the PTZ node has discovered the teleop's relative-move publisher (volatile: a move sent before is lost)
+        ros.wait_for(lambda: ptz.count_publishers("/ptz/cmd/relative") > 0)
         pty.type("5a")  # left 5 deg: REP-103 +5, VAPIX -5 on both cameras
         ros.wait_for(lambda: abs(cam.position()[0] + 5.0) < 0.05 and not cam.state.moving(), timeout=10)
         m = pty.type("g")

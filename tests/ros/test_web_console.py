@@ -19,6 +19,7 @@ import subprocess
 import sys
 import threading
 import time
+import types
 from typing import Any
 
 import cv2
@@ -39,6 +40,7 @@ from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoPara
 from axis_ptz_ros2.config import load_robot  # noqa: E402
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
+from axis_ptz_ros2.web import auth  # noqa: E402
 from axis_ptz_ros2.web.server import ConsoleServer, needs_tls  # noqa: E402
 from axis_ptz_ros2.web.tls import fingerprint_sha256, generate_self_signed  # noqa: E402
 
@@ -127,11 +129,12 @@ def make_console(ros: Any, **params: Any) -> WebConsole:
 class FakePtz:
     """Recording PTZ/stream services on a probe node (answers like the real nodes)."""
 
-    def __init__(self, ros: Any, delay: float = 0.0) -> None:
+    def __init__(self, ros: Any, hold: threading.Event | None = None) -> None:
         self.node = ros.probe("fake_ptz")
         self.node.declare_parameter("max_bitrate_kbps", 0)
         self.requests: dict[str, list[Any]] = {}
-        self.delay = delay
+        self.answered: dict[str, int] = {}
+        self.hold = hold  # PTZ services answer only once this is set (a camera that does not answer)
         g = ReentrantCallbackGroup()
         n = self.node
         n.create_service(CenterOnPixel, "ptz/center", self._rec("center"), callback_group=g)
@@ -146,10 +149,11 @@ class FakePtz:
     def _rec(self, name: str) -> Any:
         def cb(req: Any, resp: Any) -> Any:
             self.requests.setdefault(name, []).append(req)
-            if self.delay:
-                time.sleep(self.delay)
+            if self.hold is not None:
+                self.hold.wait(60.0)
             resp.success = True
             resp.message = ""
+            self.answered[name] = self.answered.get(name, 0) + 1
             return resp
 
         return cb
@@ -194,23 +198,27 @@ def test_mjpeg_passthrough_and_lazy_subscription(ros: Any) -> None:
             i += 1
             time.sleep(0.05)
 
+    def stream_state() -> dict[str, Any]:
+        return json.loads(request(console, "GET", "/api/state")[2])["stream"]
+
     t = threading.Thread(target=publish, daemon=True)
     t.start()
     try:
         while len(got) < 4:
             got.append(reader.next())
+        # byte-for-byte what was published (no re-encoding), and new frames keep coming
+        assert all(g in frames for g in got)
+        assert len(set(got)) >= 2
+        # the console's meter measures the window ending now: read it while frames still arrive (20 Hz
+        # published; a stalled test process may see a lower rate for a moment, so poll for it)
+        stream = ros.wait_for(lambda: (s := stream_state())["fps"] > 5.0 and s, 10.0)
+        assert stream["measured_at"] == "console"
+        assert stream["watchers"]["ptz"] == 1
+        assert stream["latency_ms"] is not None
+        assert 0 <= stream["latency_ms"] < 1000
     finally:
         stop.set()
         t.join()
-    # byte-for-byte what was published (no re-encoding), and new frames keep coming
-    assert all(g in frames for g in got)
-    assert len(set(got)) >= 2
-    state = json.loads(request(console, "GET", "/api/state")[2])
-    assert state["stream"]["measured_at"] == "console"
-    assert state["stream"]["watchers"]["ptz"] == 1
-    assert state["stream"]["fps"] > 5.0
-    assert state["stream"]["latency_ms"] is not None
-    assert 0 <= state["stream"]["latency_ms"] < 1000
     reader.close()
     ros.wait_for(lambda: not console.subscribed("ptz"), 5.0)
     ros.wait_for(lambda: pub.get_subscription_count() == 0, 5.0)
@@ -414,30 +422,50 @@ def test_video_controls_and_bandwidth_budget(ros: Any) -> None:
 
 
 def test_service_timeout_does_not_block_http_or_executor(ros: Any) -> None:
-    fake = FakePtz(ros, delay=4.0)
+    hold = threading.Event()
+    fake = FakePtz(ros, hold=hold)
     console = make_console(ros)
+    assert all(r.successful for r in console.set_parameters([Parameter("service_timeout", value=60.0)]))
     result: dict[str, Any] = {}
+    center = {"u": 1, "v": 1, "width": 10, "height": 10}
 
-    def slow() -> None:
-        t0 = time.monotonic()
-        result["answer"] = post(console, "/api/center", {"u": 1, "v": 1, "width": 10, "height": 10})
-        result["elapsed"] = time.monotonic() - t0
+    def pending() -> None:
+        result["pending"] = post(console, "/api/center", center)
 
-    t = threading.Thread(target=slow)
+    t = threading.Thread(target=pending)
     t.start()
-    time.sleep(0.5)
-    # meanwhile the console still answers and the executor still delivers messages
-    t0 = time.monotonic()
+    try:
+        # the service has the request and will not answer until released: the console is waiting on it
+        ros.wait_for(lambda: len(fake.requests.get("center", [])) == 1, 5.0)
+        # meanwhile the console still answers and the executor still delivers messages
+        assert request(console, "GET", "/api/state")[0] == 200
+        fake.video.fps = 21
+        fake.params_pub.publish(fake.video)
+        ros.wait_for(lambda: (console.state()["video"] or {}).get("fps") == 21, 3.0)
+        assert t.is_alive()  # all of that while the service call was pending
+        assert "pending" not in result
+        # a service that does not answer within service_timeout is reported, without waiting for its answer
+        assert all(r.successful for r in console.set_parameters([Parameter("service_timeout", value=2.0)]))
+        t0 = time.monotonic()
+        status, ans = post(console, "/api/center", center)
+        elapsed = time.monotonic() - t0
+        assert status == 504
+        assert "did not answer" in ans["message"]
+        assert "within 2 s" in ans["message"]
+        assert elapsed >= 1.8  # waited for service_timeout (the upper bound: the service has not answered)
+        assert len(fake.requests["center"]) == 2
+        assert fake.answered.get("center", 0) == 0
+        assert t.is_alive()
+    finally:
+        hold.set()
+        t.join(30)
+    # the first call (60 s allowed) gets its answer once the service answers; the late answer to the
+    # abandoned call is dropped, and the console keeps serving
+    status, ans = result["pending"]
+    assert status == 200, ans
+    assert ans["ok"], ans
+    ros.wait_for(lambda: fake.answered.get("center") == 2, 5.0)
     assert request(console, "GET", "/api/state")[0] == 200
-    assert time.monotonic() - t0 < 1.0
-    fake.video.fps = 21
-    fake.params_pub.publish(fake.video)
-    ros.wait_for(lambda: (console.state()["video"] or {}).get("fps") == 21, 3.0)
-    t.join(10)
-    status, ans = result["answer"]
-    assert status == 504
-    assert "did not answer" in ans["message"]
-    assert 1.8 < result["elapsed"] < 3.5  # service_timeout = 2 s
 
 
 def test_missing_services_are_reported_not_hung(ros: Any) -> None:
@@ -697,7 +725,24 @@ def test_off_loopback_bind_serves_https_and_logs_the_fingerprint(tmp_path: Any) 
     assert TOKEN not in out["log"]  # the token never reaches the log
 
 
-def test_every_auth_path_is_throttled_per_client_address(ros: Any, tmp_path: Any) -> None:
+class FakeMonotonic:
+    """A monotonic clock that moves only when the test advances it."""
+
+    def __init__(self, start: float = 1000.0) -> None:
+        self.now = start
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        self.now += seconds
+
+
+def test_every_auth_path_is_throttled_per_client_address(ros: Any, tmp_path: Any, monkeypatch: Any) -> None:
+    # the throttle reads time.monotonic() through its module: give it a clock the test moves explicitly, so
+    # the 2 s window neither passes while the requests are made nor has to be waited for
+    clock = FakeMonotonic()
+    monkeypatch.setattr(auth, "time", types.SimpleNamespace(monotonic=clock))
     console = _token_console(ros, tmp_path, auth_max_failures=3, auth_window=2.0)
     form = {"Content-Type": "application/x-www-form-urlencoded"}
     wrong = {
@@ -714,18 +759,23 @@ def test_every_auth_path_is_throttled_per_client_address(ros: Any, tmp_path: Any
     }
     ok_status = {"bearer": 200, "header": 200, "cookie": 200, "login": 303}
     for kind in wrong:  # each path alone exhausts the allowance ...
-        first_sent = time.monotonic()  # the server counts the first failure no earlier than this
-        for _ in range(3):
+        first = clock.now  # the first failure is counted at this instant
+        for i in range(3):
+            if i:
+                clock.advance(0.5)  # failures at first, first + 0.5, first + 1.0
             status, headers, _ = wrong[kind]()
             assert status == 401, kind
             if kind == "cookie":  # a wrong cookie is cleared so a stale one does not keep guessing
                 assert "max-age=0" in headers["set-cookie"].lower()
-        # ... and then every path is refused, even with the right token
+        assert console.server.throttle.failures("127.0.0.1") == 3
+        # ... and then every path is refused, even with the right token, until the first failure leaves the
+        # window (1 s from now)
         for k in right:
             status, headers, body = right[k]()
             assert status == 429, (kind, k, status)
-            assert 1 <= int(headers["retry-after"]) <= 2
+            assert headers["retry-after"] == "1"
         assert b"try again" in wrong[kind]()[2]
+        assert console.server.throttle.failures("127.0.0.1") == 3  # a guess while locked out is not counted
         # no credential presented is not a guess: the login page is still served
         status, _, body = request(console, "GET", "/")
         assert status == 401
@@ -739,13 +789,23 @@ def test_every_auth_path_is_throttled_per_client_address(ros: Any, tmp_path: Any
             )
             == 200
         )
-        # the window passes (the server's own clock): the right token works again
-        ros.wait_for(lambda k=kind: right[k]()[0] == ok_status[k], 10.0)  # type: ignore[misc]
-        assert time.monotonic() - first_sent >= 2.0  # not before the first failure left the 2 s window
+        # not before the first failure has left the 2 s window (the server's own clock) ...
+        clock.now = first + 1.99
         for k in right:
-            assert right[k]()[0] == ok_status[k]
-        # the window slides: the next path starts only once every counted failure has left it
-        ros.wait_for(lambda: console.server.throttle.failures("127.0.0.1") == 0, 10.0)
+            status, headers, _ = right[k]()
+            assert status == 429, (kind, k, status)
+            assert headers["retry-after"] == "1"
+        # ... and then the right token works again on every path
+        clock.now = first + 2.0
+        for k in right:
+            assert right[k]()[0] == ok_status[k], (kind, k)
+        # the window slides: the two later failures still count until they leave it too
+        assert console.server.throttle.failures("127.0.0.1") == 2
+        clock.now = first + 2.99
+        assert console.server.throttle.failures("127.0.0.1") == 1
+        clock.now = first + 3.0
+        assert console.server.throttle.failures("127.0.0.1") == 0
+        clock.advance(10.0)
 
 
 def _raw(port: int, data: bytes, source: str = "127.0.0.1", pause_after: float = 0.0) -> bytes:
