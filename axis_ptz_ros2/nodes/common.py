@@ -5,9 +5,11 @@ This is the only place (with the node modules) that knows both the ROS-free laye
 
 from __future__ import annotations
 
+import faulthandler
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -286,12 +288,34 @@ def make_tf_broadcasters(node: Node) -> tuple[Any | None, Any | None]:
 # ---------------------------------------------------------------------------------------------------------
 # Runner
 # ---------------------------------------------------------------------------------------------------------
+def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) -> bool:
+    """After ``executor.shutdown()``: wait (at most ``timeout`` s) until no callback is still running.
+
+    rclpy Jazzy's ``Executor.shutdown`` sets its shutdown flag and then skips its own wait for outstanding work
+    (the wait is guarded by that same flag), and ``MultiThreadedExecutor`` never stops its thread pool. A callback
+    dispatched just before the shutdown can therefore still run while the caller destroys its node and the
+    context: at best "cannot use Destroyable" errors, at worst a crash inside rcl. The executor's list of
+    dispatched tasks is private, so this reads it defensively; True if nothing is left running.
+    """
+    tasks = getattr(executor, "_futures", None)
+    if not isinstance(tasks, list):
+        return True
+    deadline = time.monotonic() + timeout
+    while any(not t.done() for t in list(tasks)):
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes in one process and spin them on a multi-threaded executor until Ctrl-C / shutdown.
 
     Jazzy-correct: ``rclpy.init`` returns None; KeyboardInterrupt and ExternalShutdownException end the spin;
     every node is destroyed (joining its threads) before ``rclpy.try_shutdown``.
     """
+    if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
+        faulthandler.enable()
     rclpy.init(args=list(args) if args is not None else sys.argv)
     nodes: list[Node] = []
     executor = MultiThreadedExecutor(num_threads=4)
@@ -316,6 +340,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
         code = 2
     finally:
         executor.shutdown(timeout_sec=1.0)
+        wait_for_running_callbacks(executor, 3.0)
         for n in nodes:
             n.destroy_node()
         rclpy.try_shutdown()

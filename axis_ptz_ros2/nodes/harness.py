@@ -14,6 +14,8 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
+from axis_ptz_ros2.nodes.common import wait_for_running_callbacks
+
 #: Multiplier of every ``wait_for`` deadline (conditions are awaited, not timed).
 DEADLINE_SCALE = float(os.environ.get("AXIS_TEST_DEADLINE_SCALE", "4"))
 
@@ -75,6 +77,7 @@ class RosHarness:
     def close(self) -> None:
         self._stop.set()  # stop spinning before anything is destroyed (no callback on a destroyed handle)
         self._thread.join(timeout=2.0)
+        wait_for_running_callbacks(self.executor, 3.0)
         for n in reversed(self.nodes):
             try:
                 self.executor.remove_node(n)

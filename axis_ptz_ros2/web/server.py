@@ -290,6 +290,11 @@ class ConsoleServer(ThreadingHTTPServer):
         for c in conns:
             with suppress(OSError, ValueError):
                 c.shutdown(socket.SHUT_RDWR)
+        # handler threads are daemons that the server does not join: let them return (their sockets are shut,
+        # a ROS service call ends within service_timeout) before the caller destroys the node they call into
+        deadline = time.monotonic() + timeout
+        while self.open_connections and time.monotonic() < deadline:
+            time.sleep(0.01)
         self.server_close()
 
     def finish_request(self, request: Any, client_address: Any) -> None:
