@@ -8,7 +8,9 @@ from __future__ import annotations
 import faulthandler
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -25,6 +27,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo
 
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
@@ -308,40 +311,57 @@ def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) 
     return True
 
 
-def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
-    """Create nodes in one process and spin them on a multi-threaded executor until Ctrl-C / shutdown.
+class _Stop(BaseException):
+    """SIGINT/SIGTERM in a :func:`run_nodes` process (a BaseException, like KeyboardInterrupt)."""
 
-    Jazzy-correct: ``rclpy.init`` returns None; KeyboardInterrupt and ExternalShutdownException end the spin;
-    every node is destroyed (joining its threads) before ``rclpy.try_shutdown``.
+
+def _raise_stop(signum: int, frame: Any) -> None:
+    raise _Stop(signum)
+
+
+def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
+    """Create nodes in one process and spin them on a multi-threaded executor until SIGINT/SIGTERM or shutdown.
+
+    Shutdown order: the executor stops, callbacks still running finish, every node is destroyed (joining its
+    threads) while the context is still valid, and only then the context is shut down. rclpy's own signal
+    handler is not installed: it shuts the context down inside the signal, so nodes would be destroyed after it,
+    and destroying a publisher of a shut-down context crashed ``axis_visualizer`` with SIGSEGV in a CI run
+    (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Python's handler raises in the main
+    thread instead, which spins with a 0.1 s timeout so that a signal is acted on promptly.
     """
     if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
         faulthandler.enable()
-    rclpy.init(args=list(args) if args is not None else sys.argv)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = {}
+    if in_main:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, _raise_stop)
+    rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Node] = []
     executor = MultiThreadedExecutor(num_threads=4)
     code = 0
     try:
         for f in factories:
-            try:
-                n = f()
-            except Exception:
-                if rclpy.ok():
-                    raise
-                # Ctrl-C / SIGTERM arrived while the node was being built (rclpy's handler invalidated the
-                # context under the constructor): a clean stop, not a traceback and exit 1
-                return code
+            n = f()
             nodes.append(n)
             executor.add_node(n)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except (_Stop, KeyboardInterrupt, ExternalShutdownException):
         pass
     except ValueError as err:  # start-up configuration errors: say why, exit non-zero
         print(f"error: {err}", file=sys.stderr)  # noqa: T201
         code = 2
     finally:
-        executor.shutdown(timeout_sec=1.0)
-        wait_for_running_callbacks(executor, 3.0)
-        for n in nodes:
-            n.destroy_node()
-        rclpy.try_shutdown()
+        for sig in previous:  # a second signal must not cut the clean-up short
+            signal.signal(sig, signal.SIG_IGN)
+        try:
+            executor.shutdown(timeout_sec=1.0)
+            wait_for_running_callbacks(executor, 3.0)
+            for n in nodes:
+                n.destroy_node()
+            rclpy.try_shutdown()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
     return code
