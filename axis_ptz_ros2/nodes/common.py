@@ -312,11 +312,37 @@ def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) 
 
 
 class _Stop(BaseException):
-    """SIGINT/SIGTERM in a :func:`run_nodes` process (a BaseException, like KeyboardInterrupt)."""
+    """SIGINT/SIGTERM while a :func:`run_nodes` process builds its nodes (a BaseException, like KeyboardInterrupt)."""
 
 
-def _raise_stop(signum: int, frame: Any) -> None:
-    raise _Stop(signum)
+class _Signals:
+    """SIGINT/SIGTERM for :func:`run_nodes`: raise while nodes are being built (a constructor may wait on the
+    camera), only set a flag once spinning (the main thread sees it within its 0.1 s spin timeout). An exception
+    raised inside the executor's own code could leave its state or a lock half-done; the flag cannot."""
+
+    def __init__(self) -> None:
+        self.stop = threading.Event()
+        self.spinning = False
+        self.previous: dict[int, Any] = {}
+
+    def install(self) -> None:
+        if threading.current_thread() is threading.main_thread():  # signal handlers live in the main thread
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self.stop.set()
+        if not self.spinning:
+            raise _Stop(signum)
+
+    def ignore(self) -> None:
+        """During clean-up: a second signal must not cut it short."""
+        for sig in self.previous:
+            signal.signal(sig, signal.SIG_IGN)
+
+    def restore(self) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
 
 
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
@@ -326,16 +352,13 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     threads) while the context is still valid, and only then the context is shut down. rclpy's own signal
     handler is not installed: it shuts the context down inside the signal, so nodes would be destroyed after it,
     and destroying a publisher of a shut-down context crashed ``axis_visualizer`` with SIGSEGV in a CI run
-    (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Python's handler raises in the main
-    thread instead, which spins with a 0.1 s timeout so that a signal is acted on promptly.
+    (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Our handlers (:class:`_Signals`) end the
+    spin instead, which runs with a 0.1 s timeout so that a signal is acted on promptly.
     """
     if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
         faulthandler.enable()
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = {}
-    if in_main:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, _raise_stop)
+    signals = _Signals()
+    signals.install()
     rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Node] = []
     executor = MultiThreadedExecutor(num_threads=4)
@@ -345,7 +368,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
             n = f()
             nodes.append(n)
             executor.add_node(n)
-        while rclpy.ok():
+        signals.spinning = True
+        while rclpy.ok() and not signals.stop.is_set():
             executor.spin_once(timeout_sec=0.1)
     except (_Stop, KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -353,15 +377,16 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
         print(f"error: {err}", file=sys.stderr)  # noqa: T201
         code = 2
     finally:
-        for sig in previous:  # a second signal must not cut the clean-up short
-            signal.signal(sig, signal.SIG_IGN)
+        signals.ignore()
+        # a clean-up that hangs leaves every thread's stack in the log before whoever stopped us kills us
+        faulthandler.dump_traceback_later(5.0)
         try:
             executor.shutdown(timeout_sec=1.0)
-            wait_for_running_callbacks(executor, 3.0)
+            wait_for_running_callbacks(executor, 2.0)
             for n in nodes:
                 n.destroy_node()
             rclpy.try_shutdown()
         finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+            faulthandler.cancel_dump_traceback_later()
+            signals.restore()
     return code
