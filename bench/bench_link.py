@@ -118,7 +118,7 @@ class Run:
 
 
 def run_mode(mode: str, phase: float, logs: Path, profile: str) -> Run:
-    from axis_ptz_ros2.sim.hosts import TwoHosts, host_env, wait_for
+    from tests.netns.hosts import TwoHosts, host_env, wait_for
 
     run = Run(mode)
     hosts = TwoHosts(f"bench{mode[:5]}", logs)

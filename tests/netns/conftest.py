@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from axis_ptz_ros2.sim import link as linkmod
-from axis_ptz_ros2.sim.hosts import Probe, TwoHosts, host_env, wait_for
+from tests.netns.hosts import Probe, TwoHosts, host_env, wait_for
 
 __all__ = ["Probe", "TwoHosts", "host_env", "wait_for"]
 

@@ -45,7 +45,7 @@ def _allowed(addr: str, path: Path | None = None) -> bool:
     "path",
     sorted(
         p
-        for d in ("axis_ptz_ros2", "scripts", "bench", ".ci")
+        for d in ("axis_ptz_ros2", "scripts", "bench", ".ci", "tests/netns")  # tests/netns: the two-host support
         for p in (ROOT / d).rglob("*")
         if p.is_file() and p.suffix in ("", ".py", ".sh", ".js", ".html")
     ),

@@ -1,5 +1,6 @@
 """Robot and operator as two "hosts" (network namespaces over a :class:`~axis_ptz_ros2.sim.link.Link`), with
-the processes started on each: used by the two-host test tier (``tests/netns``) and ``bench/bench_link.py``.
+the processes started on each: used by the two-host test tier (``tests/netns``) and ``bench/bench_link.py``. Test
+and bench support, not shipped in the package: it clears the DDS discovery settings of the processes it starts.
 
 Processes get the environment of a host of their own: the default DDS discovery range (nothing in our node
 code restricts it), this session's ``ROS_DOMAIN_ID``, and ``/dev/shm`` per host. ROS-free (processes only).
@@ -21,7 +22,7 @@ from typing import Any
 
 from axis_ptz_ros2.sim import link as linkmod
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[2]  # the repository (tests/netns/hosts.py)
 
 
 def host_env(**extra: str) -> dict[str, str]:
