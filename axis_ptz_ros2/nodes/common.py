@@ -23,6 +23,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -311,6 +312,21 @@ def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) 
     return True
 
 
+def spin_once(executor: MultiThreadedExecutor, timeout_sec: float) -> None:
+    """``executor.spin_once``, surviving an entity destroyed by another thread while the executor built its wait set.
+
+    rclpy Jazzy adds every subscription's event handler to the wait set without a guard, so a subscription that a
+    callback destroys meanwhile (the web console's and the republisher's lazy subscriptions, a calibration capture
+    closing) raises ``InvalidHandle`` out of ``spin_once``: a fresh-clone test run lost its whole spin thread that
+    way. The failed wait-set generator is finished, so the next call builds a new one without the destroyed entity.
+    """
+    try:
+        executor.spin_once(timeout_sec=timeout_sec)
+    except InvalidHandle:
+        if not executor.context.ok():
+            raise
+
+
 class _Stop(BaseException):
     """SIGINT/SIGTERM while a :func:`run_nodes` process builds its nodes (a BaseException, like KeyboardInterrupt)."""
 
@@ -370,7 +386,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
             executor.add_node(n)
         signals.spinning = True
         while rclpy.ok() and not signals.stop.is_set():
-            executor.spin_once(timeout_sec=0.1)
+            spin_once(executor, 0.1)
     except (_Stop, KeyboardInterrupt, ExternalShutdownException):
         pass
     except ValueError as err:  # start-up configuration errors: say why, exit non-zero

@@ -14,7 +14,7 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
-from axis_ptz_ros2.nodes.common import wait_for_running_callbacks
+from axis_ptz_ros2.nodes.common import spin_once, wait_for_running_callbacks
 
 #: Multiplier of every ``wait_for`` deadline (conditions are awaited, not timed).
 DEADLINE_SCALE = float(os.environ.get("AXIS_TEST_DEADLINE_SCALE", "4"))
@@ -35,7 +35,7 @@ class RosHarness:
     def _spin(self) -> None:
         while self.context.ok() and not self._stop.is_set():
             try:
-                self.executor.spin_once(timeout_sec=0.05)
+                spin_once(self.executor, 0.05)
             except Exception:  # noqa: BLE001 - context shut down under us at teardown
                 if not self.context.ok():
                     return
