@@ -39,6 +39,7 @@ from urllib.parse import parse_qsl
 import cv2
 import numpy as np
 
+from axis_ptz_ros2.sim.camera_model import PicturePool
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import (
     ERROR_HTML,
@@ -51,7 +52,7 @@ from axis_ptz_ros2.sim.persona import (
     preset_params,
 )
 from axis_ptz_ros2.sim.ptz import PtzCommandError, PtzState, Speeds
-from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
+from axis_ptz_ros2.sim.renderer import PtzRenderer, insert_comment
 from axis_ptz_ros2.sim.scene import PtzLimits, SimWorld, load_world
 from axis_ptz_ros2.sim.tls import SelfSignedCertificate
 
@@ -225,8 +226,7 @@ class SimulatedCamera:
         self._error_kind = "503"
         self.video_ok_at: float | None = None  #: wall time (time.time()) video was served again after a reboot
         self._lifecycle = threading.Lock()
-        self._jpeg_cache: collections.OrderedDict[tuple[Any, ...], bytes] = collections.OrderedDict()
-        self._jpeg_lock = threading.Lock()
+        self._pictures = PicturePool(self.persona.picture, views=16)  # what the camera makes of each view
         self.frames_sent = 0
         self.snapshots_sent = 0
 
@@ -581,28 +581,20 @@ class SimulatedCamera:
 
     # ---- frames ----------------------------------------------------------------------------------------
     def frame_jpeg(self, width: int, height: int, compression: int, overlay: str = "") -> bytes:
-        """The current view as JPEG (cached per view, quality and overlay text)."""
+        """The current view as the camera sends it: rendered once per view, softened, with a new frame of sensor
+        noise per call (from a pool per view, quality and overlay text: sim/camera_model.py)."""
         pan, tilt, zoom = self.position()
-        key = (round(pan, 5), round(tilt, 5), round(zoom, 3), width, height, compression, overlay)
-        with self._jpeg_lock:
-            jpeg = self._jpeg_cache.get(key)
-        if jpeg is not None:
-            return jpeg
-        img = self.renderer.render(pan, tilt, zoom, width, height)
-        if overlay:
-            img = np.array(img)
+        key = (round(pan, 5), round(tilt, 5), round(zoom, 3), width, height)
+
+        def draw(img: np.ndarray, text: str) -> None:
             scale = max(0.35, width / 1400.0)
-            (tw, th), _ = cv2.getTextSize(overlay, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+            (tw, th), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
             cv2.rectangle(img, (2, 2), (8 + tw, 8 + th + 2), (0, 0, 0), -1)
-            cv2.putText(
-                img, overlay, (5, 5 + th), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA
-            )
-        jpeg = encode_jpeg(img, compression)
-        with self._jpeg_lock:
-            self._jpeg_cache[key] = jpeg
-            while len(self._jpeg_cache) > 16:
-                self._jpeg_cache.popitem(last=False)
-        return jpeg
+            cv2.putText(img, text, (5, 5 + th), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
+
+        return self._pictures.jpeg(
+            key, lambda: self.renderer.render(pan, tilt, zoom, width, height), zoom, compression, overlay, draw
+        )
 
     def _count(self, endpoint: str, status: int | None = None) -> None:
         with self._counts_lock:
