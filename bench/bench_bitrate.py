@@ -205,7 +205,7 @@ def main() -> int:
     print("\ncurrent-Axis persona, 1920×1080, home view, camera still:")
     for comp, (mean, cv) in modern.items():
         print(
-            f"  compression {comp:>3}: {mean / 1000:6.0f} kB/frame (size CV {100 * cv:.1f} %), "
+            f"  compression {comp:>3}: {mean / 1000:6.0f} kB/frame (size CV {100 * cv:.2f} %), "
             f"{mean * 8 * 30 / 1e6:5.1f} Mbit/s at 30 fps"
         )
     print(f"\n(total {time.monotonic() - t0:.0f} s)")
