@@ -43,6 +43,7 @@ U8Array = npt.NDArray[np.uint8]
 
 _SIGMA_AT_3DB = math.sqrt(math.log(math.sqrt(2.0)) / (2.0 * math.pi**2))  # 0.1325: σ·f at MTF = 1/√2
 _NOISE_MARGIN = 64  # px: the noise field is this much larger than a frame, frames take random offsets
+_POOLS_PER_VIEW = 4  # (compression, overlay text) pools kept per view
 
 
 def sigma_from_bandwidth(bandwidth_mhz: float, sample_rate_mhz: float) -> float:
@@ -223,7 +224,7 @@ class _View:
 
     def __init__(self, soft: U8Array) -> None:
         self.soft = soft
-        self.pools: dict[tuple[int, str], list[bytes]] = {}
+        self.pools: OrderedDict[tuple[int, str], list[bytes]] = OrderedDict()  # at most _POOLS_PER_VIEW
         self.turn: dict[tuple[int, str], int] = {}
 
 
@@ -290,6 +291,10 @@ class PicturePool:
             self.encodes += 1
             current = self._views.setdefault(key, view)
             pool = current.pools.setdefault(sub, [])
+            current.pools.move_to_end(sub)
+            while len(current.pools) > _POOLS_PER_VIEW:  # e.g. a clock overlay: a new text every second
+                old, _ = current.pools.popitem(last=False)
+                current.turn.pop(old, None)
             if len(pool) < m.pool_frames:
                 pool.append(jpeg)
             current.turn[sub] = current.turn.get(sub, 0) + 1

@@ -91,3 +91,16 @@ def test_render_is_called_once_per_view_and_overlay_is_drawn() -> None:
 def test_thesis_cells_are_read_as_kilobytes() -> None:
     assert thesis_kbit_s("704x576", 0, 30) == 3440 * 8
     assert thesis_kbit_s("176x144", 100, 1) == pytest.approx(10.4)
+
+
+def test_memory_stays_bounded_with_a_changing_overlay() -> None:
+    pool = PicturePool(AXIS_214.picture, views=2)
+    img = _scene()
+    for second in range(50):  # a clock overlay: a new text every second on a still camera
+        for _ in range(3):
+            pool.jpeg("v", lambda: img, 1.0, 30, f"t={second}", lambda im, t: None)
+    for v in range(5):
+        pool.jpeg(("view", v), lambda: img, 1.0, 30)
+    views = pool._views  # noqa: SLF001 - the bound is the point of this test
+    assert len(views) == 2
+    assert all(len(v.pools) <= 4 for v in views.values())
