@@ -320,9 +320,11 @@ def _axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str
 #: Guesses: luminance bandwidth 4 MHz (composite/Y-C decoder of the camera block), lens σ 0.5…1.0 px
 #: (wide…tele). Fitted to the thesis's Tables 6.2-6.4 (read as kB/s, bench/bench_bitrate.py): temporal noise
 #: 2.0 / 0.7 DN (luma / chroma at 704×576), scaler softness 0.3 px per halving of the width, and the
-#: compression → IJG quality curve q(c) = 98 − (98 − 60)·(c/100)², 27 quality points lower at compression 100
-#: per halving of the width (q(0, 30, 60, 100) = 98, 95, 84, 60 at 704×576; 98, 92, 75, 33 at 352×288;
-#: 98, 90, 65, 6 at 176×144). No source explains the per-resolution drop; the tables need it (the real 214's
+#: compression → IJG quality curve q(c) = 98 − (98 − 60)·(c/100)^1.7, 27 quality points lower at compression 100
+#: per halving of the width (q(0, 10, 30, 60, 100) = 98, 97, 93, 82, 60 at 704×576; 98, 97, 90, 71, 33 at
+#: 352×288; 98, 96, 86, 59, 6 at 176×144). The exponent 1.7 rather than 2 keeps a first compression step of 10
+#: visible in the frame size (with 2 it rounds to the same quality: the stream node's budget controller then
+#: learns that compression does nothing). No source explains the per-resolution drop; the tables need it (the real 214's
 #: small pictures shrink far more at compression 100 than its 704×576 picture).
 AXIS_214_PICTURE = CameraModel(
     native_width=704,
@@ -339,7 +341,7 @@ AXIS_214_PICTURE = CameraModel(
     noise_chroma=0.7,
     quality_at_0=98.0,
     quality_at_100=60.0,
-    quality_gamma=2.0,
+    quality_gamma=1.7,
     quality_drop_per_halving=27.0,
     pool_frames=8,
 )

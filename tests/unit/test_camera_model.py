@@ -37,8 +37,8 @@ def test_out_of_range_values_are_refused_with_a_reason(field: str, value: float,
 
 def test_quality_curve_falls_with_compression_and_matches_the_documented_points() -> None:
     m = AXIS_214.picture
-    assert [m.quality(c, 704) for c in (0, 30, 60, 100)] == [98, 95, 84, 60]
-    assert [m.quality(c, 176) for c in (0, 30, 60, 100)] == [98, 90, 65, 6]
+    assert [m.quality(c, 704) for c in (0, 10, 30, 60, 100)] == [98, 97, 93, 82, 60]
+    assert [m.quality(c, 176) for c in (0, 30, 60, 100)] == [98, 86, 59, 6]
     for w in (704, 352, 176):
         q = [m.quality(c, w) for c in range(0, 101, 5)]
         assert q == sorted(q, reverse=True)
