@@ -110,7 +110,9 @@ class H264Decoder:
             return None
         self._waiting = False
         self.stats.pictures += 1
-        return DecodedPicture(frame.to_ndarray(format="bgr24"), idr, stamp)
+        image = frame.to_ndarray(format="bgr24")
+        assert image.dtype == np.uint8
+        return DecodedPicture(image.astype(np.uint8, copy=False), idr, stamp)
 
     def _new_context(self) -> av.VideoCodecContext:
         ctx = av.VideoCodecContext.create("h264", "r")

@@ -184,4 +184,3 @@ class H264Encoder:
         except av.error.FFmpegError as err:
             raise EncoderError(f"libx264 did not open with {c}: {err}") from err
         return ctx
-

@@ -120,7 +120,7 @@ class MjpegTranscoder:
             if w % 2 or h % 2:
                 self.bad_jpegs += 1
                 raise TranscodeError(f"JPEG of odd size {w}x{h}: H.264 4:2:0 needs even sizes")
-            i420 = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
+            i420 = np.asarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420), dtype=np.uint8)
             return av.VideoFrame.from_ndarray(i420, format="yuv420p")
         if self._mjpeg is None:
             self._mjpeg = av.VideoCodecContext.create("mjpeg", "r")
