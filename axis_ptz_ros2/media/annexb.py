@@ -394,7 +394,7 @@ class ParameterSetTracker:
         return prepend_parameter_sets(access_unit, params)
 
 
-# ---- capture-time SEI (§7.3.2.3, §D.1.7) ----------------------------------------------------------------------
+# ---- capture-time SEI (§7.3.2.3.1, §D.1.7) ----------------------------------------------------------------------
 def _sei_varint(value: int) -> bytes:
     return b"\xff" * (value // 255) + bytes([value % 255])
 

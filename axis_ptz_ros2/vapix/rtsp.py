@@ -334,6 +334,10 @@ class RtspControl:
     def options(self) -> RtspResponse:
         return self.request("OPTIONS", extra={})
 
+    def describe(self) -> str:
+        """The stream's SDP (``DESCRIBE``; needs the viewer's rights, so it proves the credentials)."""
+        return self.request("DESCRIBE", extra={"Accept": "application/sdp"}).body.decode("utf-8", "replace")
+
     def renew_stream(self, session: str) -> RtspResponse:
         """Ask for an IDR now (``Renew-Stream: yes``)."""
         return self.request("SET_PARAMETER", extra={"Session": session}, body=b"Renew-Stream: yes\r\n")
@@ -431,6 +435,21 @@ class RtspControl:
 
 class _ClosedError(Exception):
     """The server closed the control connection."""
+
+
+def sprop_parameter_sets(sdp: str) -> annexb.ParameterSets | None:
+    """SPS/PPS from the first ``a=fmtp:… sprop-parameter-sets=…`` of an SDP; None if it has none."""
+    for line in sdp.splitlines():
+        if not line.startswith("a=fmtp:"):
+            continue
+        for param in line.partition(" ")[2].split(";"):
+            name, _, value = param.strip().partition("=")
+            if name.lower() == "sprop-parameter-sets" and value:
+                try:
+                    return annexb.parse_sprop_parameter_sets(value)
+                except BitstreamError as err:
+                    raise ResponseParseError(f"SDP sprop-parameter-sets: {err}") from err
+    return None
 
 
 def _www_authenticate(resp: RtspResponse) -> list[tuple[str, str]]:
