@@ -80,6 +80,7 @@ def test_malformed_framing_is_refused_with_a_reason(data: bytes, reason: str) ->
         annexb.split_nal_units(data)
 
 
+@settings(database=None)
 @given(st.binary(max_size=200), st.sampled_from([b"\x80", b"\x00\x00", b"\x01\x00\x00"]))
 def test_emulation_prevention_round_trips_and_leaves_no_start_code(body: bytes, tail: bytes) -> None:
     rbsp = body + tail  # ends in the stop bit, or in a cabac_zero_word
@@ -238,7 +239,7 @@ def exercise(data: bytes) -> None:
         annexb.ParameterSetTracker().process(data)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=300, deadline=None, database=None)
 @given(st.binary(max_size=300))
 def test_random_bytes_never_crash(data: bytes) -> None:
     exercise(data)
@@ -247,7 +248,7 @@ def test_random_bytes_never_crash(data: bytes) -> None:
     exercise(b"\x00\x00\x01\x06" + data)  # an "SEI" of random bytes
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=200, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_truncated_and_mutated_real_access_units_never_crash(stream: list[bytes], data: st.DataObject) -> None:
     au = annexb.insert_capture_stamp(stream[data.draw(st.integers(0, 1))], 123456789)
@@ -260,6 +261,7 @@ def test_truncated_and_mutated_real_access_units_never_crash(stream: list[bytes]
     exercise(bytes(mutated))
 
 
+@settings(database=None)
 @given(st.text(max_size=80))
 def test_random_sprop_text_is_parsed_or_refused(value: str) -> None:
     with contextlib.suppress(BitstreamError):
