@@ -11,6 +11,11 @@
   ``Adjustable-Stream-Configuration`` (live fps/bitrate where ``adjustablelivestream=1``), signed with the same
   Digest negotiation as the HTTP side (:class:`~axis_ptz_ros2.vapix.auth.NegotiatingAuth`).
 
+Open question for the node (not solved here): ``SET_PARAMETER`` acts on an RTSP *session*, and the session that
+plays the stream is FFmpeg's, whose ``Session`` id PyAV does not expose. :class:`RtspControl` takes the id as an
+argument; getting it means either an RTSP client of our own for the playing session, or a camera that applies
+``Renew-Stream`` across sessions (unverified on real Axis firmware).
+
 Credentials: the reader needs them in the URL (FFmpeg's only way); that URL never reaches a log line, a repr or
 an exception message (:func:`~axis_ptz_ros2.vapix.errors.redact`).
 """

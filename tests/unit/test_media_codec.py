@@ -7,6 +7,8 @@ import statistics
 import cv2
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.annexb import NalType
@@ -229,3 +231,29 @@ def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
         enc.set_bitrate(1)
     with pytest.raises(EncoderError, match="jpeg_decoder"):
         TranscoderConfig(jpeg_decoder="libjpeg")  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def short_stream(jpegs: list[bytes]) -> list[bytes]:
+    """IDR, P, P, IDR, P, P with capture stamps."""
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=3))
+    return [tc.transcode(j, capture_ns=i).data for i, j in enumerate(jpegs[:6])]
+
+
+@settings(max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_decoder_never_raises_on_mutated_streams(short_stream: list[bytes], data: st.DataObject) -> None:
+    """Random byte changes anywhere in a real IDR + P stream: pictures or counted errors, never an exception."""
+    aus = [bytearray(au) for au in short_stream]
+    for _ in range(data.draw(st.integers(1, 6))):
+        au = aus[data.draw(st.integers(0, len(aus) - 1))]
+        au[data.draw(st.integers(0, len(au) - 1))] = data.draw(st.integers(0, 255))
+    cut = data.draw(st.integers(0, len(aus) - 1))
+    aus[cut] = aus[cut][: data.draw(st.integers(0, len(aus[cut])))]
+    dec = H264Decoder()
+    out = [dec.decode(bytes(au)) for au in aus]
+    assert dec.stats.access_units == len(aus)
+    assert dec.stats.pictures == sum(pic is not None for pic in out)
+    for pic in out:
+        if pic is not None:
+            assert pic.image.shape == (576, 704, 3)
