@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from av.video.frame import PictureType
 
+from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import EncodedFrame
 
@@ -87,6 +88,7 @@ class H264Encoder:
         self._idr_requested = True
         self._reopen = False
         self.reopens = 0
+        self._codec_string: str | None = None
         self._ctx = self._open(config)
 
     # ---- parameters ----------------------------------------------------------------------------------------
@@ -98,6 +100,11 @@ class H264Encoder:
     def opened_max_bitrate_bps(self) -> int:
         """The VBV ``maxrate`` the encoder is open with (a live bitrate up to this needs no re-open)."""
         return self._maxrate
+
+    @property
+    def codec_string(self) -> str | None:
+        """``avc1.PPCCLL`` of the SPS the last IDR carried (WebCodecs ``configure``); None before the first frame."""
+        return self._codec_string
 
     def set_bitrate(self, bps: int) -> None:
         """Change the target bitrate from the next frame on (live up to the opened maxrate, else re-open)."""
@@ -152,6 +159,10 @@ class H264Encoder:
         out = EncodedFrame(data, keyframe, self._pts, c.width, c.height, capture_ns)
         self._pts += 1
         if keyframe:
+            sps = annexb.find_sps(data)
+            if sps is None:
+                raise EncoderError("libx264 made an IDR without an SPS (opened with a global header?)")
+            self._codec_string = sps.codec_string
             self._idr_requested = False
             self._since_idr = 1
         else:

@@ -77,6 +77,11 @@ class MjpegTranscoder:
         """(width, height) the encoder is open for; None before the first frame."""
         return None if self._encoder is None else (self._encoder.config.width, self._encoder.config.height)
 
+    @property
+    def codec_string(self) -> str | None:
+        """``avc1.PPCCLL`` of the current stream (from its last IDR); None before the first frame."""
+        return None if self._encoder is None else self._encoder.codec_string
+
     def set_bitrate(self, bps: int) -> None:
         self._config = replace(self._config, bitrate_bps=check_bitrate(bps))
         if self._encoder is not None:

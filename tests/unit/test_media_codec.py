@@ -128,9 +128,12 @@ def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> Non
 
 
 def test_codec_string_matches_the_sps_the_decoder_uses(jpegs: list[bytes]) -> None:
-    out = MjpegTranscoder().transcode(jpegs[0])
+    tc = MjpegTranscoder()
+    assert tc.codec_string is None
+    out = tc.transcode(jpegs[0])
     sps = annexb.find_sps(out.data)
     assert sps is not None
+    assert tc.codec_string == sps.codec_string
     assert sps.codec_string == "avc1.42C0" + f"{sps.level_idc:02X}"  # Constrained Baseline
     assert sps.level_idc >= 30  # 704×576 @ 30 needs level 3.0+
     pic = H264Decoder().decode(out.data)
