@@ -275,6 +275,14 @@ class RtspReader:
 
 
 # ---- RTSP control requests (SET_PARAMETER) ----------------------------------------------------------------------
+class RtspStatusError(AxisPtzError):
+    """A non-2xx RTSP status other than 401/403 (404 no such stream, 454 session not found, 503 busy…)."""
+
+    def __init__(self, message: str, *, status_code: int) -> None:
+        super().__init__(message)
+        self.status_code = status_code
+
+
 @dataclass(frozen=True, slots=True)
 class RtspResponse:
     """An RTSP/1.0 reply: status, headers (lower-case names) and body."""
@@ -376,7 +384,9 @@ class RtspControl:
         if resp.status in (401, 403):
             raise AuthError(f"RTSP {method} {self._host}:{self._port}: refused ({resp.status} {resp.reason})")
         if not 200 <= resp.status < 300:
-            raise AxisPtzError(f"RTSP {method} {self._host}:{self._port}: {resp.status} {resp.reason}")
+            raise RtspStatusError(
+                f"RTSP {method} {self._host}:{self._port}: {resp.status} {resp.reason}", status_code=resp.status
+            )
         return resp
 
     def _exchange(self, method: str, authorization: str | None, extra: dict[str, str], body: bytes) -> RtspResponse:

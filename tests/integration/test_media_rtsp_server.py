@@ -20,7 +20,13 @@ import pytest
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.decoder import H264Decoder
 from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout
-from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspControl, RtspReader, sprop_parameter_sets
+from axis_ptz_ros2.vapix.rtsp import (
+    MediaStreamRequest,
+    RtspControl,
+    RtspReader,
+    RtspStatusError,
+    sprop_parameter_sets,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -139,6 +145,9 @@ def test_control_connection_signs_with_digest(server: tuple[subprocess.Popen[str
         assert params is not None
         assert (params.info.width, params.info.height) == (352, 288)
         assert sprop_parameter_sets(ctl.describe()) == params  # pre-emptively signed, kept-alive connection
+        with pytest.raises(RtspStatusError) as status:
+            ctl.renew_stream("no-such-session")  # SET_PARAMETER needs the playing session's id
+        assert status.value.status_code == 454
     finally:
         ctl.close()
     bad = RtspControl(
