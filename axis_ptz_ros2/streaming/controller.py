@@ -15,6 +15,9 @@ Policy that lives here:
 * the budget in force is the tighter of the hand-set ``max_bitrate_kbps`` and the link adapter's;
 * a consumer's report is judged only when it says something about the link (:meth:`VideoController.feedback`);
 * the budget is re-judged at most every :data:`BUDGET_PERIOD_S` on the frame path.
+
+A codec stage that follows the link (an encoder's or the camera's bitrate) reads the budget in force from
+:meth:`VideoController.state` rather than keeping its own copy.
 """
 
 from __future__ import annotations
