@@ -49,7 +49,7 @@ NS = 1_000_000_000
 # robot side: the simulated camera, printing every PTZ motion request it receives (its own clock)
 # ---------------------------------------------------------------------------------------------------------
 def robot_sim(port: int) -> int:
-    from axis_ptz_ros2.sim.server import SimulatedCamera
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
 
     cam = SimulatedCamera(host="127.0.0.1", port=port).start()
     print(json.dumps({"t": "ready"}), flush=True)
@@ -57,12 +57,7 @@ def robot_sim(port: int) -> int:
     try:
         while True:
             time.sleep(0.05)
-            with cam._counts_lock:  # noqa: SLF001 - read the log without copying all of it
-                log = cam._counts.ptz_log  # noqa: SLF001
-                if len(log) < seen:
-                    seen = 0
-                new = log[seen:]
-                seen = len(log)
+            new, seen = cam.requests.ptz_log_since(seen)
             for e in new:
                 if "query=" not in e.query:
                     print(json.dumps({"t": "ptz", "wall": e.t_wall, "query": e.query}), flush=True)

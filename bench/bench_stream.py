@@ -60,7 +60,7 @@ STALL_LIMIT_S = 1.5  # the one recovery criterion: reboot (port open -> frame) a
 def sim_child() -> int:
     """Run a simulator whose video handler streams as fast as possible whatever fps= the client asks."""
     from axis_ptz_ros2.sim import server
-    from axis_ptz_ros2.sim.server import SimulatedCamera
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
 
     original = server._Handler._image_args
 

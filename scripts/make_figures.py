@@ -31,9 +31,9 @@ import httpx
 import numpy as np
 
 from axis_ptz_ros2.geometry import AXIS_214_ZOOM
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from axis_ptz_ros2.sim.testing import decode, parts, read_stream
 
 ROOT = Path(__file__).resolve().parent.parent
