@@ -23,8 +23,8 @@ from rcl_interfaces.srv import GetParameters
 
 from axis_ptz_interfaces.msg import VideoParams
 from axis_ptz_ros2.nodes.common import LATCHED_QOS
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from tests.ros.processes import node_process
 from tests.ros.test_launch_files import ALL_NODES
 

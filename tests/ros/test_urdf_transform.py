@@ -25,8 +25,8 @@ from axis_ptz_ros2.config import MountConfig, load_camera_model, load_mount, sav
 from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import STREAM_QOS, transform_from_msg
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from axis_ptz_ros2.urdf import forward_kinematics, parse_urdf, urdf_from_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
