@@ -897,6 +897,9 @@ class _Handler(BaseHTTPRequestHandler):
             self._reply(200, f"# Error: Invalid action '{action}'\n")
 
     def _imagesize(self, args: list[tuple[str, str]], query: str) -> None:
+        if self.cam.faults.no_imagesize:  # firmware without imagesize.cgi
+            self._reply(404, NOT_FOUND_HTML.format(path=self.path.split("?", 1)[0]), "text/html; charset=ISO-8859-1")
+            return
         a = dict(args)
         camera = a.get("camera", "1")
         if camera != "1":
