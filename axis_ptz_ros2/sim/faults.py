@@ -35,6 +35,7 @@ class FaultConfig:
     http_error_scope: str = "all"  #: … on "all" camera endpoints or only on "video" (video.cgi, image.cgi)
     latency_ms: float = 0.0  #: added delay before every reply; video frames are delivered this late
     bandwidth_kbps: float = 0.0  #: cap on the bytes sent per connection (kbit/s), 0 = unlimited
+    no_imagesize: bool = False  #: imagesize.cgi answers 404, as on firmware without it (issue 23)
 
     def __post_init__(self) -> None:
         """Validate."""

@@ -168,6 +168,8 @@ def param(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
 
 def imagesize(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
     """``imagesize.cgi``."""
+    if cam.faults.no_imagesize:  # firmware without imagesize.cgi (issue 23)
+        return not_found("/axis-cgi/imagesize.cgi")
     a = dict(args)
     camera = a.get("camera", "1")
     if camera != "1":
