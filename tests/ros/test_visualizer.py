@@ -198,9 +198,7 @@ def test_state_is_in_joint_coordinates_so_mount_offsets_are_not_added_again(ros,
     """ptz/state carries joint angles (the PTZ node adds the mount's encoder offsets to the head's reading,
     ptz.control.JointOffsets.from_head), the frame the kinematics take: a mount with non-zero offsets must draw
     the mark where the nominal mount does (the shipped mount has zero offsets, which would hide a double add)."""
-    mount = MountConfig(
-        transform=Transform.from_xyz_rpy(*PTZ_BASE, 0.0, 0.0, 0.0), pan_offset=0.35, tilt_offset=-0.12
-    )
+    mount = MountConfig(transform=Transform.from_xyz_rpy(*PTZ_BASE, 0.0, 0.0, 0.0), pan_offset=0.35, tilt_offset=-0.12)
     path = tmp_path / "mount_offsets.yaml"
     save_mount(mount, path)
     rig = _Rig(ros, [Parameter("depth", value=5.0), Parameter("mount_file", value=str(path))])
