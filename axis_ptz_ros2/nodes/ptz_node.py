@@ -57,7 +57,7 @@ from axis_ptz_ros2.ptz.control import JointOffsets, Target
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus
 from axis_ptz_ros2.ptz.health import Health, diagnostic_values, judge, stale_after, state_age
-from axis_ptz_ros2.ptz.requests import Requests
+from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
 from axis_ptz_ros2.ptz.settings import snapshot
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop
@@ -454,26 +454,11 @@ class PtzNode(Node):
     # -- ptz/move action ------------------------------------------------------------------------------
     def _goal_order(self, g: PtzMove.Goal) -> Order:
         """The order of a ptz/move goal (refused with the reason when the goal is invalid)."""
-
-        def unused_if_zero(v: float) -> float:
-            return math.nan if v == 0.0 else v  # 0 is no valid zoom, magnification or field of view
-
-        if g.kind == PtzMove.Goal.ABSOLUTE:
-            return self._command_move("move_absolute", g.command, relative=False)
-        if g.kind == PtzMove.Goal.RELATIVE:
-            return self._command_move("move_relative", g.command, relative=True)
-        if g.kind == PtzMove.Goal.ZOOM:
-            zoom, magnification, hfov = (unused_if_zero(v) for v in (g.command.zoom, g.magnification, g.hfov))
-            return self._req.set_zoom(zoom, magnification, hfov)
-        if g.kind == PtzMove.Goal.LOOK_AT:
-            return self._look_at(g.point, unused_if_zero(g.command.zoom))
-        if g.kind == PtzMove.Goal.HOME:
-            return self._cmd.home()
-        if g.kind == PtzMove.Goal.PRESET:
-            if not g.preset:
-                return self._cmd.refuse("move_preset", "kind PRESET needs a preset name")
-            return self._cmd.goto_preset(g.preset)
-        return self._cmd.refuse("move", f"unknown goal kind {g.kind} (0..5: ABSOLUTE..PRESET)")
+        c, pt = g.command, g.point.point
+        return self._req.goal(
+            MoveGoal(g.kind, (c.pan, c.tilt, c.zoom, c.speed), g.magnification, g.hfov, (pt.x, pt.y, pt.z),
+                     g.point.header.frame_id, g.preset)
+        )  # fmt: skip
 
     def _accept_move(self, goal: ServerGoalHandle) -> None:
         """Submit the goal's order now (a valid one pre-empts the running goal)."""

@@ -8,12 +8,43 @@ inside the image; zoom set-points derived from the pose are clamped to the head'
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
 
 from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
 from axis_ptz_ros2.ptz.commander import Commander, Order, axis_value
 from axis_ptz_ros2.ptz.control import area_zoom_command, look_at_target, pixel_center_target, zoom_target
+
+
+class GoalKind(IntEnum):
+    """The kinds of a ``ptz/move`` goal (the action's constants)."""
+
+    ABSOLUTE = 0
+    RELATIVE = 1
+    ZOOM = 2
+    LOOK_AT = 3
+    HOME = 4
+    PRESET = 5
+
+
+@dataclass(frozen=True, slots=True)
+class MoveGoal:
+    """The fields of a ``ptz/move`` goal in plain numbers (see ``PtzMove.action``)."""
+
+    kind: int
+    command: tuple[float, float, float, float]  # pan, tilt, zoom, speed
+    magnification: float
+    hfov: float
+    point: tuple[float, float, float]
+    frame: str
+    preset: str
+
+
+def _unused_if_zero(v: float) -> float:
+    return math.nan if v == 0.0 else v  # 0 is no valid zoom, magnification or field of view
 
 
 class Requests:
@@ -90,3 +121,22 @@ class Requests:
         except ValueError as err:
             return self._cmd.refuse("look_at", str(err))
         return self._cmd.move("look_at", pan, tilt, z)
+
+    def goal(self, g: MoveGoal) -> Order:
+        """The order of a ``ptz/move`` goal (a zoom, magnification or field of view of 0 counts as not given)."""
+        pan, tilt, zoom, speed = g.command
+        if g.kind == GoalKind.ABSOLUTE:
+            return self.move("move_absolute", pan, tilt, zoom, speed, relative=False)
+        if g.kind == GoalKind.RELATIVE:
+            return self.move("move_relative", pan, tilt, zoom, speed, relative=True)
+        if g.kind == GoalKind.ZOOM:
+            return self.set_zoom(*(_unused_if_zero(v) for v in (zoom, g.magnification, g.hfov)))
+        if g.kind == GoalKind.LOOK_AT:
+            return self.look_at(g.point, g.frame, _unused_if_zero(zoom))
+        if g.kind == GoalKind.HOME:
+            return self._cmd.home()
+        if g.kind == GoalKind.PRESET:
+            if not g.preset:
+                return self._cmd.refuse("move_preset", "kind PRESET needs a preset name")
+            return self._cmd.goto_preset(g.preset)
+        return self._cmd.refuse("move", f"unknown goal kind {g.kind} (0..5: ABSOLUTE..PRESET)")

@@ -554,6 +554,12 @@ def test_settings_snapshots_are_built_from_dynamic_parameter_specs() -> None:
     assert not {"state_rate", "timeout", "hostname"} & ptz_node._DYNAMIC
 
 
+def test_goal_kinds_match_the_action() -> None:
+    from axis_ptz_ros2.ptz.requests import GoalKind
+
+    assert {k.name: k.value for k in GoalKind} == {k.name: getattr(PtzMove.Goal, k.name) for k in GoalKind}
+
+
 def test_parameters_dynamic_and_read_only(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> None:
     # started with a long velocity timeout (5 s) so that the runtime change to 0.2 s is unmistakable
     node = make_node(ros, cam, config_files, Parameter("velocity_timeout", value=5.0))

@@ -28,7 +28,7 @@ from axis_ptz_ros2.ptz.health import (
     stale_after,
     state_age,
 )
-from axis_ptz_ros2.ptz.requests import Requests
+from axis_ptz_ros2.ptz.requests import GoalKind, MoveGoal, Requests
 from axis_ptz_ros2.ptz.settings import parameter_names, snapshot
 from axis_ptz_ros2.ptz.state import PollStats, StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import LIMITS_REFRESH_POLLS, StateLoop
@@ -418,3 +418,32 @@ def test_settings_snapshots_come_from_parameter_values() -> None:
     bad_hold = {n: (math.nan if n == "drive_hold_time" else 1.0) for n in parameter_names(DriveSafeConfig)}
     with pytest.raises(ValueError, match="hold_s"):
         snapshot(DriveSafeConfig, bad_hold)
+
+
+def test_move_goals_become_orders(rig: Any) -> None:
+    head, cmd, poller, _ = rig
+    mount = Transform.from_xyz_rpy(0, 0, 0, 0, 0, 0)
+    req = Requests(cmd, ZOOM, HEAD, ("axis_ptz_base", "base_link"), mount, lambda: LIM, lambda: (704, 576))
+    nan = math.nan
+
+    def goal(kind: int, command: tuple[float, float, float, float] = (nan, nan, nan, nan), **kw: Any) -> MoveGoal:
+        fields: dict[str, Any] = {"magnification": nan, "hfov": nan, "point": (0.0, 0.0, 0.0), "frame": "",
+                                  "preset": ""}  # fmt: skip
+        fields.update(kw)
+        return MoveGoal(kind, command, **fields)
+
+    _done(req.goal(goal(GoalKind.ABSOLUTE, (0.3, nan, nan, nan))))
+    _done(req.goal(goal(GoalKind.RELATIVE, (0.1, nan, nan, nan))))
+    assert head.pose[0] == pytest.approx(0.4)
+    # ZOOM: a 0 in the unused fields counts as not given (a goal message's default is 0, not NaN)
+    _done(req.goal(goal(GoalKind.ZOOM, (nan, nan, 0.0, nan), magnification=2.0, hfov=0.0)))
+    assert head.pose[2] == pytest.approx(ZOOM.zoom_for_magnification(2.0), abs=0.5)
+    _done(req.goal(goal(GoalKind.LOOK_AT, (nan, nan, 0.0, nan), point=(0.0, 1.0, HEAD.h_tilt))))
+    assert head.pose[0] == pytest.approx(math.pi / 2)
+    assert head.pose[2] == pytest.approx(ZOOM.zoom_for_magnification(2.0), abs=0.5)  # zoom 0: unchanged
+    _done(req.goal(goal(GoalKind.HOME)))
+    assert head.calls[-1][0] == "move_to"  # home: an absolute move to the home pose (followed like any move)
+    assert req.goal(goal(GoalKind.PRESET)).reason == "kind PRESET needs a preset name"
+    _done(req.goal(goal(GoalKind.PRESET, preset="door")))
+    assert head.calls[-1] == ("goto_preset", ("door",))
+    assert req.goal(goal(9)).reason == "unknown goal kind 9 (0..5: ABSOLUTE..PRESET)"
