@@ -23,18 +23,21 @@ import argparse
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import cv2
 import httpx
 import numpy as np
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support
+
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.camera_model import THESIS_FPS, THESIS_TABLES, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
 from axis_ptz_ros2.sim.renderer import PtzRenderer
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
-from axis_ptz_ros2.sim.testing import parts, read_stream
+from tests.support.sim import parts, read_stream
 
 COMPRESSIONS = (0, 30, 100)
 
@@ -170,7 +173,8 @@ def main() -> int:
         "axis_ptz_ros2/sim/persona.py",
         "axis_ptz_ros2/sim/renderer.py",
         "axis_ptz_ros2/sim/scene.py",
-        "axis_ptz_ros2/sim/server.py",
+        "axis_ptz_ros2/sim/frames.py",
+        "axis_ptz_ros2/sim/camera.py",
         "config/sim_world.yaml",
     )
     cam = SimulatedCamera(load_world(), port=0).start()

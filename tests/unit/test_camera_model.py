@@ -7,7 +7,7 @@ import pytest
 
 from axis_ptz_ros2.sim.camera_model import CameraModel, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
-from axis_ptz_ros2.sim.testing import decode
+from tests.support.sim import decode
 
 
 def _scene(w: int = 176, h: int = 144) -> np.ndarray:
