@@ -61,6 +61,7 @@ from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
 from axis_ptz_ros2.ptz.settings import snapshot
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop
+from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
@@ -252,7 +253,7 @@ class PtzNode(Node):
             self._drive.reconfigure(snapshot(DriveSafeConfig, self._p))
 
     def _on_video_params(self, msg: VideoParams) -> None:
-        if self._p["follow_video_params"] and msg.width > 0 and msg.height > 0:
+        if self._p["follow_video_params"] and 0 < msg.width <= MAX_IMAGE_SIDE and 0 < msg.height <= MAX_IMAGE_SIDE:
             self._p["image_width"], self._p["image_height"] = int(msg.width), int(msg.height)
 
     # -- state ----------------------------------------------------------------------------------------

@@ -220,5 +220,8 @@ def area_zoom_command(
         raise ValueError("the current pose is not known yet")
     if not all(math.isfinite(b) for b in box):
         raise ValueError("the box is not finite")
+    u0, v0, u1, v1 = box
+    if not (min(u0, u1) >= 0.0 and max(u0, u1) <= width and min(v0, v1) >= 0.0 and max(v0, v1) <= height):
+        raise ValueError(f"the box ({u0:g}, {v0:g})-({u1:g}, {v1:g}) is not inside the {width}x{height} image")
     pan, tilt, zoom = area_zoom_target(reading, box, width, height, zoom_model)
     return pan, tilt, clamp_zoom(zoom, lim)
