@@ -42,10 +42,10 @@ from axis_ptz_ros2.config import MountConfig, save_mount  # noqa: E402
 from axis_ptz_ros2.geometry import Transform, pan_tilt_to_direction  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
 from axis_ptz_ros2.sim.scene import PtzLimits, TargetSpec, load_world  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
