@@ -248,6 +248,10 @@ def test_area_zoom_command_refuses_bad_boxes_and_clamps() -> None:
         area_zoom_command(r, (0.0, 0.0, math.inf, 10.0), 704, 576, ZOOM, lim)
     with pytest.raises(ValueError, match="positive width"):
         area_zoom_command(r, (5.0, 0.0, 5.0, 10.0), 704, 576, ZOOM, lim)
+    # found by the fuzz tier: a finite but absurd box overflowed inside numpy (an exception under -W error,
+    # inf/NaN set-points otherwise); its centre lies outside the image: refused with the reason
+    with pytest.raises(ValueError, match="centre .* outside the 704x576 image"):
+        area_zoom_command(r, (1e308, 3.8e-232, -8.27, math.pi), 704, 576, ZOOM, lim)
     assert clamp_zoom(0.0, lim) == 1.0
 
 
