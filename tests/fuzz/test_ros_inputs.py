@@ -161,6 +161,7 @@ def test_command_topics_then_the_node_still_moves_the_camera(rig: Any) -> None:
         absolute.publish(PtzCommand(pan=x, tilt=x, zoom=x, speed=x))
         velocity.publish(PtzVelocity(pan_rate=x, tilt_rate=x, zoom_rate=x))
         center.publish(PixelTarget(u=x, v=x, image_width=2**32 - 1, image_height=0, zoom_delta=x))
+
     # Messages on different topics are not ordered with each other: re-send a valid absolute command on the same
     # topic as the garbage until the camera holds it, so no garbage is still in flight when the service is called.
     def holds_topic_target() -> bool:
