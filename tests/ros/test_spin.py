@@ -165,7 +165,7 @@ def test_spinner_hands_a_callback_exception_to_its_owner():
 # ---------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def camera():
-    from axis_ptz_ros2.sim.server import SimulatedCamera
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
 
     cam = SimulatedCamera(port=0).start()
     yield cam
