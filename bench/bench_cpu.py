@@ -33,9 +33,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import bench_stream
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests.support (bench_stream's subscriber uses it)
+import bench_stream  # noqa: E402
 from bench_stream import ROOT, Proc, Recorder, Subscriber, fps_of, wait_until
-from report import inputs, row
+from report import inputs, row  # noqa: E402
 
 MODEL_214 = str(ROOT / "config" / "axis214.yaml")  # explicit: no ament index lookup needed
 RESULTS: list[tuple[str, bool]] = []
