@@ -22,8 +22,8 @@ from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from axis_ptz_ros2.nodes.common import Spinner, new_executor, retrieve_task_errors, spin_once  # noqa: E402
-from axis_ptz_ros2.nodes.harness import DEADLINE_SCALE  # noqa: E402
 from tests.ros.processes import node_process  # noqa: E402
+from tests.support.harness import DEADLINE_SCALE  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -1,6 +1,6 @@
 """An in-process ROS graph: a private rclpy context with the node processes' executor (multi-threaded, blocking
 spin in a background thread: :class:`~axis_ptz_ros2.nodes.common.Spinner`). Used by the ROS test tier and by
-benchmarks that run nodes in one process."""
+benchmarks that run nodes in one process (test and bench tooling: not part of the installed package)."""
 
 from __future__ import annotations
 
