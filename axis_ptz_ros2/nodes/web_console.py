@@ -41,12 +41,11 @@ from axis_ptz_ros2.config import RobotConfig, load_robot
 from axis_ptz_ros2.nodes.bounded_calls import BoundedCalls, ServiceError
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
-from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
 from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.auth import AuthThrottle, load_token
-from axis_ptz_ros2.web.panorama import cloud_in_base, look_target
+from axis_ptz_ros2.web.panorama import cloud_msg_in_base, look_target
 from axis_ptz_ros2.web.server import CommandResult, ConsoleServer, FrameSlot, serve
 from axis_ptz_ros2.web.view import ConsoleModel, keymap_json, move_text
 
@@ -341,16 +340,8 @@ class WebConsole(Node):
 
     def _cmd_look_panorama(self, body: dict[str, Any]) -> CommandResult:
         click = api.pixel_click(body, "x", "y", "panorama")
-        msg = self._cloud
-        xyz, frame, warn = None, "", ""
-        if msg is not None:
-            frame = msg.header.frame_id
-            try:
-                xyz = decode_cloud_msg(msg)[:, :3]
-            except ValueError as err:
-                warn = f"laser cloud unusable: {err}"
-        cloud, why = cloud_in_base(xyz, frame, self.robot)
-        target = look_target(click, self.robot, cloud, warn or why, time.time())
+        cloud, why = cloud_msg_in_base(self._cloud, self.robot)
+        target = look_target(click, self.robot, cloud, why, time.time())
         self.model.click(target.click)
         req = LookAt.Request()
         req.target = PointStamped()

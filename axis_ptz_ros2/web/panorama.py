@@ -1,7 +1,7 @@
 """Panorama double-click → the 3-D point to look at (ROS-free): ray, laser depth in base_link, the answer text.
 
 The console node only hands over the click (checked by :func:`axis_ptz_ros2.web.api.pixel_click`) and the
-newest laser cloud as an ``N × 3`` array with its frame; everything else is here.
+newest laser cloud (any object shaped like ``sensor_msgs/PointCloud2``); everything else is here.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import numpy as np
 
 from axis_ptz_ros2.config import RobotConfig
 from axis_ptz_ros2.geometry import FloatArray
+from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import panorama_ray, point_along_ray
 from axis_ptz_ros2.web.api import PixelClick
 
@@ -27,6 +28,17 @@ def cloud_in_base(xyz: FloatArray | None, frame: str, robot: RobotConfig) -> tup
     if frame == robot.laser.frame:
         return np.asarray(robot.laser.pose.apply(xyz), dtype=np.float64), ""
     return None, f"laser frame {frame!r} unknown (expected {robot.laser.frame!r})"
+
+
+def cloud_msg_in_base(msg: Any, robot: RobotConfig) -> tuple[FloatArray | None, str]:  # noqa: ANN401 - PointCloud2
+    """:func:`cloud_in_base` of a ``PointCloud2`` message (None = none received yet)."""
+    if msg is None:
+        return None, "no laser data"
+    try:
+        xyz = decode_cloud_msg(msg)[:, :3]
+    except ValueError as err:
+        return None, f"laser cloud unusable: {err}"
+    return cloud_in_base(xyz, str(msg.header.frame_id), robot)
 
 
 @dataclass(frozen=True, slots=True)
