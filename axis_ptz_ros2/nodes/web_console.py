@@ -27,7 +27,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.client import Client
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -171,7 +170,7 @@ class WebConsole(Node):
             "look_panorama": self._cmd_look_panorama,
             "key": self._cmd_key,
             "video": self._cmd_video,
-            "home": lambda _body: self._answer(self._call(self._home, Trigger.Request()), "going home"),
+            "home": lambda _body: self._answer(self._calls.call(self._home, Trigger.Request()), "going home"),
         }
         self.server = self._serve()
 
@@ -315,9 +314,6 @@ class WebConsole(Node):
             self._error(f"{name}: {result.message}")
         return result
 
-    def _call(self, client: Client, request: Any) -> Any:
-        return self._calls.call(client, request)
-
     @staticmethod
     def _answer(res: Any, what: str) -> CommandResult:
         """Success: ``what`` (+ the node's note); refusal: the node's reason."""
@@ -332,7 +328,7 @@ class WebConsole(Node):
         req.target.image_width, req.target.image_height = c.click.width, c.click.height
         req.target.zoom_delta = c.zoom_delta
         req.wait = False
-        res = self._call(self._center, req)
+        res = self._calls.call(self._center, req)
         zd = c.zoom_delta
         return self._answer(
             res, f"centring on ({c.click.x:.0f}, {c.click.y:.0f})" + (f", zoom {zd:+.0f}" if zd else "")
@@ -350,13 +346,13 @@ class WebConsole(Node):
         req.target.point.x, req.target.point.y, req.target.point.z = target.point
         req.zoom = float(self.get_parameter("look_zoom").value)
         req.wait = False
-        out = self._answer(self._call(self._look_at, req), target.message)
+        out = self._answer(self._calls.call(self._look_at, req), target.message)
         out.extra["depth_source"] = target.depth_source
         out.extra["range_m"] = target.range_m
         return out
 
     def _cmd_key(self, body: dict[str, Any]) -> CommandResult:
-        label, commands, step = self.model.key(str(api.field_value(body, api.COMMANDS["key"][0])))
+        label, commands, step = self.model.key(api.key_request(body))
         if not commands:
             return CommandResult(True, f"{label}: step size x = {step}", extra={"step": step})
         messages = []
@@ -373,7 +369,7 @@ class WebConsole(Node):
             req.command.pan, req.command.tilt, req.command.zoom = c.pan, c.tilt, c.zoom
             req.command.speed = math.nan
             req.wait = False
-            return self._answer(self._call(self._move_rel, req), move_text(c))
+            return self._answer(self._calls.call(self._move_rel, req), move_text(c))
         if isinstance(c, keymap.GoHome):
             return self._commands["home"]({})
         if isinstance(c, keymap.StopMotion):
@@ -387,7 +383,7 @@ class WebConsole(Node):
 
     def _set_video_params(self, fps: int, resolution: str, compression: int) -> CommandResult:
         req = SetVideoParams.Request(fps=fps, resolution=resolution, compression=compression)
-        res = self._call(self._set_video, req)
+        res = self._calls.call(self._set_video, req)
         p = res.params
         if not res.success:
             return CommandResult(False, res.message or "video parameters refused", 409)

@@ -197,6 +197,11 @@ def center_request(body: dict[str, Any]) -> CenterRequest:
     return CenterRequest(click, zd)
 
 
+def key_request(body: dict[str, Any]) -> str:
+    """``POST /api/key``: the browser's ``KeyboardEvent.key`` (printable, at most :data:`MAX_TEXT` characters)."""
+    return str(field_value(body, COMMANDS["key"][0]))
+
+
 @dataclass(frozen=True, slots=True)
 class VideoRequest:
     """``POST /api/video``: 0 / '' / -1 mean keep."""
