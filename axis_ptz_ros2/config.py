@@ -240,9 +240,7 @@ def load_camera_model(path: str | Path | None = None) -> CameraModel:
 class MountConfig:
     """The fixed transform ``parent_frame → child_frame`` of the PTZ base, with optional calibration data."""
 
-    transform: Transform = field(
-        default_factory=lambda: Transform.from_xyz_rpy(-0.214, -0.044, 0.455, 0, 0, 0)
-    )
+    transform: Transform = field(default_factory=lambda: Transform.from_xyz_rpy(-0.214, -0.044, 0.455, 0, 0, 0))
     parent_frame: str = "base_link"
     child_frame: str = "axis_ptz_base"
     pan_offset: float = 0.0  # rad, added to the camera's pan reading (REP-103)
@@ -269,38 +267,99 @@ class MountConfig:
         return out
 
 
-def mount_from_dict(d: dict[str, Any]) -> MountConfig:
-    """Parse a ``mount/v1`` mapping; ``rpy`` in radians wins over the informative ``rpy_deg``."""
+class ConfigError(ValueError):
+    """A mount or robot file is malformed; the message names the file and the field and what is accepted."""
+
+
+def _mapping(d: Any, where: str) -> dict[str, Any]:
+    if d is None:
+        return {}
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: expected a mapping, got {d!r}")
+    return d
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    try:
+        result = float(value)
+    except OverflowError:
+        result = math.inf
+    if not math.isfinite(result):
+        raise ConfigError(f"{where}: expected a finite number, got {value!r}")
+    return result
+
+
+def _numbers(value: Any, n: int, where: str) -> tuple[float, ...]:
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise ConfigError(f"{where}: expected a list of {n} numbers, got {value!r}")
+    return tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(value))
+
+
+def _text(value: Any, where: str) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(f"{where}: expected a non-empty string, got {value!r}")
+    return value
+
+
+def _check_keys(d: dict[str, Any], allowed: set[str], where: str) -> None:
+    unknown = sorted(str(k) for k in d if k not in allowed)
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {unknown}; allowed: {sorted(allowed)}")
+
+
+_MOUNT_KEYS = {
+    "format",
+    "parent_frame",
+    "child_frame",
+    "xyz",
+    "rpy",
+    "rpy_deg",
+    "encoder_offsets",
+    "covariance",
+    "comment",
+}
+
+
+def mount_from_dict(d: dict[str, Any], source: str = "<mount>") -> MountConfig:
+    """Parse a ``mount/v1`` mapping; ``rpy`` in radians wins over the informative ``rpy_deg``.
+
+    Raises :class:`ConfigError` naming the field for anything else than the documented shape.
+    """
+    d = _mapping(d, source)
+    _check_keys(d, _MOUNT_KEYS, source)
     fmt = d.get("format", MOUNT_FORMAT)
     if fmt != MOUNT_FORMAT:
-        raise ValueError(f"unsupported mount format {fmt!r}, expected {MOUNT_FORMAT!r}")
-    xyz = [float(v) for v in d.get("xyz", (-0.214, -0.044, 0.455))]
+        raise ConfigError(f"{source}: unsupported mount format {fmt!r}, expected {MOUNT_FORMAT!r}")
+    xyz = _numbers(d.get("xyz", [-0.214, -0.044, 0.455]), 3, f"{source}: xyz")
     if "rpy" in d:
-        rpy = [float(v) for v in d["rpy"]]
+        rpy = _numbers(d["rpy"], 3, f"{source}: rpy")
     else:
-        rpy = [math.radians(float(v)) for v in d.get("rpy_deg", (0.0, 0.0, 0.0))]
-    if len(xyz) != 3 or len(rpy) != 3:
-        raise ValueError("mount xyz and rpy need three values each")
+        rpy = tuple(math.radians(v) for v in _numbers(d.get("rpy_deg", [0.0, 0.0, 0.0]), 3, f"{source}: rpy_deg"))
     cov = d.get("covariance")
-    if cov is not None and len(cov) != 36:
-        raise ValueError("mount covariance needs 36 values (6x6 row-major)")
-    off = d.get("encoder_offsets", {}) or {}
+    covariance = None if cov is None else _numbers(cov, 36, f"{source}: covariance (36 values, 6x6 row-major)")
+    off = _mapping(d.get("encoder_offsets"), f"{source}: encoder_offsets")
+    _check_keys(off, {"pan", "tilt"}, f"{source}: encoder_offsets")
     return MountConfig(
         transform=Transform.from_xyz_rpy(*xyz, *rpy),
-        parent_frame=str(d.get("parent_frame", "base_link")),
-        child_frame=str(d.get("child_frame", "axis_ptz_base")),
-        pan_offset=float(off.get("pan", 0.0)),
-        tilt_offset=float(off.get("tilt", 0.0)),
-        covariance=tuple(float(v) for v in cov) if cov is not None else None,
-        comment=str(d.get("comment", "")),
+        parent_frame=_text(d.get("parent_frame", "base_link"), f"{source}: parent_frame"),
+        child_frame=_text(d.get("child_frame", "axis_ptz_base"), f"{source}: child_frame"),
+        pan_offset=_number(off.get("pan", 0.0), f"{source}: encoder_offsets.pan"),
+        tilt_offset=_number(off.get("tilt", 0.0), f"{source}: encoder_offsets.tilt"),
+        covariance=covariance,
+        comment=str(d.get("comment", "") or ""),
     )
 
 
 def load_mount(path: str | Path | None = None) -> MountConfig:
     """Load ``config/mount.yaml`` (default) or another mount file."""
     p = Path(path) if path else default_config_path("mount.yaml")
-    with open(p, encoding="utf-8") as f:
-        return mount_from_dict(yaml.safe_load(f) or {})
+    try:
+        data = load_strict(p)
+    except YamlError as err:
+        raise ConfigError(str(err)) from err
+    return mount_from_dict(data or {}, str(p))
 
 
 def save_mount(mount: MountConfig, path: str | Path) -> None:
@@ -331,9 +390,7 @@ class RobotConfig:
 
     base_frame: str = "base_link"
     panorama: SensorPose = field(
-        default_factory=lambda: SensorPose(
-            "panorama_link", Transform.from_xyz_rpy(0.216, -0.044, 0.75, 0, 0, 0)
-        )
+        default_factory=lambda: SensorPose("panorama_link", Transform.from_xyz_rpy(0.216, -0.044, 0.75, 0, 0, 0))
     )
     laser: SensorPose = field(
         default_factory=lambda: SensorPose("laser_link", Transform.from_xyz_rpy(0.25, 0.0, 0.40, 0, 0, 0))
@@ -343,32 +400,48 @@ class RobotConfig:
     depth_cone_deg: float = 1.0
 
 
-def _sensor(d: dict[str, Any], default: SensorPose) -> SensorPose:
+def _sensor(d: Any, default: SensorPose, where: str) -> SensorPose:
+    d = _mapping(d, where)
     if not d:
         return default
-    xyz = [float(v) for v in d.get("xyz", (0.0, 0.0, 0.0))]
-    rpy = [float(v) for v in d.get("rpy", (0.0, 0.0, 0.0))]
-    return SensorPose(str(d.get("frame", default.frame)), Transform.from_xyz_rpy(*xyz, *rpy))
+    _check_keys(d, {"frame", "xyz", "rpy"}, where)
+    xyz = _numbers(d.get("xyz", [0.0, 0.0, 0.0]), 3, f"{where}.xyz")
+    rpy = _numbers(d.get("rpy", [0.0, 0.0, 0.0]), 3, f"{where}.rpy")
+    return SensorPose(_text(d.get("frame", default.frame), f"{where}.frame"), Transform.from_xyz_rpy(*xyz, *rpy))
 
 
-def robot_from_dict(d: dict[str, Any]) -> RobotConfig:
-    """Parse a ``robot/v1`` mapping."""
+_ROBOT_KEYS = {"format", "base_frame", "panorama", "laser", "ground_z", "default_range", "depth_cone_deg"}
+
+
+def robot_from_dict(d: dict[str, Any], source: str = "<robot>") -> RobotConfig:
+    """Parse a ``robot/v1`` mapping; raises :class:`ConfigError` naming the field."""
+    d = _mapping(d, source)
+    _check_keys(d, _ROBOT_KEYS, source)
     fmt = d.get("format", ROBOT_FORMAT)
     if fmt != ROBOT_FORMAT:
-        raise ValueError(f"unsupported robot format {fmt!r}, expected {ROBOT_FORMAT!r}")
+        raise ConfigError(f"{source}: unsupported robot format {fmt!r}, expected {ROBOT_FORMAT!r}")
     base = RobotConfig()
+    default_range = _number(d.get("default_range", base.default_range), f"{source}: default_range")
+    cone = _number(d.get("depth_cone_deg", base.depth_cone_deg), f"{source}: depth_cone_deg")
+    if default_range <= 0:
+        raise ConfigError(f"{source}: default_range must be > 0 m, got {default_range}")
+    if not 0 < cone < 90:
+        raise ConfigError(f"{source}: depth_cone_deg must be in (0, 90) degrees, got {cone}")
     return RobotConfig(
-        base_frame=str(d.get("base_frame", base.base_frame)),
-        panorama=_sensor(d.get("panorama", {}), base.panorama),
-        laser=_sensor(d.get("laser", {}), base.laser),
-        ground_z=float(d.get("ground_z", base.ground_z)),
-        default_range=float(d.get("default_range", base.default_range)),
-        depth_cone_deg=float(d.get("depth_cone_deg", base.depth_cone_deg)),
+        base_frame=_text(d.get("base_frame", base.base_frame), f"{source}: base_frame"),
+        panorama=_sensor(d.get("panorama"), base.panorama, f"{source}: panorama"),
+        laser=_sensor(d.get("laser"), base.laser, f"{source}: laser"),
+        ground_z=_number(d.get("ground_z", base.ground_z), f"{source}: ground_z"),
+        default_range=default_range,
+        depth_cone_deg=cone,
     )
 
 
 def load_robot(path: str | Path | None = None) -> RobotConfig:
     """Load ``config/robot.yaml`` (default) or another robot file."""
     p = Path(path) if path else default_config_path("robot.yaml")
-    with open(p, encoding="utf-8") as f:
-        return robot_from_dict(yaml.safe_load(f) or {})
+    try:
+        data = load_strict(p)
+    except YamlError as err:
+        raise ConfigError(str(err)) from err
+    return robot_from_dict(data or {}, str(p))

@@ -226,7 +226,8 @@ class Subscriber:
         from sensor_msgs.msg import CameraInfo, CompressedImage
 
         from axis_ptz_ros2.nodes.common import STREAM_QOS
-        from axis_ptz_ros2.streaming import jpeg_size, sim_stamp
+        from axis_ptz_ros2.streaming import jpeg_size
+        from tests.support.stamps import sim_stamp
 
         rec = Recorder()
 

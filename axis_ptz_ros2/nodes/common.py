@@ -5,6 +5,7 @@ This is the only place (with the node modules) that knows both the ROS-free laye
 
 from __future__ import annotations
 
+import dataclasses
 import faulthandler
 import math
 import os
@@ -15,7 +16,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
@@ -33,6 +34,8 @@ from sensor_msgs.msg import CameraInfo
 
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
 from axis_ptz_ros2.vapix import CameraConfig
+
+_C = TypeVar("_C")
 
 # ---------------------------------------------------------------------------------------------------------
 # QoS
@@ -69,6 +72,8 @@ class ParamSpec:
     float_range: tuple[float, float] | None = None
     choices: tuple[str, ...] | None = None
     dynamic_typing: bool = False
+    config: type | None = None  #: the ROS-free frozen config class this parameter fills (see :func:`snapshot`) ...
+    field: str = ""  #: ... and its field there ('' = the parameter's name)
 
     def descriptor(self) -> ParameterDescriptor:
         """A full ParameterDescriptor (description with unit, range, read-only flag)."""
@@ -99,6 +104,18 @@ class ParamSpec:
         if self.choices:
             return " / ".join(self.choices)
         return ""
+
+
+def field_spec(config: type, field: str, description: str, unit: str = "", *, name: str = "", **kw: Any) -> ParamSpec:
+    """The parameter ``name`` (default: ``field``) that fills ``config.field``; its default is that field's
+    (one source for defaults: the ROS-free config class)."""
+    default = next(f.default for f in dataclasses.fields(config) if f.name == field)
+    return ParamSpec(name or field, default, description, unit, config=config, field=field, **kw)
+
+
+def snapshot(config: type[_C], specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> _C:
+    """A frozen ``config`` from the parameter ``values`` of the specs that fill it (the others keep defaults)."""
+    return config(**{s.field or s.name: values[s.name] for s in specs if s.config is config})
 
 
 def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:

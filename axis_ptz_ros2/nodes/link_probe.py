@@ -34,7 +34,8 @@ from sensor_msgs.msg import CompressedImage, JointState
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, VideoParams
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
-from axis_ptz_ros2.streaming import jpeg_size, sim_stamp
+from axis_ptz_ros2.streaming import jpeg_size
+from tests.support.stamps import sim_stamp  # test/bench tooling: this probe runs from the repository root
 
 _lock = threading.Lock()
 

@@ -1,6 +1,4 @@
-"""Cheap JPEG header readers: the frame size from SOF without decoding, COM segments, and the
-simulator's ``axsim seq=<n> t=<ns>`` stamp. ROS-free.
-"""
+"""Cheap JPEG header readers: the frame size from SOF without decoding, and COM segments. ROS-free."""
 
 from __future__ import annotations
 
@@ -48,16 +46,3 @@ def jpeg_size(data: bytes | bytearray | memoryview) -> tuple[int, int] | None:
 def jpeg_comments(data: bytes | bytearray | memoryview) -> list[bytes]:
     """Payloads of the COM (``FF FE``) segments before the scan."""
     return [bytes(data[start:end]) for marker, start, end in _segments(data) if marker == 0xFE]
-
-
-def sim_stamp(data: bytes | bytearray | memoryview) -> tuple[int, int] | None:
-    """``(seq, t_ns)`` from the simulated camera's ``axsim seq=<n> t=<time_ns at send>`` comment."""
-    for text in jpeg_comments(data):
-        if not text.startswith(b"axsim"):
-            continue
-        fields = dict(tok.split(b"=", 1) for tok in text.split() if b"=" in tok)
-        try:
-            return int(fields[b"seq"]), int(fields[b"t"])
-        except (KeyError, ValueError):
-            return None
-    return None

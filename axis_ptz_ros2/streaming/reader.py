@@ -119,7 +119,7 @@ EventCallback = Callable[[StreamState, str], None]
 class StreamReader:
     """Owns the one reader thread: connect, read, publish through ``on_frame``, heal.
 
-    ``set_params`` and ``set_active`` take effect at once (the current stream is closed from this
+    ``set_params`` (or ``refresh``) and ``set_active`` take effect at once (the current stream is closed from this
     thread of control and the reader reconnects without back-off). Unexpected ends (errors, end of
     stream, stalls) reconnect after :class:`Backoff`; a refused login retries after
     ``auth_retry_s``; parameters the camera cannot honour wait for new ones.
@@ -129,23 +129,34 @@ class StreamReader:
         self,
         opener: StreamOpener,
         on_frame: FrameCallback,
-        params: VideoParams,
+        params: VideoParams | Callable[[], VideoParams],
         config: ReaderConfig | None = None,
         *,
         on_event: EventCallback | None = None,
         active: bool = True,
         clock: Callable[[], float] = time.monotonic,
+        meter: BitrateMeter | None = None,
     ) -> None:
-        """Nothing runs until :meth:`start`."""
+        """Nothing runs until :meth:`start`. ``params``: fixed parameters (changed with :meth:`set_params`), or
+        where to read them (their one owner; call :meth:`refresh` after they change). ``meter``: the meter to
+        feed (a new one of ``meter_window_s`` if None)."""
         self._opener = opener
         self._on_frame = on_frame
         self._on_event = on_event
         self._config = config or ReaderConfig()
         self._clock = clock
-        self._params = params
+        self._owned = isinstance(params, VideoParams)  # fixed parameters, changed with set_params
+        if isinstance(params, VideoParams):
+            self._fixed = params
+            self._params_of: Callable[[], VideoParams] = lambda: self._fixed
+        else:
+            self._fixed = params()
+            self._params_of = params
+        self._attempt: VideoParams | None = None  # what the latest connection asked for
         self._active = active
-        self._backoff = Backoff(self._config.backoff_initial_s, self._config.backoff_max_s)
-        self.meter = BitrateMeter(self._config.meter_window_s)
+        cfg = self._config
+        self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
+        self.meter = meter if meter is not None else BitrateMeter(cfg.meter_window_s)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._wake = threading.Event()
@@ -173,7 +184,7 @@ class StreamReader:
     @property
     def params(self) -> VideoParams:
         """The parameters the reader streams with (or will, once active)."""
-        return self._params
+        return self._params_of()
 
     @property
     def state(self) -> StreamState:
@@ -199,11 +210,20 @@ class StreamReader:
         return not thread.is_alive()
 
     def set_params(self, params: VideoParams) -> None:
-        """Stream with ``params`` from now on (reconnects at once if they differ)."""
+        """Stream with ``params`` from now on (reconnects at once if they differ); fixed parameters only."""
+        if not self._owned:
+            raise TypeError("this reader reads its parameters from their owner: call refresh()")
         with self._lock:
-            if params == self._params:
+            if params == self._fixed:
                 return
-            self._params = params
+            self._fixed = params
+        self._interrupt()
+
+    def refresh(self) -> None:
+        """The owner's parameters changed: reconnect at once if they differ from the latest connection's."""
+        with self._lock:
+            if self._params_of() == self._attempt:
+                return
         self._interrupt()
 
     def set_active(self, active: bool) -> None:
@@ -222,7 +242,7 @@ class StreamReader:
             if source is None or self._restart or self._stalled:
                 return False
             last = self._last_frame if self._last_frame is not None else self._connected_at
-            if last is None or now - last <= self._config.stall_limit(self._params.fps):
+            if last is None or now - last <= self._config.stall_limit(self._params_of().fps):
                 return False
             self._stalled = True
         source.close()
@@ -238,7 +258,7 @@ class StreamReader:
             parser = _add_stats(parser, source.stats)
         return ReaderStats(
             state=self._state,
-            params=self._params,
+            params=self._params_of(),
             frames=self._frames,
             connects=self._connects,
             reconnects=self._reconnects,
@@ -282,7 +302,8 @@ class StreamReader:
             self._wake.clear()
             with self._lock:
                 active = self._active
-                params = self._params
+                params = self._params_of()
+                self._attempt = params
             if not active:
                 self._set_state(StreamState.IDLE_LAZY)
                 self._backoff.reset()
@@ -321,7 +342,7 @@ class StreamReader:
 
     def _read(self, source: FrameSource, params: VideoParams) -> None:
         with self._lock:
-            if self._stop.is_set() or not self._active or params != self._params:
+            if self._stop.is_set() or not self._active or params != self._params_of():
                 discard = True
             else:
                 discard = False

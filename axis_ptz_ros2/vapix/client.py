@@ -150,6 +150,13 @@ class CameraConfig:
         host = f"[{self.host}]" if ":" in self.host and not self.host.startswith("[") else self.host
         return f"{scheme}://{host}" + (f":{self.port}" if self.port is not None else "")
 
+    @property
+    def tcp_port(self) -> int:
+        """The TCP port the requests go to: ``port``, else the scheme's default (443 for HTTPS, else 80)."""
+        if self.port is not None:
+            return self.port
+        return 443 if self.use_https else 80
+
     def ssl_verify(self) -> ssl.SSLContext | bool:
         """``verify_tls`` for httpx: a bool, or a CA file/directory turned into an SSL context."""
         if isinstance(self.verify_tls, bool):

@@ -22,6 +22,8 @@ from axis_ptz_ros2.vapix.errors import InvalidArgument, ResponseParseError
 __all__ = [
     "CIF_NTSC",
     "CIF_PAL",
+    "INT_RANGE",
+    "MAX_IMAGE_SIDE",
     "DeviceInfo",
     "Preset",
     "PtzLimits",
@@ -82,13 +84,23 @@ def parse_float(value: str, *, key: str = "value") -> float:
     return result
 
 
+INT_RANGE = (-(2**31), 2**31 - 1)
+"""Integers a camera may report: VAPIX values are 32-bit (zoom, focus, iris, preset numbers, sizes). A larger
+reply is refused here, never carried into a ROS message field where it would wrap or raise."""
+
+
 def parse_int(value: str, *, key: str = "value") -> int:
-    """Parse an integer; a float form (``1.0``) is rounded to the nearest integer."""
+    """Parse a 32-bit integer; a float form (``1.0``) is rounded to the nearest integer."""
     text = value.strip()
+    if len(text) > 40:  # longer than any 32-bit value in any notation: refuse before int() does the work
+        raise ResponseParseError(f"{key}: expected a 32-bit integer, got {len(text)} characters")
     try:
-        return int(text)
+        result = int(text)
     except ValueError:
-        return round(parse_float(text, key=key))
+        result = round(parse_float(text, key=key))
+    if not INT_RANGE[0] <= result <= INT_RANGE[1]:
+        raise ResponseParseError(f"{key}: {text!r} outside the 32-bit range {INT_RANGE[0]}..{INT_RANGE[1]}")
+    return result
 
 
 def _opt(values: Mapping[str, str], key: str) -> str | None:
@@ -127,7 +139,11 @@ CIF_NTSC: Mapping[str, tuple[int, int]] = {
 }
 """CIF names of an NTSC analogue camera block (e.g. the AXIS P5512 recording)."""
 
-_WXH = re.compile(r"^\s*(\d+)\s*[xX*]\s*(\d+)\s*$")
+_WXH = re.compile(r"^\s*(\d{1,9})\s*[xX*]\s*(\d{1,9})\s*$")
+
+MAX_IMAGE_SIDE = 16384
+"""Largest width or height accepted from a camera or a user (16K; current Axis sensors stop at 8K). A size beyond
+it is refused rather than carried into ``sensor_msgs`` uint32 fields (2^32 + 352 must never become 352)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,13 +155,17 @@ class Resolution:
 
     def __post_init__(self) -> None:
         """Refuse non-positive sizes."""
-        if self.width <= 0 or self.height <= 0:
-            raise InvalidArgument(f"resolution must be positive, got {self.width}x{self.height}")
+        if not (1 <= self.width <= MAX_IMAGE_SIDE and 1 <= self.height <= MAX_IMAGE_SIDE):
+            raise InvalidArgument(
+                f"resolution {self.width}x{self.height} outside 1..{MAX_IMAGE_SIDE} pixels per side"
+            )
 
     @classmethod
     def parse(cls, text: str, *, ntsc: bool = False) -> Resolution:
         """Parse ``704x576`` or a CIF name (``4CIF``, ``2CIFEXP``, ``2CIF``, ``CIF``, ``QCIF``, ``D1``)."""
         match = _WXH.match(text)
+        if match is None and re.match(r"^\s*\d+\s*[xX*]\s*\d+\s*$", text):
+            raise InvalidArgument(f"resolution {text.strip()!r} outside 1..{MAX_IMAGE_SIDE} pixels per side")
         if match:
             return cls(int(match.group(1)), int(match.group(2)))
         table = CIF_NTSC if ntsc else CIF_PAL
@@ -347,7 +367,7 @@ class Preset:
             number_text = key[len("presetposno") :]
             if not number_text.isdigit():
                 raise ResponseParseError(f"query=presetposcam: bad preset key {key!r}")
-            presets.append(Preset(int(number_text), value))
+            presets.append(Preset(parse_int(number_text, key=key), value))
         return tuple(sorted(presets, key=lambda p: p.number))
 
 

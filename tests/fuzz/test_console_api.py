@@ -7,10 +7,11 @@ traceback and no failed request in the node's log; what reaches the PTZ and stre
 exactly what was asked for (no wrapped numbers); a well-formed command is accepted and a malformed one refused;
 and the node still works afterwards.
 
-Examples per test: ``AXIS_FUZZ_EXAMPLES`` (default 200: about 20 s for the module on a quiet machine); the long mode is
-``AXIS_FUZZ_EXAMPLES=20000 python -m pytest -p no:cacheprovider tests/fuzz/test_console_api.py``. Each test
-writes what it tried to ``artifacts/fuzz/console_api.json`` (for the README table). The regression tests at the
-end pin the defects found by hand and by this tier.
+Examples per property test: the tier's hypothesis profile (``tests/fuzz/conftest.py``: ``ci`` by default, part of
+``./scripts/test``; ``AXIS_FUZZ=long`` for the nightly count; ``AXIS_FUZZ_EXAMPLES=N`` sets it), e.g.
+``AXIS_FUZZ=long AXIS_FUZZ_EXAMPLES=5000 python -m pytest -p no:cacheprovider tests/fuzz/test_console_api.py``
+(about 4 minutes). Each test writes what it tried to ``artifacts/fuzz/console_api.json`` (for the README
+table). The regression tests at the end pin the defects found by hand and by this tier.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ from __future__ import annotations
 import http.client
 import json
 import math
-import os
 import socket
 import struct
 import threading
@@ -47,11 +47,9 @@ from tests.ros.test_web_console import FakePtz, jpeg  # noqa: E402
 
 pytestmark = pytest.mark.fuzz
 
-EXAMPLES = int(os.environ.get("AXIS_FUZZ_EXAMPLES", "200"))
+# the profile of tests/fuzz/conftest.py sets the examples, the deadline and the database; one console serves the
+# whole module (a module fixture, which hypothesis would flag), and raw bodies may be large
 FUZZ = settings(
-    max_examples=EXAMPLES,
-    deadline=None,
-    database=None,  # nothing written into the work tree; a failure prints its reproducing example
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.data_too_large],
 )
 TOKEN = "fuzz-token-0123456789abcdef"
@@ -114,7 +112,7 @@ def _write_report(e: Env) -> None:
     """Merge this run's counts into artifacts/fuzz/console_api.json (one entry per test)."""
     REPORT.parent.mkdir(parents=True, exist_ok=True)
     old = json.loads(REPORT.read_text()) if REPORT.exists() else {}
-    old.update({k: {"inputs": v, "examples_setting": EXAMPLES} for k, v in e.tried.items()})
+    old.update({k: {"inputs": v, "max_examples": settings.default.max_examples} for k, v in e.tried.items()})
     REPORT.write_text(json.dumps(old, indent=2, sort_keys=True) + "\n")
 
 
@@ -141,8 +139,8 @@ HOSTILE: dict[str, st.SearchStrategy[Any]] = {
     "long text": st.text(min_size=30, max_size=200),
 }
 RESOLUTIONS = ["176x144", "352x288", "704x576", "1920x1080", "", "x", "0x0", "704x576\x00", "\u00e9"]
-KEYS = ["\x1b", "ArrowLeft", "ArrowUp", "ArrowDown", "ArrowRight", "a", "d", "w", "s", "+", "-", "h", "Escape", "1", "9",
-        "x", " ", "q", "Q", "F13", "\u00e9"]  # fmt: skip
+KEYS = ["\x1b", "ArrowLeft", "ArrowUp", "ArrowDown", "ArrowRight", "a", "d", "w", "s", "+", "-", "h", "Escape",
+        "1", "9", "x", " ", "q", "Q", "F13", "\u00e9"]  # fmt: skip
 
 
 def good_value(f: api.Field) -> st.SearchStrategy[Any]:

@@ -12,8 +12,9 @@ import httpx
 import pytest
 
 from axis_ptz_ros2.sim import SimulatedCamera
-from axis_ptz_ros2.streaming import ReaderConfig, StreamReader, sim_stamp
+from axis_ptz_ros2.streaming import ReaderConfig, StreamReader
 from axis_ptz_ros2.vapix import CameraConfig, Resolution, VapixClient, VideoParams
+from tests.support.stamps import sim_stamp
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=176x144&fps=10"

@@ -26,7 +26,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
 from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
-from axis_ptz_ros2.streaming import sim_stamp  # noqa: E402
+from tests.support.stamps import sim_stamp  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 PASSWORD = "digest-Pa55"

@@ -22,11 +22,11 @@ from axis_ptz_ros2.streaming import (
     compression_size_factor,
     jpeg_comments,
     jpeg_size,
-    sim_stamp,
 )
 from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout, CameraUnreachable, InvalidArgument
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+from tests.support.stamps import sim_stamp
 
 pytestmark = pytest.mark.unit
 

@@ -1,0 +1,360 @@
+"""The video controller: the one owner of the video parameters in effect. ROS-free.
+
+It holds what is asked for (:class:`VideoSettings`, the stream node's live parameters field for field), the
+camera's resolution list once learned, the bandwidth budget (:class:`~.budget.BandwidthController`) and the link
+adapter (:class:`~.feedback.LinkAdapter`) under one lock, and derives from them the one :class:`VideoParams` to
+stream with (:attr:`VideoController.current`). The stream node only feeds it (parameter sets, consumers' reports,
+frames, what discovery learned) and reads it (what to request from the camera, what to publish). Every change of
+what is in effect, or of what is advertised with it, is announced through ``on_change()`` (serialised: read
+:meth:`VideoController.state` in it, and the last announcement describes the latest state).
+
+Policy that lives here:
+
+* resolution ``""`` = the largest size the camera lists (704x576 while it cannot list them);
+* requests are validated against the camera's own list once known (never an assumed one);
+* the budget in force is the tighter of the hand-set ``max_bitrate_kbps`` and the link adapter's;
+* a consumer's report is judged only when it says something about the link (:meth:`VideoController.feedback`);
+* the budget is re-judged at most every :data:`BUDGET_PERIOD_S` on the frame path.
+
+A codec stage that follows the link (an encoder's or the camera's bitrate) reads the budget in force from
+:meth:`VideoController.state` rather than keeping its own copy.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Collection
+from dataclasses import dataclass
+
+from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
+from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
+from axis_ptz_ros2.vapix.errors import InvalidArgument
+from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+
+#: s: a consumer's report is judged only once its window starts this long after a switch of settings
+FEEDBACK_SETTLE_S = 0.5
+#: s: ... except when a step up has streamed this long and the consumer has received nothing for as long (it
+#: swamps the link: waiting for a clean window would lose every frame for window + settle, 2.5 s, on each failed
+#: step up)
+SWAMPED_AFTER_STEP_UP_S = 1.0
+#: s: the budget is re-judged at most this often on the frame path
+BUDGET_PERIOD_S = 0.25
+#: resolution "" while the camera cannot list its sizes (discovery retries)
+AUTO_PLACEHOLDER = Resolution(704, 576)
+#: the fields of :class:`VideoSettings` that make up the request and the budget (not the link adaptation)
+VIDEO_FIELDS = frozenset(
+    {"fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps"}
+)
+LINK_FIELDS = frozenset({"adapt_to_link", "link_release"})
+
+
+@dataclass(frozen=True, slots=True)
+class VideoSettings:
+    """What is asked for: the stream node's live video parameters, field for field (their defaults are the
+    parameters' defaults)."""
+
+    fps: int = 15
+    resolution: str = ""  # 'WIDTHxHEIGHT' or a CIF name; '' = the largest the camera lists
+    compression: int = 30
+    max_bitrate_kbps: int = 0  # hand-set budget, 0 = off
+    budget_max_compression: int = 60
+    budget_min_fps: int = 15
+    adapt_to_link: bool = True
+    link_release: float = 30.0  # s
+
+    def budget_config(self) -> BudgetConfig:
+        """The budget ladder's shape."""
+        return BudgetConfig(max_compression=int(self.budget_max_compression), min_fps=int(self.budget_min_fps))
+
+
+@dataclass(frozen=True, slots=True)
+class VideoState:
+    """What is in effect (for ``video/params`` and diagnostics)."""
+
+    params: VideoParams
+    source: str  # cause of the parameters in effect: startup, parameter, service, bandwidth_budget
+    budget_kbps: float  # the budget in force (0 = none)
+    level: int  # the budget ladder's level (0 = the request)
+    resolutions: tuple[Resolution, ...]  # the camera's list (the PAL 214's until learned), smallest first
+    adapt: bool
+    link_budget_kbps: float  # 0 while adaptation is off
+    link_state: str  # "off" while adaptation is off
+    link_queue_delay_s: float  # nan before the first judged report
+
+
+@dataclass(frozen=True, slots=True)
+class BudgetStep:
+    """A switch of settings by the budget (for the log)."""
+
+    before: int
+    after: int
+    params: VideoParams
+    budget_kbps: float
+    rate: Rate
+
+    def __str__(self) -> str:
+        """One debug line."""
+        p, r = self.params, self.rate
+        return (
+            f"budget {self.budget_kbps:.0f} kbit/s: level {self.before} -> {self.after} ({p.resolution} @ {p.fps} "
+            f"c{p.compression}); measured {r.kbps:.0f} kbit/s {r.fps:.1f} fps "
+            f"{r.bytes_per_frame:.0f} B/frame over {r.span_s:.2f} s"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class LinkJudgement:
+    """A consumer's report as judged (for the log)."""
+
+    decision: Decision
+    report: FeedbackReport
+    sent: Rate
+    level: int
+
+    def __str__(self) -> str:
+        """One debug line."""
+        d, r, s = self.decision, self.report, self.sent
+        return (
+            f"link {d.state}: budget {d.budget_kbps:.0f} kbit/s; {r.consumer} received "
+            f"{r.fps:.1f} fps {r.kbps:.0f} kbit/s (queue {d.queue_delay_s * 1000:.0f} ms, "
+            f"delivery {d.delivery:.2f}); sent {s.fps:.1f} fps {s.kbps:.0f} kbit/s; level {self.level}"
+        )
+
+
+def _largest(resolutions: Collection[Resolution]) -> Resolution:
+    return max(resolutions, key=lambda r: (r.width * r.height, r.width))
+
+
+class VideoController:
+    """The one owner of the video parameters in effect (see the module docstring); thread-safe."""
+
+    def __init__(
+        self,
+        settings: VideoSettings,
+        meter: BitrateMeter,
+        *,
+        camera: int = 1,
+        on_change: Callable[[], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Raises ValueError with the reason if ``settings`` ask for what no camera could stream."""
+        self._lock = threading.Lock()
+        self._notify_lock = threading.Lock()
+        self._meter = meter
+        self._camera = camera
+        self._on_change = on_change
+        self._clock = clock
+        self._resolutions: tuple[Resolution, ...] | None = None  # the camera's list, once learned
+        reason = self.check(settings, VIDEO_FIELDS)
+        if reason:
+            raise ValueError(reason)
+        self._settings = settings
+        self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
+        self._budget = BandwidthController(
+            self._request(settings),
+            self._effective_budget(),
+            AXIS214_PAL_RESOLUTIONS,
+            settings.budget_config(),
+        )
+        self._current = self._budget.current
+        self._source = "startup"
+        self._stepped_up = False  # the budget's last switch was to better settings
+        self._budget_check = -1e18
+        self._decision: Decision | None = None
+
+    # -- reading -------------------------------------------------------------------------------------------
+    @property
+    def current(self) -> VideoParams:
+        """The parameters to stream with now (lock-free: one immutable value)."""
+        return self._current
+
+    @property
+    def settings(self) -> VideoSettings:
+        """What is asked for."""
+        return self._settings
+
+    @property
+    def resolutions_known(self) -> bool:
+        """Whether the camera's own resolution list has been learned."""
+        return self._resolutions is not None
+
+    def state(self) -> VideoState:
+        """A consistent snapshot of what is in effect."""
+        with self._lock:
+            known = sorted(self._known_resolutions(), key=lambda r: (r.width * r.height, r.width))
+            adapt = bool(self._settings.adapt_to_link)
+            return VideoState(
+                params=self._current,
+                source=self._source,
+                budget_kbps=self._budget.budget_kbps,
+                level=self._budget.level,
+                resolutions=tuple(dict.fromkeys(known)),
+                adapt=adapt,
+                link_budget_kbps=self._link.budget_kbps if adapt else 0.0,
+                link_state=self._link.state if adapt else "off",
+                link_queue_delay_s=self._decision.queue_delay_s if self._decision else float("nan"),
+            )
+
+    # -- what is asked for ---------------------------------------------------------------------------------
+    def check(self, settings: VideoSettings, changed: Collection[str]) -> str | None:
+        """The reason ``settings`` cannot be asked for (None = fine), when ``changed`` touches the request:
+        fps and compression ranges, the resolution against the camera's own list once known."""
+        if not VIDEO_FIELDS.intersection(changed):
+            return None
+        try:
+            vp = self._request(settings)
+            vp.validate(self._resolutions or ())  # the camera's own list once known (never assumed)
+        except InvalidArgument as err:
+            return str(err)
+        return None
+
+    def apply(self, settings: VideoSettings, changed: Collection[str], source: str = "parameter") -> VideoParams:
+        """Take checked ``settings`` (``changed`` = the names that were set, even to the same value: a set
+        restarts the ladder from the request); ``source`` becomes the cause of the parameters in effect, announced,
+        when the video fields were touched."""
+        now = self._clock()
+        names = set(changed)
+        video = bool(VIDEO_FIELDS & names)
+        with self._lock:
+            self._settings = settings
+            if LINK_FIELDS & names:
+                self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
+                self._budget.set_budget(self._effective_budget(), now)
+            if video:
+                requested = self._request(settings)
+                if names & {"budget_max_compression", "budget_min_fps"}:
+                    self._budget = BandwidthController(
+                        requested, self._effective_budget(), self._known_resolutions(), settings.budget_config()
+                    )
+                else:
+                    self._budget.configure(requested=requested, budget_kbps=self._effective_budget(), now=now)
+                self._stepped_up = False  # the user's change, not a step the link must prove
+                self._current = self._budget.current
+                self._source = source
+        if video:
+            self._announce()
+        return self._current
+
+    def learn_resolutions(self, listed: Collection[Resolution]) -> None:
+        """The camera's own resolution list (once; later calls are ignored): resolution '' becomes its largest,
+        the ladder steps through its sizes; announced (the cause of the parameters stays as it was)."""
+        if not listed:
+            return
+        with self._lock:
+            if self._resolutions is not None:
+                return
+            self._resolutions = tuple(listed)
+            self._budget.configure(
+                requested=self._request(self._settings), resolutions=self._resolutions, now=self._clock()
+            )
+            self._current = self._budget.current
+        self._announce()
+
+    # -- what happens --------------------------------------------------------------------------------------
+    def on_frame(self, now: float) -> BudgetStep | None:
+        """Hot path (every frame): at most every :data:`BUDGET_PERIOD_S` while a budget applies, measure and
+        switch settings when the budget says so (announced as ``bandwidth_budget``)."""
+        budget = self._budget
+        if (budget.budget_kbps <= 0 and budget.level == 0) or now - self._budget_check < BUDGET_PERIOD_S:
+            return None
+        self._budget_check = now
+        with self._lock:
+            budget = self._budget
+            if budget.budget_kbps <= 0 and budget.level == 0:
+                return None
+            rate = self._meter.rate(now)
+            before = budget.level
+            choice = budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
+            if choice is None:
+                return None
+            step = BudgetStep(before, budget.level, choice, budget.budget_kbps, rate)
+            self._stepped_up = step.after < before
+            self._current = choice
+            self._source = "bandwidth_budget"
+        self._announce()
+        return step
+
+    def feedback(self, report: FeedbackReport, subscribed: Callable[[str], bool]) -> LinkJudgement | None:
+        """A consumer's report (``subscribed(consumer)``: whether its image subscription has been discovered).
+        Returns the judgement, or None when adaptation is off or the report says nothing about the link yet."""
+        if not self._settings.adapt_to_link:
+            return None
+        now = self._clock()
+        sent = self._meter.rate(now)
+        judged = self._judgeable(report, now, sent, subscribed)
+        with self._lock:
+            if judged is None:  # not evidence about the link, but the link is alive
+                self._link.heard(now)
+                return None
+            level = self._budget.level
+            step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
+            decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up)
+            self._decision = decision
+            self._budget.set_budget(self._effective_budget(), now)
+        return LinkJudgement(decision, judged, sent, level)
+
+    def tick(self) -> None:
+        """Periodically (1 Hz): the link adapter holds its budget through a silence and lets go after
+        ``link_release``; the budget in force follows."""
+        now = self._clock()
+        with self._lock:
+            if not self._settings.adapt_to_link:
+                return
+            before = self._link.budget_kbps
+            self._link.tick(now)
+            if self._link.budget_kbps != before:  # released after a long silence: back to the hand budget
+                self._budget.set_budget(self._effective_budget(), now)
+
+    # -- internals -----------------------------------------------------------------------------------------
+    def _known_resolutions(self) -> tuple[Resolution, ...]:
+        return self._resolutions if self._resolutions else AXIS214_PAL_RESOLUTIONS
+
+    def _request(self, settings: VideoSettings) -> VideoParams:
+        """The request (not validated); resolution '' = the largest the camera lists (the placeholder until
+        it is known). Raises InvalidArgument for a resolution that cannot be parsed."""
+        text = str(settings.resolution)
+        if text.strip():
+            res = Resolution.parse(text)
+        else:
+            res = _largest(self._resolutions) if self._resolutions else AUTO_PLACEHOLDER
+        return VideoParams(res, int(settings.fps), int(settings.compression), camera=self._camera)
+
+    def _effective_budget(self) -> float:
+        """The tighter of the hand-set budget and the link's (0 = none); call with the lock held."""
+        link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
+        budgets = [b for b in (float(self._settings.max_bitrate_kbps), link) if b > 0]
+        return min(budgets) if budgets else 0.0
+
+    def _judgeable(
+        self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool]
+    ) -> FeedbackReport | None:
+        """The report to judge, or None when it says nothing about the link yet."""
+        if r.frames == 0 and not subscribed(r.consumer):
+            # "nothing received" from a consumer whose subscription has not been discovered here: the writer
+            # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
+            return None
+        # the meter restarts with each connection: its span is how long the new settings have been streaming
+        if (
+            self._stepped_up
+            and sent.frames >= 2
+            and sent.span_s >= SWAMPED_AFTER_STEP_UP_S
+            and r.gap_s >= SWAMPED_AFTER_STEP_UP_S
+        ):
+            # a step up that stopped the video: judge it now as "nothing arrives" (the window's frames are
+            # mostly the old settings')
+            return FeedbackReport(r.consumer, 0, 0.0, 0.0, 0.0, r.delay_min_s, r.gap_s, r.window_s)
+        changed = self._budget.changed_at
+        if changed is not None and now - changed < r.window_s + FEEDBACK_SETTLE_S:
+            return None  # the report's window still holds the switch (the reconnect's gap, the old settings)
+        if r.frames == 0 and sent.span_s < 0.75 * self._meter.window_s:
+            return None  # nothing received, but the stream has only just (re)started: not a swamped link
+        return r
+
+    def _announce(self) -> None:
+        """Tell the listener; serialised, so the last announcement describes the latest state."""
+        if self._on_change is None:
+            return
+        with self._notify_lock:
+            self._on_change()

@@ -1,0 +1,118 @@
+"""What the stream node says about itself: reader events as (throttled) log lines, the diagnostics status.
+ROS-free (levels are ``diagnostic_msgs/DiagnosticStatus`` values as integers).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from axis_ptz_ros2.streaming.controller import VideoState
+from axis_ptz_ros2.streaming.meter import Rate
+from axis_ptz_ros2.streaming.reader import ReaderStats, StreamState
+from axis_ptz_ros2.vapix.models import VideoParams
+
+OK, WARN, ERROR, STALE = 0, 1, 2, 3  # DiagnosticStatus levels
+
+_STATE_LEVEL = {
+    StreamState.STREAMING: OK,
+    StreamState.IDLE_LAZY: OK,
+    StreamState.CONNECTING: OK,
+    StreamState.STOPPED: STALE,
+    StreamState.RECONNECTING: WARN,
+    StreamState.AUTH_FAILED: ERROR,
+    StreamState.INVALID_PARAMS: ERROR,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class LogLine:
+    """A log line: severity ("info", "warn", "error"), throttling key and period (0 = never throttled)."""
+
+    level: str
+    text: str
+    key: str = ""
+    period_s: float = 0.0
+
+
+class LogThrottle:
+    """At most one line per key and period, so an absent camera does not flood the log (thread-safe enough:
+    a race lets one extra line through)."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        """No key has been logged yet."""
+        self._clock = clock
+        self._last: dict[str, float] = {}
+
+    def allow(self, line: LogLine) -> bool:
+        """Whether to log ``line`` now (and remember that it was)."""
+        if not line.key or line.period_s <= 0:
+            return True
+        now = self._clock()
+        if now - self._last.get(line.key, -1e18) < line.period_s:
+            return False
+        self._last[line.key] = now
+        return True
+
+    def forget(self, key: str) -> None:
+        """Log the next line of ``key`` at once."""
+        self._last.pop(key, None)
+
+
+def reader_event_line(state: StreamState, message: str, params: VideoParams, auth_retry_s: float) -> LogLine | None:
+    """The log line for a reader state change or error (None = nothing to say)."""
+    if state is StreamState.AUTH_FAILED:
+        return LogLine(
+            "error",
+            f"camera refused the login: {message} (check password_file / AXIS_USERNAME / AXIS_PASSWORD; "
+            f"retrying every {auth_retry_s:g} s)",
+            "auth",
+            30.0,
+        )
+    if state is StreamState.INVALID_PARAMS:
+        return LogLine("error", f"camera cannot stream these parameters: {message}", "invalid", 10.0)
+    if state is StreamState.RECONNECTING:
+        return LogLine("warn", f"stream lost, reconnecting: {message}", "reconnect", 5.0)
+    if state is StreamState.STREAMING:
+        return LogLine("info", f"streaming {params.resolution} @ {params.fps} fps")
+    return None
+
+
+def diagnostic_status(
+    s: ReaderStats, rate: Rate, video: VideoState, extra: Mapping[str, Any]
+) -> tuple[int, str, dict[str, Any]]:
+    """(level, message, values) of the stream's diagnostics status; ``extra`` is appended to the values."""
+    vp = s.params
+    values: dict[str, Any] = {
+        "state": s.state.value,
+        "fps": rate.fps,
+        "kbit/s": rate.kbps,
+        "frame age [s]": s.frame_age_s if s.frame_age_s is not None else float("nan"),
+        "frames": s.frames,
+        "drops": s.drops,
+        "truncated": s.parser.dropped_truncated,
+        "corrupt": s.parser.dropped_corrupt,
+        "garbage bytes": s.parser.garbage_bytes,
+        "resyncs": s.parser.resyncs,
+        "reconnects": s.reconnects,
+        "stalls": s.stalls,
+        "auth failures": s.auth_failures,
+        "requested": f"{vp.resolution} @ {vp.fps} fps, compression {vp.compression}",
+        "max_bitrate_kbps": int(video.budget_kbps),
+        "budget level": video.level,
+        "link budget [kbit/s]": video.link_budget_kbps,
+        "link state": video.link_state,
+        "link queue delay [s]": video.link_queue_delay_s,
+        "last error": s.last_error,
+        **extra,
+    }
+    message = s.state.value
+    if s.state is StreamState.AUTH_FAILED:
+        message = "authentication failed: " + s.last_error
+    elif s.state is StreamState.RECONNECTING and s.last_error:
+        message = "reconnecting: " + s.last_error
+    elif s.state is StreamState.INVALID_PARAMS:
+        message = "invalid parameters: " + s.last_error
+    return _STATE_LEVEL[s.state], message, values

@@ -1,0 +1,42 @@
+"""The stream node's parameter table is the one source of its configuration: the ROS-free config classes are
+built from it (frozen snapshots), their defaults are the parameters' defaults, the ranges the VAPIX models'."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from axis_ptz_ros2.nodes.common import snapshot  # noqa: E402
+from axis_ptz_ros2.nodes.stream_node import PARAMS  # noqa: E402
+from axis_ptz_ros2.streaming import ReaderConfig  # noqa: E402
+from axis_ptz_ros2.streaming.controller import VideoSettings  # noqa: E402
+from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+DEFAULTS = {s.name: s.default for s in PARAMS}
+
+
+def test_defaults_snapshot_to_the_config_classes_defaults():
+    assert snapshot(VideoSettings, PARAMS, DEFAULTS) == VideoSettings()
+    reader = snapshot(ReaderConfig, PARAMS, DEFAULTS)
+    assert reader == ReaderConfig()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        reader.stall_timeout_s = 2.0  # type: ignore[misc]
+
+
+def test_every_live_video_field_is_a_parameter_and_values_land_in_their_fields():
+    filled = {s.field for s in PARAMS if s.config is VideoSettings}
+    assert filled == {f.name for f in dataclasses.fields(VideoSettings)}
+    values = {**DEFAULTS, "fps": 7, "backoff_max": 0.7, "read_timeout": 3.0, "link_release": 9.0}
+    assert snapshot(VideoSettings, PARAMS, values) == VideoSettings(fps=7, link_release=9.0)
+    assert snapshot(ReaderConfig, PARAMS, values) == ReaderConfig(backoff_max_s=0.7, read_timeout_s=3.0)
+
+
+def test_ranges_come_from_the_vapix_models():
+    specs = {s.name: s for s in PARAMS}
+    assert specs["fps"].int_range == specs["budget_min_fps"].int_range == FPS_RANGE
+    assert specs["compression"].int_range == specs["budget_max_compression"].int_range == COMPRESSION_RANGE

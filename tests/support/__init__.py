@@ -1,0 +1,1 @@
+"""Test and bench support: not part of the installed package."""
