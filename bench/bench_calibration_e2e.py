@@ -58,9 +58,9 @@ from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
 #: The boards in config/sim_world.yaml: 1× views see at most two boards (front + left), 12 dots in all.
 POSES = "25,7,1;0,5,1;-38,1,1;25,20,1;25,-5,1;12.7,7.5,1200;38.4,9.3,1200;-38.5,0.8,1200"
