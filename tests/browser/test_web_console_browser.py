@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.demo import Demo, DemoConfig, DemoError
+from scripts.demo import Demo, DemoConfig, DemoError
 from axis_ptz_ros2.sim.scene import load_world
 
 pytestmark = pytest.mark.browser
