@@ -1,6 +1,7 @@
-"""A measuring subscriber for the two-host test tier and ``bench/bench_link.py`` (test tooling, not shipped):
-``python -m tests.support.link_probe`` (from the repository root) prints one JSON line per message received, flushed at once, so
-the parent process (in another network namespace) sees arrivals live:
+"""A measuring subscriber for the two-host test tier and ``bench/bench_link.py`` (test tooling, not shipped).
+
+``python -m tests.support.link_probe`` (from the repository root) prints one JSON line per message received,
+flushed at once, so the parent process (in another network namespace) sees arrivals live:
 
 - ``{"t": "image", "rx": <time_ns at receipt>, "stamp": <header stamp ns>, "seq": <sim seq>, "sim": <sim send
   time_ns>, "bytes": <JPEG size>, "w": <width>, "h": <height>}`` (``seq``/``sim`` from the simulated camera's
