@@ -61,9 +61,9 @@ from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 from tests.support.sim_picker import SimBoardPicker  # noqa: E402
 
 #: The boards in config/sim_world.yaml: 1× views see at most two boards (front + left), 12 dots in all.

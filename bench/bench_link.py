@@ -1,6 +1,6 @@
 """Robot and operator on two hosts over a weak Wi-Fi-like link (issue 13): does the video stay fresh by itself?
 
-Two network namespaces joined by a veth pair (``axis_ptz_ros2.sim.link``), shaped both ways (token bucket,
+Two network namespaces joined by a veth pair (``tests.support.link``), shaped both ways (token bucket,
 random loss with nftables, cuts). The robot runs the simulated camera (on its loopback) and ``axis_camera``
 with the default discovery range, asked for 704x576 @ 30 fps, compression 30, with no budget set by hand; the
 operator runs the web console, the keyboard teleop (keys written to its stdin) and a measuring viewer
@@ -49,7 +49,7 @@ NS = 1_000_000_000
 # robot side: the simulated camera, printing every PTZ motion request it receives (its own clock)
 # ---------------------------------------------------------------------------------------------------------
 def robot_sim(port: int) -> int:
-    from axis_ptz_ros2.sim.server import SimulatedCamera
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
 
     cam = SimulatedCamera(host="127.0.0.1", port=port).start()
     print(json.dumps({"t": "ready"}), flush=True)
@@ -57,12 +57,7 @@ def robot_sim(port: int) -> int:
     try:
         while True:
             time.sleep(0.05)
-            with cam._counts_lock:  # noqa: SLF001 - read the log without copying all of it
-                log = cam._counts.ptz_log  # noqa: SLF001
-                if len(log) < seen:
-                    seen = 0
-                new = log[seen:]
-                seen = len(log)
+            new, seen = cam.requests.ptz_log_since(seen)
             for e in new:
                 if "query=" not in e.query:
                     print(json.dumps({"t": "ptz", "wall": e.t_wall, "query": e.query}), flush=True)
@@ -469,7 +464,7 @@ def readme_rows(r: dict[str, Any], fixed: list[dict[str, Any]]) -> None:
         "axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/nodes/link_monitor.py",
         "axis_ptz_ros2/nodes/ptz_node.py",
-        "axis_ptz_ros2/sim/link.py",
+        "tests/support/link.py",
     )
     f = fixed[0] if fixed else None
     off = ""
@@ -517,7 +512,7 @@ def main() -> int:
     a = ap.parse_args()
     if a.robot_sim:
         return robot_sim(a.robot_sim)
-    from axis_ptz_ros2.sim import link as linkmod
+    from tests.support import link as linkmod
 
     reason = linkmod.available()
     if reason:

@@ -35,10 +35,11 @@ from report import inputs, row  # bench/report.py (bench/ is on sys.path when ru
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.sim import server as sim_server  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.sim.counts import PtzLogEntry  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
+from axis_ptz_ros2.sim.http.server import CameraRequestHandler  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 NAN = float("nan")
@@ -55,7 +56,7 @@ def pct(values: list[float], q: float) -> float:
     return s[min(len(s) - 1, int(round(q * (len(s) - 1))))]
 
 
-def motion_log(cam: SimulatedCamera) -> list[sim_server.PtzLogEntry]:
+def motion_log(cam: SimulatedCamera) -> list[PtzLogEntry]:
     return [e for e in cam.request_counts.ptz_log if "query=" not in e.query]
 
 
@@ -74,8 +75,8 @@ def main() -> int:
     a = ap.parse_args()
 
     if a.sim_nodelay:
-        sim_server._Handler.disable_nagle_algorithm = True  # noqa: SLF001
-    nodelay = bool(getattr(sim_server._Handler, "disable_nagle_algorithm", False))  # noqa: SLF001
+        CameraRequestHandler.disable_nagle_algorithm = True
+    nodelay = bool(getattr(CameraRequestHandler, "disable_nagle_algorithm", False))
     cam = SimulatedCamera(port=0, speeds=Speeds(400.0, 400.0, 0.5, 0.5)).start()
     node_proc = subprocess.Popen(
         [

@@ -15,12 +15,14 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import httpx
 import numpy as np
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
-from axis_ptz_ros2.sim.testing import parts
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.support
+from tests.support.sim import parts  # noqa: E402
 
 TICKS = os.sysconf("SC_CLK_TCK")
 

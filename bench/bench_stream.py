@@ -59,18 +59,18 @@ STALL_LIMIT_S = 1.5  # the one recovery criterion: reboot (port open -> frame) a
 # --------------------------------------------------------------------------------------------------------
 def sim_child() -> int:
     """Run a simulator whose video handler streams as fast as possible whatever fps= the client asks."""
-    from axis_ptz_ros2.sim import server
-    from axis_ptz_ros2.sim.server import SimulatedCamera
+    import dataclasses
 
-    original = server._Handler._image_args
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
+    from axis_ptz_ros2.sim.http import mjpeg
 
-    def unlimited(self, args, video):  # noqa: ANN001, ANN202 - bench-only shim of a private method
-        w, h, comp, overlay, opts = original(self, args, video)
-        if video:
-            opts["fps"] = 0
-        return w, h, comp, overlay, opts
+    original = mjpeg.image_args
 
-    server._Handler._image_args = unlimited
+    def unlimited(cam, args, video):  # noqa: ANN001, ANN202 - bench-only shim of the stream's argument check
+        req = original(cam, args, video)
+        return dataclasses.replace(req, fps=0) if video else req
+
+    mjpeg.image_args = unlimited
     cam = SimulatedCamera(port=0).start()
     print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (fps forced to 0)", flush=True)
     done = threading.Event()

@@ -67,8 +67,8 @@ def ptz(port: int, query: str) -> None:
 def render_cost(n: int = 20) -> tuple[float, float]:
     """Median CPU ms (all threads of this process) of one new 1080p view (render) and of its JPEG encode
     (compression 30); CPU time, not wall time, so a busy machine does not inflate it."""
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
     from axis_ptz_ros2.sim.renderer import encode_jpeg
-    from axis_ptz_ros2.sim.server import SimulatedCamera
 
     cam = SimulatedCamera(model="q6075", https=False)
     r = cam.renderer

@@ -5,7 +5,8 @@
 
 Arguments:
   params_file            parameters of axis_stream and axis_ptz (default: config/axis_camera.params.yaml,
-                         which points at loopback: copy it and set your camera's hostname)
+                         which points at loopback: copy it and set your camera's hostname). Its sections are
+                         keyed /**/axis_stream and /**/axis_ptz so they apply under any namespace
   namespace              ROS namespace of both nodes (default: none)
   robot_state_publisher  true: also run robot_state_publisher with urdf/axis_214.urdf.xacro (mount and head from
                          config/), fed by the PTZ node's joint_states; the PTZ node then leaves the head's /tf to it

@@ -31,12 +31,13 @@ import httpx
 import numpy as np
 
 from axis_ptz_ros2.geometry import AXIS_214_ZOOM
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
-from axis_ptz_ros2.sim.testing import decode, parts, read_stream
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))  # tests.support
+from tests.support.sim import decode, parts, read_stream  # noqa: E402
 
 ZOOMS = (1, 2500, 5000, 7500, 9999)
 RESOLUTIONS = ("704x576", "352x288", "176x144")

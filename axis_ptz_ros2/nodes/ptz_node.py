@@ -1,24 +1,23 @@
 """The PTZ node: commands, services, state, joint states and transforms of a pan-tilt-zoom head.
 
-A thin ROS layer over the ROS-free :mod:`axis_ptz_ros2.ptz` core: every command goes through one
-:class:`~axis_ptz_ros2.ptz.commander.Commander` (targets recorded on the camera's acceptance, velocity mode,
-presets, arrival, the drive-safe zoom cap); the pointing maths is :mod:`axis_ptz_ros2.ptz.control`. The same
+ROS glue only (parameters, topics, services, the ``ptz/move`` action, wiring) over the ROS-free
+:mod:`axis_ptz_ros2.ptz` core: request fields become orders in :mod:`~axis_ptz_ros2.ptz.requests` (NaN/inf,
+pixel and zoom clamps); every order goes through one :class:`~axis_ptz_ros2.ptz.commander.Commander` (targets
+recorded on the camera's acceptance, velocity mode, presets, arrival, the drive-safe zoom cap); services and
+goals follow it with :mod:`~axis_ptz_ros2.ptz.goals` (arrival, cancel and pre-emption policy); state comes from
+:mod:`~axis_ptz_ros2.ptz.state_loop` and its health from :mod:`~axis_ptz_ros2.ptz.health`. The same
 :class:`PtzNode` serves the Axis backend (default, built from parameters) and any other
-:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``. The ``ptz/move`` action follows an order
-with feedback; a newer goal pre-empts a running one.
+:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``.
 
 Threads: one command worker (:class:`~axis_ptz_ros2.ptz.command_slot.CommandSlot`, latest motion wins, at
-most one request in flight) owned by the node and joined in :meth:`PtzNode.destroy_node`; state is polled by a
-thread of its own over a separate connection (paced at ``state_rate``; it survives camera errors and
-restarts itself after anything unexpected), services run in their own callback group so they never block
-topic commands, action goals in a reentrant group.
+most one request in flight) and the state loop's poll thread (its own connection, paced at ``state_rate``,
+surviving camera errors and restarting after anything unexpected), both joined in :meth:`PtzNode.destroy_node`;
+services run in their own callback group so they never block topic commands, action goals in a reentrant group.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import threading
 import time
 from typing import Any
 
@@ -53,47 +52,26 @@ from axis_ptz_ros2.nodes.common import (
 )
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
-from axis_ptz_ros2.ptz.commander import (
-    Commander,
-    Order,
-    Preemption,
-    Progress,
-    Tolerances,
-    axis_value,
-    describe,
-    wait_accepted,
-)
-from axis_ptz_ros2.ptz.control import (
-    JointOffsets,
-    Target,
-    area_zoom_target,
-    center_target,
-    look_at_target,
-    zoom_target,
-)
-from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
+from axis_ptz_ros2.ptz.commander import Commander, Order, Progress, Tolerances, wait_accepted
+from axis_ptz_ros2.ptz.control import JointOffsets, Target
+from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSafeZoom
+from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus
+from axis_ptz_ros2.ptz.health import Health, diagnostic_values, judge, stale_after, state_age
+from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
+from axis_ptz_ros2.ptz.settings import snapshot
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
+from axis_ptz_ros2.ptz.state_loop import StateLoop
 
 PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
     ParamSpec("timeout", 5.0, "command request timeout", "s", float_range=(0.1, 60.0), read_only=True),
     ParamSpec("state_timeout", 1.0, "timeout of one state poll", "s", float_range=(0.05, 30.0), read_only=True),
-    ParamSpec(
-        "camera_model",
-        "",
-        "camera-model YAML ('' = chosen by the camera's reported model, else config/generic.yaml with the "
-        "camera's own optics)",
-        read_only=True,
-    ),
+    ParamSpec("camera_model", "", "camera-model YAML ('' = chosen by the camera's reported model, else "
+              "config/generic.yaml with the camera's own optics)", read_only=True),
     ParamSpec("mount_file", "", "mount YAML base_link -> PTZ base ('' = config/mount.yaml)", read_only=True),
     ParamSpec("state_rate", 20.0, "state polling/publishing rate", "Hz", float_range=(0.1, 100.0), read_only=True),
-    ParamSpec(
-        "velocity_timeout",
-        0.5,
-        "stop a velocity command after this long without a new one",
-        "s",
-        float_range=(0.05, 10.0),
-    ),
+    ParamSpec("velocity_timeout", 0.5, "stop a velocity command after this long without a new one", "s",
+              float_range=(0.05, 10.0)),
     ParamSpec("arrival_tolerance", 0.002, "pan/tilt distance counted as arrived", "rad", float_range=(1e-5, 0.2)),
     ParamSpec("zoom_tolerance", 2.0, "zoom distance counted as arrived", "zoom units", float_range=(0.0, 1000.0)),
     ParamSpec("wait_timeout", 15.0, "default timeout of services with wait=true", "s", float_range=(0.1, 300.0)),
@@ -107,64 +85,21 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("pan_joint", "axis_ptz_pan_joint", "JointState name of the pan joint", read_only=True),
     ParamSpec("tilt_joint", "axis_ptz_tilt_joint", "JointState name of the tilt joint", read_only=True),
     ParamSpec("publish_tf", True, "also broadcast /tf and /tf_static when tf2_ros is importable", read_only=True),
-    ParamSpec(
-        "drive_topic",
-        "",
-        "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
-        read_only=True,
-    ),
-    ParamSpec(
-        "drive_topic_type",
-        "odometry",
-        "message type of drive_topic: nav_msgs/Odometry or geometry_msgs/Twist",
-        choices=("odometry", "twist"),
-        read_only=True,
-    ),
-    ParamSpec(
-        "drive_speed_threshold",
-        0.2,
-        "drive-safe zoom: cap the zoom above this linear speed",
-        "m/s",
-        float_range=(0.0, 100.0),
-    ),
-    ParamSpec(
-        "drive_turn_threshold",
-        0.3,
-        "drive-safe zoom: cap the zoom above this turn rate",
-        "rad/s",
-        float_range=(0.0, 100.0),
-    ),
-    ParamSpec(
-        "drive_zoom_cap",
-        4000.0,
-        "drive-safe zoom: highest zoom while driving (thesis: above ~4000 unusable on cobblestones)",
-        "VAPIX units",
-        float_range=(1.0, 99999.0),
-    ),
-    ParamSpec(
-        "drive_hold_time",
-        2.0,
-        "drive-safe zoom: restore the operator's zoom after the robot has been below both thresholds this long",
-        "s",
-        float_range=(0.0, 600.0),
-    ),
-)
+    ParamSpec("drive_topic", "", "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
+              read_only=True),
+    ParamSpec("drive_topic_type", "odometry", "message type of drive_topic: nav_msgs/Odometry or "
+              "geometry_msgs/Twist", choices=("odometry", "twist"), read_only=True),
+    ParamSpec("drive_speed_threshold", 0.2, "drive-safe zoom: cap the zoom above this linear speed", "m/s",
+              float_range=(0.0, 100.0)),
+    ParamSpec("drive_turn_threshold", 0.3, "drive-safe zoom: cap the zoom above this turn rate", "rad/s",
+              float_range=(0.0, 100.0)),
+    ParamSpec("drive_zoom_cap", 4000.0, "drive-safe zoom: highest zoom while driving (thesis: above ~4000 "
+              "unusable on cobblestones)", "VAPIX units", float_range=(1.0, 99999.0)),
+    ParamSpec("drive_hold_time", 2.0, "drive-safe zoom: restore the operator's zoom after the robot has been "
+              "below both thresholds this long", "s", float_range=(0.0, 600.0)),
+)  # fmt: skip
 _SPECS = {s.name: s for s in PARAMS}
-# DiagnosticStatus levels as ints (the message constants are bytes; nodes.common.diagnostic takes an int)
-DIAG_OK, DIAG_WARN, DIAG_ERROR, DIAG_STALE = 0, 1, 2, 3
-_DYNAMIC = (
-    "velocity_timeout",
-    "arrival_tolerance",
-    "zoom_tolerance",
-    "wait_timeout",
-    "image_width",
-    "image_height",
-    "follow_video_params",
-    "drive_speed_threshold",
-    "drive_turn_threshold",
-    "drive_zoom_cap",
-    "drive_hold_time",
-)
+_DYNAMIC = frozenset(s.name for s in PARAMS if not s.read_only)  # copied into self._p when set at run time
 
 
 def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
@@ -201,10 +136,9 @@ class PtzNode(Node):
         """``backend``: a ready head (e.g. a virtual camera); default: the Axis backend from parameters.
         ``model``/``mount``: given directly instead of read from the ``camera_model``/``mount_file`` files."""
         super().__init__(node_name, **kwargs)
-        self._p = declare_params(self, PARAMS)
+        self._p = p = declare_params(self, PARAMS)
         self.add_on_set_parameters_callback(lambda params: check_params(_SPECS, params))
         self.add_post_set_parameters_callback(self._post_set_params)  # applied only once every check passed
-        p = self._p
         if model is None and backend is None:
             model = self._learn_model(p)  # from the camera (camera_models.discover), logged in one line
         self._model = model if model is not None else load_camera_model(p["camera_model"] or None)
@@ -217,19 +151,26 @@ class PtzNode(Node):
         self._joint_names = [str(p["pan_joint"]), str(p["tilt_joint"])]
 
         self._backend: PtzBackend = backend if backend is not None else build_axis_backend(p, self._model)
-        self._head_limits: PtzLimitsRos = self._backend.limits()
-
         self._slot = CommandSlot(error_types=(PtzBackendError,), on_error=self._on_command_error)
         self._slot.start()
         period = 1.0 / float(p["state_rate"])
         self._poller = StatePoller(self._backend.read_state, period, max_backoff_s=max(2.0, period))
-        self._tol = Tolerances(float(p["arrival_tolerance"]), float(p["zoom_tolerance"]), float(p["velocity_timeout"]))
-        self._cmd = Commander(self._backend, self._slot, self._poller, lambda: self.limits, self._offsets, self._tol)
-        self._poll_restarts = 0
-        self._poll_last_crash = ""
-        self._drive: DriveSafeZoom | None = None
+        self._cmd = Commander(
+            self._backend, self._slot, self._poller, lambda: self.limits, snapshot(Tolerances, p), self._offsets
+        )
+        self._req = Requests(
+            self._cmd,
+            self._model.zoom,
+            self._model.head,
+            (self._ptz_base_frame, self._base_frame),
+            self._mount.transform,
+            lambda: self.limits,
+            lambda: (int(p["image_width"]), int(p["image_height"])),
+        )
+        self._follower = Follower(self._cmd, self._poller, self._offsets, float(p["timeout"]))
+        self._drive: DriveSafeCap | None = None
         if p["drive_topic"]:
-            self._drive = DriveSafeZoom(self._drive_config())
+            self._drive = DriveSafeCap(DriveSafeZoom(snapshot(DriveSafeConfig, p)), self._cmd, self.get_logger().info)
 
         # Publishers.
         self._state_pub = self.create_publisher(PtzState, "ptz/state", STREAM_QOS)
@@ -238,29 +179,30 @@ class PtzNode(Node):
         self._mount_pub = self.create_publisher(TransformStamped, "ptz/mount", LATCHED_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tf, self._tf_static = make_tf_broadcasters(self) if p["publish_tf"] else (None, None)
-        mount_msg = transform_msg(
-            self._mount.transform, self._base_frame, self._ptz_base_frame, stamp_from_ns(time.time_ns())
-        )
+        now = stamp_from_ns(time.time_ns())
+        mount_msg = transform_msg(self._mount.transform, self._base_frame, self._ptz_base_frame, now)
         self._mount_pub.publish(mount_msg)
         if self._tf_static is not None:
             self._tf_static.sendTransform(mount_msg)
 
-        # Callback groups: polling never waits behind a service, services never block topic commands.
+        # State: a thread of its own (ptz.state_loop); publishing from it is thread-safe in rclpy.
+        self._loop = StateLoop(
+            self._poller,
+            self._backend.limits,
+            self._on_sample,
+            before_poll=self._drive.tick if self._drive is not None else None,
+            on_crash=self._on_poll_crash,
+            keep_running=self.context.ok,
+        )
+        self._loop.start()
+        # Services never block topic commands; the velocity watchdog ticks only while a velocity command runs.
         self._srv_group = MutuallyExclusiveCallbackGroup()
-        self._cmd_group = MutuallyExclusiveCallbackGroup()
-        # State polling paces itself in one thread (stop event, joined in destroy_node) rather than an
-        # executor timer: an rclpy executor wake-up costs ~2 ms of CPU, twice per tick, which alone would use
-        # up the 5 %-of-a-core budget at 20 Hz. Publishing from this thread is thread-safe in rclpy.
-        self._stop = threading.Event()
-        self._poll_thread = threading.Thread(target=self._poll_loop, name="ptz-state", daemon=True)
-        self._poll_thread.start()
-        # The velocity watchdog ticks only while a velocity command is active (no idle wake-ups).
+        self._cmd_group = g = MutuallyExclusiveCallbackGroup()
         watchdog = min(0.05, float(p["velocity_timeout"]) / 4.0)
-        self._watchdog = self.create_timer(watchdog, self._on_watchdog, callback_group=self._cmd_group)
+        self._watchdog = self.create_timer(watchdog, self._on_watchdog, callback_group=g)
         self._watchdog.cancel()
-        self._diag_timer = self.create_timer(1.0, self._publish_diagnostics, callback_group=self._cmd_group)
+        self._diag_timer = self.create_timer(1.0, self._publish_diagnostics, callback_group=g)
 
-        g = self._cmd_group
         self.create_subscription(PtzCommand, "ptz/cmd/absolute", self._on_absolute, COMMAND_QOS, callback_group=g)
         self.create_subscription(PtzCommand, "ptz/cmd/relative", self._on_relative, COMMAND_QOS, callback_group=g)
         self.create_subscription(PtzVelocity, "ptz/cmd/velocity", self._on_velocity, COMMAND_QOS, callback_group=g)
@@ -283,9 +225,7 @@ class PtzNode(Node):
         self.create_service(Trigger, "ptz/home", self._srv_home, callback_group=s)
         self.create_service(Preset, "ptz/preset", self._srv_preset, callback_group=s)
         self.create_service(ListPresets, "ptz/list_presets", self._srv_list_presets, callback_group=s)
-        self._move_goals = Preemption()
-        self._move_orders: dict[bytes, Order] = {}
-        self._move_orders_lock = threading.Lock()
+        self._goals = GoalBook()
         self._action_server = ActionServer(
             self,
             PtzMove,
@@ -304,36 +244,22 @@ class PtzNode(Node):
         if fixed:
             self.get_logger().error(f"this camera has no PTZ head: {fixed}; pan/tilt/zoom commands will not move it")
 
-    # ------------------------------------------------------------------------------------------------
-    # Parameters
-    # ------------------------------------------------------------------------------------------------
+    # -- parameters -----------------------------------------------------------------------------------
     def _post_set_params(self, params: list[Parameter]) -> None:
-        for prm in params:
-            if prm.name in _DYNAMIC:
-                self._p[prm.name] = prm.value
-        self._tol.pan_tilt_rad = float(self._p["arrival_tolerance"])
-        self._tol.zoom_units = float(self._p["zoom_tolerance"])
-        self._tol.velocity_timeout_s = float(self._p["velocity_timeout"])
+        self._p.update((prm.name, prm.value) for prm in params if prm.name in _DYNAMIC)
+        self._cmd.tol = snapshot(Tolerances, self._p)
         if self._drive is not None:
-            self._drive.set_config(self._drive_config())
-            if self._cmd.zoom_cap is not None:  # a new cap value applies now
-                self._cmd.set_zoom_cap(None)
-                self._cmd.set_zoom_cap(float(self._p["drive_zoom_cap"]))
-
-    def _image_size(self, width: int = 0, height: int = 0) -> tuple[int, int]:
-        return (int(width) or int(self._p["image_width"])), (int(height) or int(self._p["image_height"]))
+            self._drive.reconfigure(snapshot(DriveSafeConfig, self._p))
 
     def _on_video_params(self, msg: VideoParams) -> None:
         if self._p["follow_video_params"] and msg.width > 0 and msg.height > 0:
             self._p["image_width"], self._p["image_height"] = int(msg.width), int(msg.height)
 
-    # ------------------------------------------------------------------------------------------------
-    # State
-    # ------------------------------------------------------------------------------------------------
+    # -- state ----------------------------------------------------------------------------------------
     @property
     def limits(self) -> PtzLimitsRos:
         """Limits in joint coordinates (REP-103 radians, zoom units)."""
-        return self._offsets.limits(self._head_limits)
+        return self._offsets.limits(self._loop.head_limits)
 
     @property
     def target(self) -> Target | None:
@@ -355,70 +281,26 @@ class PtzNode(Node):
         """The state poller (statistics)."""
         return self._poller
 
-    def _poll_loop(self) -> None:
-        """Poll at ``state_rate`` on a fixed schedule until destroy_node. The poller backs off by itself on
-        camera errors; anything else that goes wrong in one tick is logged and counted, and polling restarts
-        after a short pause (the thread never ends before destroy_node)."""
-        period = self._poller.period_s
-        next_t = time.monotonic()
-        while not self._stop.is_set():
-            try:
-                self._on_poll()
-            except Exception as err:  # noqa: BLE001 - a bug in one tick must not end state publishing
-                if self._stop.is_set() or not self.context.ok():
-                    return
-                self._poll_restarts += 1
-                self._poll_last_crash = f"{type(err).__name__}: {err}"
-                self.get_logger().error(
-                    f"state poll failed unexpectedly ({self._poll_last_crash}); restarting the poller",
-                    throttle_duration_sec=5.0,
-                )
-                self._stop.wait(min(1.0, max(period, 0.1)))
-                next_t = time.monotonic()
-                continue
-            next_t += period
-            now = time.monotonic()
-            if next_t < now - period:  # fell behind (slow camera): do not burst to catch up
-                next_t = now
-            self._stop.wait(max(0.0, next_t - now))
+    def _on_poll_crash(self, reason: str) -> None:
+        self.get_logger().error(
+            f"state poll failed unexpectedly ({reason}); restarting the poller", throttle_duration_sec=5.0
+        )
 
-    def _ensure_poller(self) -> None:
-        """Start a new poll thread if the current one has ended (it only ends on destroy_node by design)."""
-        if self._stop.is_set() or self._poll_thread.is_alive():
-            return
-        self._poll_restarts += 1
-        self._poll_last_crash = self._poll_last_crash or "the state poll thread ended"
-        self.get_logger().error("the state poll thread ended; starting a new one")
-        self._poll_thread = threading.Thread(target=self._poll_loop, name="ptz-state", daemon=True)
-        self._poll_thread.start()
-
-    def _on_poll(self) -> None:
-        if self._drive is not None:
-            self._apply_drive(self._drive.tick())
-        sample = self._poller.poll()
-        if self._poller.stats.ok % 100 == 1 or sample is None:
-            with contextlib.suppress(PtzBackendError):  # camera limits once known; fallback retried
-                self._head_limits = self._backend.limits()
-        if sample is None:
-            return
+    def _on_sample(self, sample: StateSample) -> None:
         if self._cmd.on_sample(sample):
             self.get_logger().warn(
                 "head settled away from the commanded target; relative moves now start from the measured pose"
             )
         self._publish_state(sample)
 
-    def state_age(self) -> float:
-        """Seconds since the newest state sample was measured (inf before the first)."""
-        s = self._poller.latest
-        return math.inf if s is None else max(0.0, (time.time_ns() - s.reading.stamp_ns) / 1e9)
-
-    def stale_after(self) -> float:
-        """State older than this is stale (an ERROR in diagnostics)."""
-        return max(1.0, 5.0 * self._poller.period_s, float(self._p["state_timeout"]) * 2.0)
+    def health(self) -> Health:
+        """The state polling's diagnostic verdict (age, staleness, camera answering)."""
+        stale = stale_after(self._poller.period_s, float(self._p["state_timeout"]))
+        return judge(self._poller.stats, state_age(self._poller.latest, time.time_ns()), stale)
 
     def _state_msg(self, sample: StateSample) -> PtzState:
         r = self._offsets.from_head(sample.reading)
-        w, h = self._image_size()
+        w, h = self._req.size()
         intr = self._model.zoom.intrinsics(r.zoom, w, h)
         lim = self.limits
         m = PtzState()
@@ -432,7 +314,7 @@ class PtzNode(Node):
         m.zoom_min, m.zoom_max = lim.zoom_min, lim.zoom_max
         cap, requested = self._cmd.zoom_cap, self._cmd.requested_zoom
         m.zoom_capped = cap is not None
-        m.zoom_cap = float(self._p["drive_zoom_cap"]) if self._drive is not None else math.nan
+        m.zoom_cap = self._drive.config.zoom_cap if self._drive is not None else math.nan
         m.requested_zoom = float(requested) if requested is not None else math.nan
         return m
 
@@ -459,109 +341,38 @@ class PtzNode(Node):
                 self._tf.sendTransform(transform_msg(T_opt, self._ptz_base_frame, self._optical_frame, stamp))
 
     def _publish_diagnostics(self) -> None:
-        self._ensure_poller()
-        st, cs = self._poller.stats, self._slot.stats
-        age, stale = self.state_age(), self.stale_after()
-        if st.ok == 0 and st.failed == 0:
-            level, msg = DIAG_STALE, "no state poll yet"
-        elif math.isfinite(age) and age > stale:
-            level, msg = DIAG_ERROR, f"state is stale: the newest is {age:.1f} s old (> {stale:.1f} s)"
-            if st.last_error:
-                msg += f"; last poll error: {st.last_error}"
-        elif st.consecutive_failures >= 5:
-            level, msg = DIAG_ERROR, f"camera not answering: {st.last_error}"
-        elif st.consecutive_failures > 0:
-            level, msg = DIAG_WARN, f"state poll failing: {st.last_error}"
-        else:
-            level, msg = DIAG_OK, "ok"
-        values = {
-            "state_rate_hz": st.rate_hz,
-            "state_age_s": age if math.isfinite(age) else -1.0,
-            "state_stale_after_s": stale,
-            "poller_restarts": self._poll_restarts,
-            "poller_last_crash": self._poll_last_crash,
-            "polls_ok": st.ok,
-            "polls_failed": st.failed,
-            "consecutive_failures": st.consecutive_failures,
-            "last_poll_error": st.last_error,
-            "last_poll_s": st.last_poll_s,
-            "commands_submitted": cs.submitted,
-            "commands_sent": cs.sent,
-            "commands_failed": cs.failed,
-            "commands_superseded": cs.superseded,
-            "commands_refused": self._cmd.stats.refused + self._cmd.stats.refused_at_send,
-            "last_refusal": self._cmd.stats.last_refusal,
-            "halted_after_failed_command": self._cmd.stats.halted_after_failure,
-            "last_command_error": cs.last_error,
-            "last_command_latency_s": cs.last_latency_s,
-            "limits_source": getattr(self._backend, "limits_source", "backend"),
-        }
+        if self._loop.ensure_running():
+            self.get_logger().error("the state poll thread ended; starting a new one")
+        h, loop, cmd = self.health(), self._loop, self._cmd
+        values: dict[str, Any] = diagnostic_values(
+            h, self._poller.stats, loop.restarts, loop.last_crash, self._slot.stats, cmd.stats
+        )
+        values["limits_source"] = getattr(self._backend, "limits_source", "backend")
         counters = getattr(self._backend, "auth_counters", None)
         if counters is not None:
             values.update(counters.as_dict())
-        name = f"{self.get_name()}: PTZ"
-        self._diag_pub.publish(diagnostic(self, name, level, msg, values, hardware_id=repr(self._backend)))
+        name, hw = f"{self.get_name()}: PTZ", repr(self._backend)
+        self._diag_pub.publish(diagnostic(self, name, h.level, h.message, values, hardware_id=hw))
 
-    # ------------------------------------------------------------------------------------------------
-    # Commands (ROS units; every path goes through the commander and ends in the command slot)
-    # ------------------------------------------------------------------------------------------------
+    # -- commands (ROS units; every path goes through the commander and ends in the command slot) --------
     def _on_command_error(self, ticket: Ticket, err: BaseException) -> None:
         self.get_logger().warn(f"PTZ command {ticket.label} failed: {err}", throttle_duration_sec=2.0)
 
     def _command_move(self, label: str, c: PtzCommand, *, relative: bool) -> Order:
-        """A PtzCommand: NaN = keep that axis, ±inf refused."""
-        try:
-            pan, tilt, zoom = axis_value(c.pan, "pan"), axis_value(c.tilt, "tilt"), axis_value(c.zoom, "zoom")
-            speed = axis_value(c.speed, "speed")
-        except ValueError as err:
-            return self._cmd.refuse(label, str(err))
-        return self._cmd.move(label, pan, tilt, zoom, relative=relative, speed=speed or None)
+        return self._req.move(label, c.pan, c.tilt, c.zoom, c.speed, relative=relative)
 
     def _on_watchdog(self) -> None:
         if not self._cmd.velocity_active:
             self._watchdog.cancel()
-            return
-        if self._cmd.check_velocity_timeout():
+        elif self._cmd.check_velocity_timeout():
             self._watchdog.cancel()
             self.get_logger().info("velocity command timed out: stopping", throttle_duration_sec=5.0)
 
-    # -- pointing helpers -------------------------------------------------------------------------------
-    def _center_pose(self, u: float, v: float, width: int, height: int) -> tuple[float, float] | str:
-        r = self._cmd.reading()
-        if r is None:
-            return "the current pose is not known yet"
-        w, h = self._image_size(width, height)
-        if not (math.isfinite(u) and math.isfinite(v) and 0.0 <= u <= w - 1 and 0.0 <= v <= h - 1):
-            return f"pixel ({u:g}, {v:g}) outside the {w}x{h} image"
-        return center_target(r, u, v, w, h, self._model.zoom)
-
     def _center(self, t: PixelTarget) -> Order:
-        if math.isinf(t.zoom_delta):
-            return self._cmd.refuse("center", "zoom_delta is infinite")
-        pose = self._center_pose(t.u, t.v, t.image_width, t.image_height)
-        if isinstance(pose, str):
-            return self._cmd.refuse("center", pose)
-        zoom = None
-        if math.isfinite(t.zoom_delta) and t.zoom_delta != 0.0:
-            r = self._cmd.reading()
-            assert r is not None
-            zoom = min(max(r.zoom + t.zoom_delta, self.limits.zoom_min), self.limits.zoom_max)
-        return self._cmd.move("center", pose[0], pose[1], zoom)
+        return self._req.center(t.u, t.v, t.image_width, t.image_height, t.zoom_delta)
 
     def _look_at(self, msg: PointStamped, zoom: float) -> Order:
-        try:
-            z = axis_value(zoom, "zoom")
-            pan, tilt = look_at_target(
-                (msg.point.x, msg.point.y, msg.point.z),
-                msg.header.frame_id,
-                self._ptz_base_frame,
-                self._base_frame,
-                self._mount.transform,
-                self._model.head,
-            )
-        except ValueError as err:
-            return self._cmd.refuse("look_at", str(err))
-        return self._cmd.move("look_at", pan, tilt, z)
+        return self._req.look_at((msg.point.x, msg.point.y, msg.point.z), msg.header.frame_id, zoom)
 
     # -- topics ---------------------------------------------------------------------------------------
     def _log_refusal(self, what: str, order: Order) -> None:
@@ -590,19 +401,9 @@ class PtzNode(Node):
     def _timeout(self, timeout_s: float) -> float:
         return float(timeout_s) if math.isfinite(timeout_s) and timeout_s > 0.0 else float(self._p["wait_timeout"])
 
-    def _follow(self, order: Order, wait: bool, timeout_s: float) -> tuple[bool, str, StateSample | None]:
-        """Accepted (``wait`` false) or arrived (``wait`` true): success, message, the last sample."""
-        if not wait:
-            ok, msg = wait_accepted(order.ticket, order.reason, timeout_s)
-            return ok, msg, self._poller.latest
-        last = Progress(self._poller.latest, order.target, True, False, "no progress")
-        for step in self._cmd.track(order, timeout_s):
-            last = step
-        return last.success, last.message, last.sample
-
     def _finish(self, order: Order, wait: bool, timeout_s: float, resp: Any) -> Any:
         """Fill ``resp`` (success, message, state) for a motion service."""
-        resp.success, resp.message, sample = self._follow(order, wait, self._timeout(timeout_s))
+        resp.success, resp.message, sample = self._follower.follow(order, wait, self._timeout(timeout_s))
         if hasattr(resp, "state"):
             if sample is not None:
                 resp.state = self._state_msg(sample)
@@ -622,57 +423,23 @@ class PtzNode(Node):
     def _srv_center(self, req: CenterOnPixel.Request, resp: CenterOnPixel.Response) -> CenterOnPixel.Response:
         return self._finish(self._center(req.target), req.wait, req.timeout_s, resp)
 
-    def _area_zoom(self, req: AreaZoom.Request) -> Order:
-        r = self._cmd.reading()
-        w, h = self._image_size(req.image_width, req.image_height)
-        box = (req.u_min, req.v_min, req.u_max, req.v_max)
-        if r is None:
-            return self._cmd.refuse("area_zoom", "the current pose is not known yet")
-        if not all(math.isfinite(b) for b in box):
-            return self._cmd.refuse("area_zoom", "the box is not finite")
-        try:
-            pan, tilt, zoom = area_zoom_target(r, box, w, h, self._model.zoom)
-        except ValueError as err:
-            return self._cmd.refuse("area_zoom", str(err))
-        zoom = min(max(zoom, self.limits.zoom_min), self.limits.zoom_max)
-        return self._cmd.move("area_zoom", pan, tilt, zoom)
-
     def _srv_area_zoom(self, req: AreaZoom.Request, resp: AreaZoom.Response) -> AreaZoom.Response:
-        return self._finish(self._area_zoom(req), req.wait, req.timeout_s, resp)
-
-    def _set_zoom(self, zoom: float, magnification: float, hfov: float) -> Order:
-        try:
-            units = zoom_target(
-                self._model.zoom,
-                axis_value(zoom, "zoom"),
-                axis_value(magnification, "magnification"),
-                axis_value(hfov, "hfov"),
-            )
-        except ValueError as err:
-            return self._cmd.refuse("set_zoom", str(err))
-        return self._cmd.move("set_zoom", None, None, units)
+        order = self._req.area_zoom((req.u_min, req.v_min, req.u_max, req.v_max), req.image_width, req.image_height)
+        return self._finish(order, req.wait, req.timeout_s, resp)
 
     def _srv_set_zoom(self, req: SetZoom.Request, resp: SetZoom.Response) -> SetZoom.Response:
-        return self._finish(self._set_zoom(req.zoom, req.magnification, req.hfov), req.wait, req.timeout_s, resp)
+        return self._finish(self._req.set_zoom(req.zoom, req.magnification, req.hfov), req.wait, req.timeout_s, resp)
 
     def _srv_look_at(self, req: LookAt.Request, resp: LookAt.Response) -> LookAt.Response:
         return self._finish(self._look_at(req.target, req.zoom), req.wait, req.timeout_s, resp)
 
     def _srv_home(self, req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         """Answers when the head has arrived at the home pose (or why it did not), within wait_timeout."""
-        resp.success, resp.message, _ = self._follow(self._cmd.home(), True, float(self._p["wait_timeout"]))
+        resp.success, resp.message, _ = self._follower.follow(self._cmd.home(), True, float(self._p["wait_timeout"]))
         return resp
 
     def _srv_preset(self, req: Preset.Request, resp: Preset.Response) -> Preset.Response:
-        action, name = req.action.strip().lower(), req.name
-        timeout = self._timeout(req.timeout_s)
-        if action == "goto":
-            resp.success, resp.message, _ = self._follow(self._cmd.goto_preset(name), req.wait, timeout)
-        elif action in ("set", "remove"):
-            ticket = self._cmd.set_preset(name) if action == "set" else self._cmd.remove_preset(name)
-            resp.success, resp.message = wait_accepted(ticket, "", timeout)
-        else:
-            resp.success, resp.message = False, f"unknown action {req.action!r} (goto, set, remove)"
+        resp.success, resp.message = self._follower.preset(req.action, req.name, req.wait, self._timeout(req.timeout_s))
         return resp
 
     def _srv_list_presets(self, req: ListPresets.Request, resp: ListPresets.Response) -> ListPresets.Response:
@@ -684,131 +451,59 @@ class PtzNode(Node):
         resp.names = [str(pr.name) for pr in out]
         return resp
 
-    # ------------------------------------------------------------------------------------------------
-    # ptz/move action
-    # ------------------------------------------------------------------------------------------------
+    # -- ptz/move action ------------------------------------------------------------------------------
     def _goal_order(self, g: PtzMove.Goal) -> Order:
         """The order of a ptz/move goal (refused with the reason when the goal is invalid)."""
-
-        def unused_if_zero(v: float) -> float:
-            return math.nan if v == 0.0 else v  # 0 is no valid zoom, magnification or field of view
-
-        if g.kind == PtzMove.Goal.ABSOLUTE:
-            return self._command_move("move_absolute", g.command, relative=False)
-        if g.kind == PtzMove.Goal.RELATIVE:
-            return self._command_move("move_relative", g.command, relative=True)
-        if g.kind == PtzMove.Goal.ZOOM:
-            return self._set_zoom(
-                unused_if_zero(g.command.zoom), unused_if_zero(g.magnification), unused_if_zero(g.hfov)
-            )
-        if g.kind == PtzMove.Goal.LOOK_AT:
-            return self._look_at(g.point, unused_if_zero(g.command.zoom))
-        if g.kind == PtzMove.Goal.HOME:
-            return self._cmd.home()
-        if g.kind == PtzMove.Goal.PRESET:
-            if not g.preset:
-                return self._cmd.refuse("move_preset", "kind PRESET needs a preset name")
-            return self._cmd.goto_preset(g.preset)
-        return self._cmd.refuse("move", f"unknown goal kind {g.kind} (0..5: ABSOLUTE..PRESET)")
+        c, pt = g.command, g.point.point
+        return self._req.goal(
+            MoveGoal(g.kind, (c.pan, c.tilt, c.zoom, c.speed), g.magnification, g.hfov, (pt.x, pt.y, pt.z),
+                     g.point.header.frame_id, g.preset)
+        )  # fmt: skip
 
     def _accept_move(self, goal: ServerGoalHandle) -> None:
-        """Submit the goal's order now; a valid one pre-empts the running goal (an invalid one does not: it
-        ends aborted with the reason and the running goal keeps the head)."""
-        key = bytes(goal.goal_id.uuid)
-        order = self._goal_order(goal.request)
-        with self._move_orders_lock:
-            self._move_orders[key] = order
-        if not order.refused:
-            self._move_goals.start(key)
+        """Submit the goal's order now (a valid one pre-empts the running goal)."""
+        self._goals.accept(bytes(goal.goal_id.uuid), self._goal_order(goal.request))
         goal.execute()
 
     def _execute_move(self, goal: ServerGoalHandle) -> PtzMove.Result:
-        """Follow the goal's order with feedback; cancel stops the head; a newer goal pre-empts this one."""
+        """Follow the goal's order with feedback (ptz.goals: cancel stops the head, a newer goal pre-empts)."""
         key = bytes(goal.goal_id.uuid)
-        result = PtzMove.Result()
+
+        def feedback(step: Progress) -> None:
+            assert step.sample is not None
+            fb = PtzMove.Feedback(state=self._state_msg(step.sample))
+            fb.pan_error, fb.tilt_error, fb.zoom_error = (float(e) for e in step.error)
+            goal.publish_feedback(fb)
+
         try:
-            with self._move_orders_lock:
-                order = self._move_orders.pop(key, None)
-            if order is None:
-                order = self._goal_order(goal.request)
-
-            def interrupted() -> bool:
-                return goal.is_cancel_requested or self._move_goals.preempted(key)
-
-            last: Progress | None = None
-            for last in self._cmd.track(order, self._timeout(goal.request.timeout_s), interrupted):
-                if last.done:
-                    break
-                if last.sample is not None:
-                    fb = PtzMove.Feedback()
-                    fb.state = self._state_msg(last.sample)
-                    fb.pan_error, fb.tilt_error, fb.zoom_error = (float(e) for e in last.error)
-                    goal.publish_feedback(fb)
-            preempted = self._move_goals.preempted(key)
-            if last is not None and last.done and not preempted:
-                result.success, result.message = last.success, last.message
-                sample = last.sample
-            elif goal.is_cancel_requested and not preempted:
-                result.success, result.message, sample = False, *self._stop_for_cancel(order)
-            else:
-                result.success, sample = False, self._poller.latest
-                result.message = "pre-empted by a newer ptz/move goal"
-            if sample is not None:
-                result.state = self._state_msg(sample)
-            if result.success:
+            order = self._goals.take(key)
+            end = self._follower.run_goal(
+                order if order is not None else self._goal_order(goal.request),
+                self._timeout(goal.request.timeout_s),
+                lambda: goal.is_cancel_requested,
+                lambda: self._goals.preempted(key),
+                feedback,
+            )
+            result = PtzMove.Result(success=end.status is GoalStatus.SUCCEEDED, message=end.message)
+            if end.sample is not None:
+                result.state = self._state_msg(end.sample)
+            if end.status is GoalStatus.SUCCEEDED:
                 goal.succeed()
-            elif goal.is_cancel_requested and not preempted:
+            elif end.status is GoalStatus.CANCELED:
                 goal.canceled()
             else:
                 goal.abort()
             return result
         finally:
-            self._move_goals.finish(key)
+            self._goals.finish(key)
 
-    def _stop_for_cancel(self, order: Order) -> tuple[str, StateSample | None]:
-        """Stop the head (only if nothing newer was commanded since) and report where it stopped."""
-        if self._cmd.generation != order.gen:
-            return "cancelled (a newer command is already in charge of the head)", self._poller.latest
-        stop = self._cmd.stop()
-        ok, why = wait_accepted(stop.ticket, stop.reason, float(self._p["timeout"]))
-        if not ok:
-            return f"cancelled, but stopping the head failed: {why}", self._poller.latest
-        s = self._poller.latest
-        s = self._poller.wait_for(lambda x: not x.head_moving, 2.0, after_seq=s.seq if s else 0) or self._poller.latest
-        where = describe(self._offsets.from_head(s.reading)) if s is not None else "an unknown pose"
-        return f"cancelled: the head stopped at {where}", s
-
-    # ------------------------------------------------------------------------------------------------
-    # Drive-safe zoom
-    # ------------------------------------------------------------------------------------------------
-    def _drive_config(self) -> DriveSafeConfig:
-        p = self._p
-        return DriveSafeConfig(
-            float(p["drive_speed_threshold"]),
-            float(p["drive_turn_threshold"]),
-            float(p["drive_zoom_cap"]),
-            float(p["drive_hold_time"]),
-        )
-
+    # -- drive-safe zoom ------------------------------------------------------------------------------
     def _on_odometry(self, msg: Odometry) -> None:
-        t = msg.twist.twist
-        self._on_speed(math.hypot(t.linear.x, t.linear.y), t.angular.z)
+        self._on_twist(msg.twist.twist)
 
     def _on_twist(self, msg: Twist) -> None:
-        self._on_speed(math.hypot(msg.linear.x, msg.linear.y), msg.angular.z)
-
-    def _on_speed(self, linear: float, angular: float) -> None:
         if self._drive is not None:
-            self._apply_drive(self._drive.update(linear, angular))
-
-    def _apply_drive(self, capped: bool) -> None:
-        cap = float(self._p["drive_zoom_cap"]) if capped else None
-        if cap == self._cmd.zoom_cap:
-            return
-        order = self._cmd.set_zoom_cap(cap)
-        what = f"robot moving: zoom capped at {cap:g}" if cap is not None else "robot stopped: zoom cap lifted"
-        sent = f" ({order.label} sent)" if order is not None and not order.refused else ""
-        self.get_logger().info(what + sent)
+            self._drive.on_speed(math.hypot(msg.linear.x, msg.linear.y), msg.angular.z)
 
     # ------------------------------------------------------------------------------------------------
     def destroy_node(self) -> None:
@@ -817,8 +512,7 @@ class PtzNode(Node):
             order = self._cmd.stop()
             if order.ticket is not None:
                 order.ticket.wait(1.0)
-        self._stop.set()
-        self._poll_thread.join(timeout=float(self._p["state_timeout"]) + 1.0)
+        self._loop.stop(timeout_s=float(self._p["state_timeout"]) + 1.0)
         self._slot.stop(timeout=float(self._p["timeout"]) + 1.0)
         self._backend.close()
         self._action_server.destroy()

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
+from rclpy.time import Time
 from sensor_msgs.msg import CompressedImage, PointCloud2
 
 from axis_ptz_interfaces.msg import PtzState
@@ -143,15 +144,15 @@ class Visualizer(Node):
 
     # ---- geometry ---------------------------------------------------------------------------------------
     def optical_pose(self) -> Transform | None:
-        """``T_base_opt``: from ``ptz/transform`` when fresh, else mount · kinematics(state)."""
+        """``T_base_opt``: from ``ptz/transform`` when fresh, else mount · kinematics(state). ``ptz/state``
+        is in joint coordinates (the PTZ node has already added the mount's encoder offsets to the head's
+        reading), which is what the kinematics take: the offsets are not added again here."""
         timeout = float(self.get_parameter("ptz_transform_timeout").value)
         if self._ptz_tf is not None and time.monotonic() - self._ptz_tf[0] <= timeout:
             return self._ptz_tf[1]
         if self._state is None:
             return None
-        s = self._state
-        pan, tilt = s.pan + self._mount.pan_offset, s.tilt + self._mount.tilt_offset
-        return self._mount.transform @ self._model.head.optical_in_ptz_base(pan, tilt)
+        return self._mount.transform @ self._model.head.optical_in_ptz_base(self._state.pan, self._state.tilt)
 
     def _intrinsics(self) -> Intrinsics:
         w = int(self.get_parameter("stream_width").value)
@@ -230,7 +231,7 @@ class Visualizer(Node):
         stamps = [msg_in.header.stamp]
         if self._state is not None:
             stamps.append(self._state.header.stamp)
-        msg.header.stamp = max(stamps, key=lambda s: (s.sec, s.nanosec))
+        msg.header.stamp = max(stamps, key=Time.from_msg)
         msg.header.frame_id = msg_in.header.frame_id
         msg.format = "bgr8; jpeg compressed bgr8"
         msg.data = buf.tobytes()

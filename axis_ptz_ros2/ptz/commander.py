@@ -26,8 +26,9 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from axis_ptz_ros2.geometry import wrap_angle
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
@@ -118,13 +119,20 @@ def describe(r: PtzReading) -> str:
     return f"pan {math.degrees(r.pan):.3f} deg, tilt {math.degrees(r.tilt):.3f} deg, zoom {r.zoom:g}"
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class Tolerances:
-    """Dynamic settings (the node's parameters)."""
+    """Arrival tolerances and the velocity timeout: a snapshot of the node's dynamic parameters (replaced as a
+    whole when one changes; defaults and ranges are the parameters')."""
 
-    pan_tilt_rad: float = 0.002
-    zoom_units: float = 2.0
-    velocity_timeout_s: float = 0.5
+    pan_tilt_rad: float
+    zoom_units: float
+    velocity_timeout_s: float
+
+    PARAMS: ClassVar[Mapping[str, str]] = {
+        "pan_tilt_rad": "arrival_tolerance",
+        "zoom_units": "zoom_tolerance",
+        "velocity_timeout_s": "velocity_timeout",
+    }
 
 
 @dataclass
@@ -147,17 +155,18 @@ class Commander:
         slot: CommandSlot,
         poller: StatePoller,
         limits: Callable[[], PtzLimitsRos],
+        tolerances: Tolerances,
         offsets: JointOffsets | None = None,
-        tolerances: Tolerances | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``limits`` returns the limits in joint coordinates; ``offsets`` map head readings to joints."""
+        """``limits`` returns the limits in joint coordinates; ``offsets`` map head readings to joints;
+        ``tolerances`` may be replaced later by assigning :attr:`tol`."""
         self._backend = backend
         self._slot = slot
         self._poller = poller
         self._limits = limits
         self._offsets = offsets or JointOffsets()
-        self.tol = tolerances or Tolerances()
+        self.tol = tolerances
         self._clock = clock
         self._lock = threading.RLock()
         self._gen = 0

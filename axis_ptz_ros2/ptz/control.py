@@ -173,3 +173,52 @@ def look_at_target(
     if not np.all(np.isfinite(p_base)):
         raise ValueError("the point is not finite")
     return kinematics.look_at(p_base)
+
+
+def clamp_zoom(zoom: float, lim: PtzLimitsRos) -> float:
+    """``zoom`` within the head's zoom range."""
+    return min(max(zoom, lim.zoom_min), lim.zoom_max)
+
+
+def pixel_center_target(
+    reading: PtzReading | None,
+    u: float,
+    v: float,
+    width: int,
+    height: int,
+    zoom_model: ZoomModel,
+    zoom_delta: float,
+    lim: PtzLimitsRos,
+) -> tuple[float, float, float | None]:
+    """A centre-on-pixel command checked: (pan, tilt, zoom or None). The pixel must lie inside the image; a
+    finite non-zero ``zoom_delta`` is added to the current zoom, clamped to the head's range (NaN or 0: zoom
+    unchanged). Raises ValueError with the reason of a refusal."""
+    if math.isinf(zoom_delta):
+        raise ValueError("zoom_delta is infinite")
+    if reading is None:
+        raise ValueError("the current pose is not known yet")
+    if not (math.isfinite(u) and math.isfinite(v) and 0.0 <= u <= width - 1 and 0.0 <= v <= height - 1):
+        raise ValueError(f"pixel ({u:g}, {v:g}) outside the {width}x{height} image")
+    pan, tilt = center_target(reading, u, v, width, height, zoom_model)
+    zoom = None
+    if math.isfinite(zoom_delta) and zoom_delta != 0.0:
+        zoom = clamp_zoom(reading.zoom + zoom_delta, lim)
+    return pan, tilt, zoom
+
+
+def area_zoom_command(
+    reading: PtzReading | None,
+    box: tuple[float, float, float, float],
+    width: int,
+    height: int,
+    zoom_model: ZoomModel,
+    lim: PtzLimitsRos,
+) -> tuple[float, float, float]:
+    """An area-zoom command checked: :func:`area_zoom_target` with the zoom clamped to the head's range.
+    Raises ValueError with the reason of a refusal (pose unknown, box not finite or empty)."""
+    if reading is None:
+        raise ValueError("the current pose is not known yet")
+    if not all(math.isfinite(b) for b in box):
+        raise ValueError("the box is not finite")
+    pan, tilt, zoom = area_zoom_target(reading, box, width, height, zoom_model)
+    return pan, tilt, clamp_zoom(zoom, lim)

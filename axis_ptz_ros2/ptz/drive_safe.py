@@ -4,8 +4,8 @@ The thesis found zoom above about 4000 VAPIX units unusable on a robot driving o
 shakes too much to be read). :class:`DriveSafeZoom` turns the robot's speed (from odometry or ``cmd_vel``) into
 "capped or not": capped as soon as the linear speed exceeds ``speed_mps`` or the turn rate exceeds ``turn_rps``,
 released once the robot has been below both for ``hold_s`` (so a short stop at a kerb does not make the zoom
-pump in and out). No speed message for ``hold_s`` counts as stopped. What the cap does to the head is
-:class:`~axis_ptz_ros2.ptz.commander.Commander`'s job.
+pump in and out). No speed message for ``hold_s`` counts as stopped. :class:`DriveSafeCap` hands that verdict to
+the :class:`~axis_ptz_ros2.ptz.commander.Commander`, whose job is what the cap does to the head.
 """
 
 from __future__ import annotations
@@ -13,18 +13,29 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import ClassVar
+
+from axis_ptz_ros2.ptz.commander import Commander
 
 
 @dataclass(frozen=True, slots=True)
 class DriveSafeConfig:
-    """Thresholds (m/s, rad/s), the cap (VAPIX zoom units) and the hold time (s)."""
+    """Thresholds (m/s, rad/s), the cap (VAPIX zoom units) and the hold time (s): a snapshot of the node's
+    ``drive_*`` parameters (defaults and ranges are the parameters')."""
 
-    speed_mps: float = 0.2
-    turn_rps: float = 0.3
-    zoom_cap: float = 4000.0
-    hold_s: float = 2.0
+    speed_mps: float
+    turn_rps: float
+    zoom_cap: float
+    hold_s: float
+
+    PARAMS: ClassVar[Mapping[str, str]] = {
+        "speed_mps": "drive_speed_threshold",
+        "turn_rps": "drive_turn_threshold",
+        "zoom_cap": "drive_zoom_cap",
+        "hold_s": "drive_hold_time",
+    }
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "turn_rps", "zoom_cap", "hold_s"):
@@ -81,3 +92,43 @@ class DriveSafeZoom:
         """New thresholds/cap/hold (takes effect with the next update or tick)."""
         with self._lock:
             self.config = config
+
+
+class DriveSafeCap:
+    """Applies a :class:`DriveSafeZoom`'s verdict to the commander's zoom cap (only on a change), and a new
+    configuration at once (a new cap value replaces the one in force)."""
+
+    def __init__(self, zoom: DriveSafeZoom, cmd: Commander, log: Callable[[str], None] = lambda _m: None) -> None:
+        """``log``: told each change for people ("robot moving: zoom capped at 4000 (… sent)")."""
+        self.zoom = zoom
+        self._cmd = cmd
+        self._log = log
+
+    @property
+    def config(self) -> DriveSafeConfig:
+        """The configuration in force."""
+        return self.zoom.config
+
+    def on_speed(self, linear_mps: float, angular_rps: float) -> None:
+        """A new speed of the robot (planar speed, yaw rate)."""
+        self._apply(self.zoom.update(linear_mps, angular_rps))
+
+    def tick(self) -> None:
+        """Advance time without a speed message (releases the cap after the hold time)."""
+        self._apply(self.zoom.tick())
+
+    def reconfigure(self, config: DriveSafeConfig) -> None:
+        """New thresholds/cap/hold; a cap in force takes the new value now."""
+        self.zoom.set_config(config)
+        if self._cmd.zoom_cap is not None:
+            self._cmd.set_zoom_cap(None)
+            self._cmd.set_zoom_cap(config.zoom_cap)
+
+    def _apply(self, capped: bool) -> None:
+        cap = self.zoom.config.zoom_cap if capped else None
+        if cap == self._cmd.zoom_cap:
+            return
+        order = self._cmd.set_zoom_cap(cap)
+        what = f"robot moving: zoom capped at {cap:g}" if cap is not None else "robot stopped: zoom cap lifted"
+        sent = f" ({order.label} sent)" if order is not None and not order.refused else ""
+        self._log(what + sent)

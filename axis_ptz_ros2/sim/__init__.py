@@ -1,10 +1,10 @@
 """The simulated Axis 214 PTZ camera: world, renderer, VAPIX HTTP server and fault injection (ROS-free)."""
 
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.ptz import PtzState, Speeds, ros_to_vapix, vapix_to_ros
 from axis_ptz_ros2.sim.renderer import PtzRenderer
 from axis_ptz_ros2.sim.scene import Scene, SimWorld, Target, load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 
 __all__ = [
     "FaultConfig",

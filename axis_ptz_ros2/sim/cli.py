@@ -11,11 +11,12 @@ import sys
 import threading
 import time
 
+from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.digest import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIME_S
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import PERSONAS, persona
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIME_S, SimulatedCamera
 
 
 def _is_loopback(host: str) -> bool:

@@ -1,4 +1,4 @@
-"""Fault injection for the simulated camera (ROS-free).
+"""Fault injection for the simulated camera, and the black hole a packet-dropping reboot opens (ROS-free).
 
 Every field defaults to "off". Set them at construction (``SimulatedCamera(faults=FaultConfig(...))``), at run
 time (``camera.set_faults(stall_after_frames=10)``), from the CLI (``--fault-stall-after-frames 10``) or over
@@ -7,12 +7,17 @@ HTTP from another process (``GET /sim/control?stall_after_frames=10&stall_second
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import socket
+import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
 HTTP_ERROR_CODES = (401, 500, 503)
 HTTP_ERROR_SCOPES = ("all", "video")
+REBOOT_ERROR_KINDS = ("503", "empty", "401")  #: what the web server answers in the last phase of a reboot
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,6 +35,7 @@ class FaultConfig:
     http_error_scope: str = "all"  #: … on "all" camera endpoints or only on "video" (video.cgi, image.cgi)
     latency_ms: float = 0.0  #: added delay before every reply; video frames are delivered this late
     bandwidth_kbps: float = 0.0  #: cap on the bytes sent per connection (kbit/s), 0 = unlimited
+    no_imagesize: bool = False  #: imagesize.cgi answers 404, as on firmware without it (issue 23)
 
     def __post_init__(self) -> None:
         """Validate."""
@@ -72,3 +78,56 @@ class FaultConfig:
     def field_names() -> list[str]:
         """Names of all faults."""
         return [f.name for f in dataclasses.fields(FaultConfig)]
+
+
+class Blackhole:
+    """A camera that drops packets (a reboot on a real network): connects hang, open connections go mute.
+
+    :meth:`mute` first (streams and held requests watch :attr:`active` and stop answering), then :meth:`hold` the
+    camera's ports with listeners that never accept and whose (tiny) accept queues are full: the kernel then
+    drops every new SYN, so a client's connect hangs as if the camera were off the network. :meth:`end` releases
+    the ports; held requests then end with a reset, as for a peer that rebooted.
+    """
+
+    def __init__(self) -> None:
+        """Inactive."""
+        self._active = threading.Event()
+        self._socks: list[socket.socket] = []
+
+    @property
+    def active(self) -> bool:
+        """Whether the camera drops packets now."""
+        return self._active.is_set()
+
+    def mute(self) -> None:
+        """Go mute (before the listeners close: streams must fall silent, not close)."""
+        self._active.set()
+
+    def hold(self, host: str, ports: list[int]) -> None:
+        """Hold ``ports`` on ``host`` so that connects hang."""
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        for port in ports:
+            listener = socket.socket(family, socket.SOCK_STREAM)
+            listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            for _ in range(100):
+                try:
+                    listener.bind((host, port))
+                    break
+                except OSError:
+                    time.sleep(0.02)
+            listener.listen(0)
+            socks = [listener]
+            for _ in range(4):
+                filler = socket.socket(family, socket.SOCK_STREAM)
+                filler.setblocking(False)
+                filler.connect_ex((host, port))
+                socks.append(filler)
+            self._socks.extend(socks)
+
+    def end(self) -> None:
+        """Release the ports and answer again."""
+        socks, self._socks = self._socks, []
+        for sock in socks:
+            with contextlib.suppress(OSError):
+                sock.close()
+        self._active.clear()  # held requests now end with a reset, as for a peer that rebooted

@@ -132,6 +132,9 @@ def parameter_tree(limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> d
         "Image.I0.Appearance.Rotation": "0",
         "Image.I0.Appearance.SquarePixelEnabled": "no",
         "Image.I0.Stream.FPS": "0",
+        # the analogue input's standard, as an AXIS P5512 (fw 5.51) reports it [V-obs S8]; on the 214 [I]
+        "ImageSource.I0.Video.DetectedType": "PAL",
+        "ImageSource.I0.Video.CaptureMode": "PAL",
         "Network.HTTP.AuthenticationPolicy": "basic_digest" if auth == "none" else auth,
         "Properties.API.HTTP.Version": "2",
         "Properties.API.HTTP.AdminPath": "/operator/basic.shtml",

@@ -74,6 +74,9 @@ _NTSC_HEIGHTS = frozenset({480, 240, 120})
 _PAL_HEIGHTS = frozenset({576, 288, 144})
 _BODY_HEADERS = frozenset({"content-length", "content-encoding", "transfer-encoding"})
 _HTML_ERROR = re.compile(r"(?is)Error:\s*(.*?)\s*</body>")
+_XML_ENTRY = re.compile(r"<entry\b([^>]*)>")
+_XML_ATTR = re.compile(r'(\w+)="([^"]*)"')
+_NICE_SIZE = re.compile(r"\((\d+)\s*[xX]\s*(\d+)\)")
 
 
 def build_path(path: str, args: Mapping[str, str]) -> str:
@@ -199,6 +202,7 @@ class VapixClient:
         self._limits: PtzLimits | None = None
         self._resolutions: tuple[Resolution, ...] | None = None
         self._ntsc: bool | None = None
+        self._asked_standard = False
         self.resolution_problem = ""  #: why some listed resolution names have no size (empty: none)
 
     def _new_http(self, auth: httpx.Auth, timeout: httpx.Timeout) -> httpx.Client:
@@ -441,20 +445,58 @@ class VapixClient:
         return None
 
     def _video_standard(self) -> bool | None:
-        """NTSC (True) or PAL (False) from the camera's own default image size; None if it cannot say."""
+        """NTSC (True) or PAL (False) from the camera's own default image size (``imagesize.cgi``), else from the
+        video input it reports (:meth:`_reported_standard`); None if it cannot say."""
         if self._ntsc is None:
             size = self._imagesize(None)
             if size is not None and size.height in _NTSC_HEIGHTS:
                 self._ntsc = True
             elif size is not None and size.height in _PAL_HEIGHTS:
                 self._ntsc = False
+            elif not self._asked_standard:
+                self._asked_standard = True  # once: a camera without the group is not asked per name
+                self._ntsc = self._reported_standard()
         return self._ntsc
+
+    def _reported_standard(self) -> bool | None:
+        """NTSC (True) / PAL (False) as the camera reports its analogue video input:
+        ``ImageSource.I<n>.Video.DetectedType`` (the signal found), else ``CaptureMode`` (both recorded on an
+        AXIS P5512, firmware 5.51, vapix.md S8); None if it reports neither (a camera without such a group)."""
+        group = f"ImageSource.I{self._config.camera - 1}.Video"
+        try:
+            values = self.list_params(group)
+        except (CommandRejected, HttpStatusError, AuthError, ResponseParseError):
+            return None
+        for key in ("DetectedType", "CaptureMode"):
+            value = values.get(f"{group}.{key}", "").strip().upper()
+            if value in ("PAL", "NTSC"):
+                return value == "NTSC"
+        return None
+
+    def _defined_sizes(self) -> dict[str, Resolution]:
+        """Sizes the resolution parameter's definition gives its names (``param.cgi?action=listdefinitions``,
+        entries like ``<entry value="4CIF" niceValue="4CIF (704x480)" />`` as recorded on an AXIS P5512,
+        firmware 5.51); empty if the camera gives none."""
+        group = f"Image.I{self._config.camera - 1}.Appearance.Resolution"
+        args = {"action": "listdefinitions", "listformat": "xmlschema", "group": group}
+        try:
+            _, text = self._get_text(build_path(self._param_path or PARAM_CGI_PATHS[0], args))
+        except (CommandRejected, HttpStatusError, AuthError, ResponseParseError):
+            return {}
+        sizes: dict[str, Resolution] = {}
+        for tag in _XML_ENTRY.findall(text):
+            attrs = dict(_XML_ATTR.findall(tag))
+            match = _NICE_SIZE.search(attrs.get("niceValue", ""))
+            if "value" in attrs and match and int(match.group(1)) > 0 and int(match.group(2)) > 0:
+                sizes[attrs["value"].strip().upper()] = Resolution(int(match.group(1)), int(match.group(2)))
+        return sizes
 
     def _resolutions_from(self, listing: str) -> tuple[Resolution, ...]:
         """Sizes of the camera's resolution names. CIF/D1 names are sized by the camera itself: the first one
         through ``imagesize.cgi`` (which tells PAL from NTSC), else the video standard of the camera's default
-        size; a name the camera cannot size is left out and reported in :attr:`resolution_problem`, never
-        guessed as PAL."""
+        size or of the video input it reports; without ``imagesize.cgi`` (some firmware answers 404) and
+        without a reported standard, from the parameter's definition, else the sizes of both standards
+        (:meth:`_size_unsized`) — never an empty list for a non-empty listing, never silently PAL."""
         names = [n.strip() for n in listing.split(",") if n.strip()]
         result: list[Resolution] = []
         unsized: list[str] = []
@@ -482,13 +524,37 @@ class VapixClient:
                 unsized.append(name)
             elif resolution not in result:
                 result.append(resolution)
-        self.resolution_problem = (
-            f"camera lists {', '.join(unsized)} but could not tell their size (imagesize.cgi unavailable and "
-            "no PAL/NTSC default size); configure resolution as WIDTHxHEIGHT"
-            if unsized
-            else ""
-        )
+        self.resolution_problem = ""
+        if unsized:
+            result += self._size_unsized(unsized, result)
         return tuple(result)
+
+    def _size_unsized(self, unsized: list[str], known: list[Resolution]) -> list[Resolution]:
+        """Sizes for names neither ``imagesize.cgi`` nor a reported video standard could size: from the
+        resolution parameter's definition, else (CIF names) the sizes of both video standards, so the list is
+        never empty; what was not known for sure is said in :attr:`resolution_problem`."""
+        defined = self._defined_sizes()
+        out: list[Resolution] = []
+        guessed: list[str] = []
+        for name in unsized:
+            upper = name.upper()
+            candidates = [defined[upper]] if upper in defined else []
+            if not candidates and upper in CIF_PAL:
+                candidates = [Resolution(*CIF_PAL[upper]), Resolution(*CIF_NTSC[upper])]
+                guessed.append(name)
+            out += [r for r in candidates if r not in known and r not in out]
+        lost = [n for n in unsized if n.upper() not in defined and n.upper() not in CIF_PAL]
+        problems = []
+        if guessed:
+            problems.append(
+                f"camera lists {', '.join(guessed)} but tells neither their size (no imagesize.cgi, no parameter "
+                "definition) nor PAL/NTSC: offering the sizes of both standards; configure resolution as "
+                "WIDTHxHEIGHT of your camera's standard"
+            )
+        if lost:
+            problems.append(f"camera lists {', '.join(lost)} but could not tell their size; left out")
+        self.resolution_problem = "; ".join(problems)
+        return out
 
     def supported_resolutions(self) -> tuple[Resolution, ...]:
         """``Properties.Image.Resolution`` as sizes (CIF names mapped, PAL/NTSC via ``imagesize.cgi``)."""

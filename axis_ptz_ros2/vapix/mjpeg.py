@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 from axis_ptz_ros2.vapix.errors import ResponseParseError
 
-__all__ = ["MjpegParser", "MjpegStats", "boundary_from_content_type"]
+__all__ = ["MjpegParser", "MjpegStats", "boundary_from_content_type", "multipart_content_type", "part_header"]
 
 _BOUNDARY_PARAM = re.compile(r"""(?i)(?:^|;)\s*boundary\s*=\s*(?:"([^"]*)"|([^;\s]+))""")
 _CONTENT_LENGTH = re.compile(rb"(?im)^[ \t]*content-length[ \t]*:[ \t]*(\d+)[ \t]*\r?$")
@@ -30,6 +30,20 @@ _MAX_HEADER_BYTES = 16 * 1024
 _MAX_BOUNDARY_LINE = 256
 
 _SEEK, _HEADERS, _BODY, _GAP = 0, 1, 2, 3
+
+
+def multipart_content_type(boundary: str) -> str:
+    """The ``Content-Type`` of a stream whose parts :func:`part_header` writes with ``boundary``."""
+    return f"multipart/x-mixed-replace; boundary={boundary}"
+
+
+def part_header(boundary: str, length: int) -> bytes:
+    """The headers of one part, as a camera writes them: ``--boundary``, the JPEG type, ``Content-Length``.
+
+    The part is this header, ``length`` bytes of JPEG, then ``\\r\\n``. The one writer of the package (the
+    simulated camera and the web console both stream through it).
+    """
+    return f"--{boundary}\r\nContent-Type: image/jpeg\r\nContent-Length: {length}\r\n\r\n".encode("ascii")
 
 
 def boundary_from_content_type(content_type: str) -> bytes:

@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, Protocol
 from urllib.parse import parse_qs, quote, unquote, urlsplit
 
+from axis_ptz_ros2.vapix.mjpeg import multipart_content_type, part_header
 from axis_ptz_ros2.web.auth import AuthThrottle, token_matches
 from axis_ptz_ros2.web.tls import TlsIdentity
 
@@ -644,7 +645,7 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         with suppress(OSError):  # keep the kernel's send queue short: a slow client drops frames
             self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 64 * 1024)
         self.send_response(HTTPStatus.OK)
-        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
+        self.send_header("Content-Type", multipart_content_type(BOUNDARY))
         self.send_header("Cache-Control", "no-store")
         self.send_header("Connection", "close")
         self.send_header("X-Content-Type-Options", "nosniff")
@@ -661,10 +662,7 @@ class ConsoleHandler(BaseHTTPRequestHandler):
                             return
                         continue
                     seq, jpeg = got
-                    head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n").encode(
-                        "ascii"
-                    )
-                    self.wfile.write(head)
+                    self.wfile.write(part_header(BOUNDARY, len(jpeg)))
                     self.wfile.write(jpeg)
                     self.wfile.write(b"\r\n")
                     self.wfile.flush()

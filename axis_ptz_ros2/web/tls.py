@@ -10,14 +10,16 @@ with a new fingerprint, at every start).
 from __future__ import annotations
 
 import datetime as dt
-import hashlib
 import ipaddress
-import os
 import socket
 import ssl
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+
+from axis_ptz_ros2.tls import fingerprint_sha256, self_signed, server_context, write_private
+
+__all__ = ["TlsIdentity", "fingerprint_sha256", "generate_self_signed", "load_identity"]
 
 #: a generated certificate is renewed when it expires within this many days
 RENEW_DAYS = 7
@@ -34,14 +36,6 @@ class TlsIdentity:
     fingerprint: str
     generated: bool
     cert_path: Path | None
-
-
-def fingerprint_sha256(cert_pem_or_der: bytes) -> str:
-    """``AB:CD:…`` SHA-256 of the certificate's DER encoding (what browsers show as the fingerprint)."""
-    der = cert_pem_or_der
-    if cert_pem_or_der.lstrip().startswith(b"-----BEGIN"):
-        der = ssl.PEM_cert_to_DER_cert(cert_pem_or_der.decode("ascii"))
-    return ":".join(f"{b:02X}" for b in hashlib.sha256(der).digest())
 
 
 def _names_for(bind: str) -> tuple[list[str], list[str]]:
@@ -65,48 +59,8 @@ def _names_for(bind: str) -> tuple[list[str], list[str]]:
 
 def generate_self_signed(bind: str) -> tuple[bytes, bytes]:
     """A new self-signed server certificate for ``bind`` (+ localhost): (cert PEM, unencrypted key PEM)."""
-    from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
-    from cryptography.hazmat.primitives.asymmetric import ec
-    from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
-
-    key = ec.generate_private_key(ec.SECP256R1())
     dns, ips = _names_for(bind)
-    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, f"axis_web_console {dns[-1]}")])
-    now = dt.datetime.now(dt.UTC)
-    san = [x509.DNSName(d) for d in dns] + [x509.IPAddress(ipaddress.ip_address(i)) for i in ips]
-    cert = (
-        x509.CertificateBuilder()
-        .subject_name(name)
-        .issuer_name(name)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(now - dt.timedelta(minutes=5))
-        .not_valid_after(now + dt.timedelta(days=VALID_DAYS))
-        .add_extension(x509.SubjectAlternativeName(san), critical=False)
-        .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-        .add_extension(
-            x509.KeyUsage(
-                digital_signature=True,
-                content_commitment=False,
-                key_encipherment=False,
-                data_encipherment=False,
-                key_agreement=False,
-                key_cert_sign=False,
-                crl_sign=False,
-                encipher_only=False,
-                decipher_only=False,
-            ),  # fmt: skip
-            critical=True,
-        )
-        .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH]), critical=False)
-        .sign(key, hashes.SHA256())
-    )
-    cert_pem = cert.public_bytes(serialization.Encoding.PEM)
-    key_pem = key.private_bytes(
-        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
-    )
-    return cert_pem, key_pem
+    return self_signed(f"axis_web_console {dns[-1]}", dns, ips, days=VALID_DAYS)
 
 
 def _still_valid(cert_pem: bytes, bind: str) -> bool:
@@ -127,14 +81,11 @@ def _still_valid(cert_pem: bytes, bind: str) -> bool:
 
 
 def _context(cert_path: Path, key_path: Path) -> ssl.SSLContext:
-    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
-    ctx.minimum_version = ssl.TLSVersion.TLSv1_2
     try:
-        ctx.load_cert_chain(str(cert_path), str(key_path))
+        return server_context(cert_path, key_path)
     except (ssl.SSLError, OSError) as err:
         # never echo file contents; the paths are the operator's own parameters
         raise ValueError(f"cannot load the TLS certificate {cert_path} / key {key_path}: {err}") from None
-    return ctx
 
 
 def load_identity(cert_file: str, key_file: str, bind: str, keep_dir: str = "") -> TlsIdentity:
@@ -157,7 +108,7 @@ def load_identity(cert_file: str, key_file: str, bind: str, keep_dir: str = "") 
         cert_path, key_path = d / "console-cert.pem", d / "console-key.pem"
         if not (cert_path.is_file() and key_path.is_file() and _still_valid(cert_path.read_bytes(), bind)):
             cert_pem, key_pem = generate_self_signed(bind)
-            _write_private(key_path, key_pem)
+            write_private(key_path, key_pem)
             cert_path.write_bytes(cert_pem)
         pem = cert_path.read_bytes()
         return TlsIdentity(_context(cert_path, key_path), pem, fingerprint_sha256(pem), True, cert_path)
@@ -165,15 +116,6 @@ def load_identity(cert_file: str, key_file: str, bind: str, keep_dir: str = "") 
     with tempfile.TemporaryDirectory(prefix="axis_console_tls_") as tmp:
         cert_path, key_path = Path(tmp) / "cert.pem", Path(tmp) / "key.pem"
         cert_path.write_bytes(cert_pem)
-        _write_private(key_path, key_pem)
+        write_private(key_path, key_pem)
         ctx = _context(cert_path, key_path)
     return TlsIdentity(ctx, cert_pem, fingerprint_sha256(cert_pem), True, None)
-
-
-def _write_private(path: Path, data: bytes) -> None:
-    """Write a key readable by its owner only (created 0600, never world-readable even briefly)."""
-    tmp = path.with_name(path.name + ".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    tmp.replace(path)

@@ -24,7 +24,7 @@ from axis_ptz_interfaces.srv import MovePtz  # noqa: E402
 from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 from .test_web_console_browser import shot, wait_js  # noqa: E402
 

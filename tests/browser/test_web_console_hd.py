@@ -26,8 +26,8 @@ from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
 from .test_web_console_browser import LAYOUT_JS, green_blob, shot, wait_for, wait_js  # noqa: E402
 

@@ -3,7 +3,7 @@
 import httpx
 import pytest
 
-from axis_ptz_ros2.sim.server import SimulatedCamera
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.ptz import Speeds
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from axis_ptz_ros2.vapix import (
     AbsoluteMove,
     AuthError,

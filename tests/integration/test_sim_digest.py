@@ -157,9 +157,7 @@ def test_vapix_client_survives_expiry_and_restart_against_the_simulator():
         for i in range(8):
             vapix.query_position()
             if i == 2:
-                with cam._nonce_lock:  # noqa: SLF001 - test hook: expire every nonce issued so far
-                    for nonce in cam._nonces:  # noqa: SLF001
-                        cam._nonces[nonce] -= 601.0  # noqa: SLF001
+                cam.authenticator.age_nonces(601.0)  # expire every nonce issued so far
             if i == 4:
                 cam.stop()
                 cam.start()

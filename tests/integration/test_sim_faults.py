@@ -8,7 +8,7 @@ import httpx
 import pytest
 
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera
-from axis_ptz_ros2.sim.testing import COM, PART_HEADER, parts, read_stream
+from tests.support.sim import COM, PART_HEADER, parts, read_stream
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=CIF&fps=30"

@@ -12,7 +12,7 @@ from axis_ptz_ros2.sim import SimulatedCamera
 from axis_ptz_ros2.sim.cli import build_parser
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075, persona
 from axis_ptz_ros2.sim.ptz import Speeds
-from axis_ptz_ros2.sim.testing import decode, parts, read_stream
+from tests.support.sim import decode, frames, read_stream
 
 pytestmark = pytest.mark.integration
 USER, PASSWORD = "root", "modern-pw"
@@ -104,8 +104,7 @@ def test_modern_parameters(mc):
 def test_1080p_square_pixel_stream_and_wxh_only(mc):
     status, headers, body, _ = read_stream(mc, "/axis-cgi/mjpg/video.cgi?resolution=1920x1080&fps=30&nbrofframes=2")
     assert status == 200
-    length, start = parts(body)[0]
-    img = decode(body[start : start + length])
+    img = decode(frames(body)[0])
     assert img.shape[:2] == (1080, 1920)
     r = mc.get("/axis-cgi/imagesize.cgi?resolution=1280x720&squarepixel=1")
     assert r.text == "image width = 1280\nimage height = 720\n"  # square already: squarepixel changes nothing

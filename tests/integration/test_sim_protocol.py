@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.sim.testing import blob, decode
+from tests.support.sim import blob, decode
 
 pytestmark = pytest.mark.integration
 PTZ = "/axis-cgi/com/ptz.cgi"

@@ -7,7 +7,7 @@ import httpx
 import pytest
 
 from axis_ptz_ros2.sim import SimulatedCamera
-from axis_ptz_ros2.sim.testing import COM, decode, parts, read_stream
+from tests.support.sim import COM, decode, frames, parts, read_stream
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi"
@@ -41,13 +41,14 @@ def test_stream_wire_format_and_frame_size(client, resolution, extra, size):
         img = decode(jpeg)
         assert (img.shape[1], img.shape[0]) == size
     assert body.startswith(b"--myboundary\r\nContent-Type: image/jpeg\r\nContent-Length: ")
+    assert frames(body, headers["content-type"]) == [body[s : s + n] for n, s in ps]  # the driver's parser agrees
 
 
 def test_alias_path_and_rate_is_paced(client):
     t0 = time.monotonic()
     status, _, body, marks = read_stream(client, "/mjpg/video.mjpg?fps=10&nbrofframes=12", max_seconds=30)
     assert status == 200
-    assert len(parts(body)) == 12
+    assert len(frames(body)) == 12  # twelve whole JPEGs, as the driver's parser sees them
     # 12 frames at 10 fps, frame k never before start + (k - 1) * 0.1 s (a camera that fell behind catches up,
     # it never runs ahead): the last arrives no sooner than 1.1 s after the request, however loaded the machine
     assert marks[-1][0] - t0 >= 1.1 - 0.005

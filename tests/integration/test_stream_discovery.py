@@ -9,7 +9,7 @@ import time
 import pytest
 
 from axis_ptz_ros2.camera_models import CameraProfile
-from axis_ptz_ros2.sim.server import SimulatedCamera
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery, probe_tcp
 from axis_ptz_ros2.vapix import CameraConfig, CameraUnreachable, Resolution, VapixClient, VideoParams
 

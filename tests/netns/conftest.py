@@ -1,5 +1,5 @@
 """Two-host tier: the robot and the operator in two network namespaces joined by a veth pair
-(``axis_ptz_ros2.sim.link``), every node a real executable in its own process, DDS with the default
+(``tests.support.link``), every node a real executable in its own process, DDS with the default
 discovery range (no ROS_AUTOMATIC_DISCOVERY_RANGE inside the namespaces: they are the two "hosts").
 
 Needs root (``ip netns``); ``nftables`` is installed on first use. Without root the tests skip, which
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from axis_ptz_ros2.sim import link as linkmod
 from tests.netns.hosts import Probe, TwoHosts, host_env, wait_for
+from tests.support import link as linkmod
 
 __all__ = ["Probe", "TwoHosts", "host_env", "wait_for"]
 

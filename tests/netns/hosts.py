@@ -1,4 +1,4 @@
-"""Robot and operator as two "hosts" (network namespaces over a :class:`~axis_ptz_ros2.sim.link.Link`), with
+"""Robot and operator as two "hosts" (network namespaces over a :class:`~tests.support.link.Link`), with
 the processes started on each: used by the two-host test tier (``tests/netns``) and ``bench/bench_link.py``. Test
 and bench support, not shipped in the package: it clears the DDS discovery settings of the processes it starts.
 
@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from axis_ptz_ros2.sim import link as linkmod
+from tests.support import link as linkmod
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (tests/netns/hosts.py)
 
@@ -70,12 +70,12 @@ class Probe:
 
 
 class TwoHosts:
-    """A :class:`~axis_ptz_ros2.sim.link.Link` and the processes started in it; everything stops at close.
+    """A :class:`~tests.support.link.Link` and the processes started in it; everything stops at close.
 
     Each process's output goes to ``<logs>/<tag>-<name>.log``."""
 
     def __init__(self, tag: str, logs: Path, queue_ms: float = 100.0) -> None:
-        """Create the link (raises :class:`~axis_ptz_ros2.sim.link.LinkError` if it cannot)."""
+        """Create the link (raises :class:`~tests.support.link.LinkError` if it cannot)."""
         self.logs = logs
         logs.mkdir(parents=True, exist_ok=True)
         self.link = linkmod.Link(tag, queue_ms=queue_ms)

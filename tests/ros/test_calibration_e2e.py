@@ -45,9 +45,9 @@ from axis_ptz_ros2.nodes.common import LATCHED_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import Scene, load_world  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 from tests.support.sim_picker import scene_dot_features  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(150)]

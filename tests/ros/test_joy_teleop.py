@@ -28,9 +28,9 @@ from axis_ptz_interfaces.msg import PtzCommand, PtzVelocity
 from axis_ptz_interfaces.srv import MovePtz, Preset
 from axis_ptz_ros2.nodes.common import COMMAND_QOS
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from tests.ros.processes import node_process
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]

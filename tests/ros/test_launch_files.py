@@ -3,8 +3,9 @@
 The ``launch`` package cannot be installed here (not on PyPI), so each file is imported under a recording
 stand-in (``tests/ros/launch_standin.py``) and what it declares is checked against the project: executables
 against the console scripts in pyproject.toml, parameters against the nodes' own ParamSpec lists, parameter
-files (``node_name: ros__parameters:``) against the node names each executable creates, includes against the
-included file's declared arguments. Every combination of the boolean launch arguments is evaluated.
+files (``/**/node_name: ros__parameters:``, the form that matches the node under any namespace) against the
+node names each executable creates, includes against the included file's declared arguments. Every
+combination of the boolean launch arguments is evaluated.
 """
 
 from __future__ import annotations
@@ -83,6 +84,17 @@ def test_the_expected_launch_and_params_files_exist():
 ALL_NODES: dict[str, Any] = {n: specs for nodes in EXE_NODES.values() for n, specs in nodes.items()}
 
 
+def node_of_section(key: str) -> str:
+    """The node a parameter-file section addresses: ``/**/axis_stream`` → ``axis_stream``; ``/**`` stays.
+
+    Only the namespace-independent forms are accepted: a bare ``axis_stream:`` matches the node only when it
+    runs without a namespace (rcl compares the fully qualified name), so a namespaced launch ignores it."""
+    if key == "/**":
+        return key
+    assert key.startswith("/**/"), f"section {key!r}: use '/**/{key.lstrip('/')}' so it applies under any namespace"
+    return key.removeprefix("/**/")
+
+
 def check_params_file(path: Path, exe: str) -> None:
     """A ``ros__parameters`` file given to ``exe``: it configures at least one of ``exe``'s nodes, and every
     section names a node of this package with parameters that node has (a file may serve several processes:
@@ -91,6 +103,7 @@ def check_params_file(path: Path, exe: str) -> None:
     assert isinstance(doc, dict), f"{path.name}: not a mapping"
     assert doc, f"{path.name}: empty"
     nodes = EXE_NODES[exe]
+    doc = {node_of_section(k): v for k, v in doc.items()}
     assert set(doc) & (set(nodes) | {"/**"}), f"{path.name}: no section for {exe}'s nodes {sorted(nodes)}"
     for node_name, body in doc.items():
         assert set(body) == {"ros__parameters"}, f"{path.name}: {node_name}: only ros__parameters expected"
@@ -215,14 +228,17 @@ def test_the_standin_catches_mistakes(tmp_path):
     with pytest.raises(TypeError, match="node_executable"):
         ls.load_launch_file(bad_kw)
     wrong_node = tmp_path / "x.params.yaml"
-    wrong_node.write_text("axis_ptz:\n  ros__parameters:\n    state_rate: 3.0\n")
+    wrong_node.write_text("/**/axis_ptz:\n  ros__parameters:\n    state_rate: 3.0\n")
     with pytest.raises(AssertionError, match="no section for"):
         check_params_file(wrong_node, "axis_stream")
-    wrong_node.write_text("axis_stream:\n  ros__parameters:\n    fps: 3\naxis_stram:\n  ros__parameters: {}\n")
+    wrong_node.write_text("/**/axis_stream:\n  ros__parameters:\n    fps: 3\n/**/axis_stram:\n  ros__parameters: {}\n")
     with pytest.raises(AssertionError, match="no node of this package"):
         check_params_file(wrong_node, "axis_stream")
+    wrong_node.write_text("axis_stream:\n  ros__parameters:\n    fps: 3\n")  # ignored under a namespace
+    with pytest.raises(AssertionError, match="under any namespace"):
+        check_params_file(wrong_node, "axis_stream")
     wrong_param = tmp_path / "y.params.yaml"
-    wrong_param.write_text("axis_stream:\n  ros__parameters:\n    fsp: 3\n")
+    wrong_param.write_text("/**/axis_stream:\n  ros__parameters:\n    fsp: 3\n")
     with pytest.raises(AssertionError, match="no parameters"):
         check_params_file(wrong_param, "axis_camera")
 
@@ -230,7 +246,8 @@ def test_the_standin_catches_mistakes(tmp_path):
 @pytest.mark.parametrize("path", PARAMS_FILES, ids=lambda p: p.name)
 def test_every_params_file_fits_some_executable(path):
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    for node_name in doc:
+    for key in doc:
+        node_name = node_of_section(key)
         exes = [exe for exe, nodes in EXE_NODES.items() if node_name in nodes]
         assert exes, f"{path.name}: no executable creates {node_name!r}"
         check_params_file(path, exes[0])

@@ -23,10 +23,10 @@ from rcl_interfaces.srv import GetParameters
 
 from axis_ptz_interfaces.msg import VideoParams
 from axis_ptz_ros2.nodes.common import LATCHED_QOS
+from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.scene import load_world
-from axis_ptz_ros2.sim.server import SimulatedCamera
 from tests.ros.processes import node_process
-from tests.ros.test_launch_files import ALL_NODES
+from tests.ros.test_launch_files import ALL_NODES, node_of_section
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
@@ -79,7 +79,7 @@ def read_params(ros: Any, probe: Any, proc: subprocess.Popen[bytes], node: str, 
 
 def sections(path: Path) -> dict[str, dict[str, Any]]:
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    return {node: body["ros__parameters"] for node, body in doc.items()}
+    return {node_of_section(key): body["ros__parameters"] for key, body in doc.items()}
 
 
 def expect_loaded(

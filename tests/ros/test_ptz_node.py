@@ -42,10 +42,10 @@ from axis_ptz_ros2.config import MountConfig, save_mount  # noqa: E402
 from axis_ptz_ros2.geometry import Transform, pan_tilt_to_direction  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
 from axis_ptz_ros2.sim.scene import PtzLimits, TargetSpec, load_world  # noqa: E402
-from axis_ptz_ros2.sim.server import SimulatedCamera  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -531,6 +531,33 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
     # and commands work again
     assert move(ros, probe, "ptz/move_absolute", cmd(pan=math.radians(5.0))).success
     assert cam.position()[0] == pytest.approx(-5.0, abs=1e-3)
+
+
+def test_settings_snapshots_are_built_from_dynamic_parameter_specs() -> None:
+    """One source for defaults and ranges: every field of the ROS-free settings comes from a parameter the
+    node copies on a runtime change (a read-only or unknown name would never reach it), and the specs' own
+    defaults build a valid snapshot."""
+    from axis_ptz_ros2.nodes import ptz_node
+    from axis_ptz_ros2.ptz.commander import Tolerances
+    from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig
+    from axis_ptz_ros2.ptz.settings import parameter_names, snapshot
+
+    specs = {s.name: s for s in ptz_node.PARAMS}
+    defaults = {s.name: s.default for s in ptz_node.PARAMS}
+    for cls in (Tolerances, DriveSafeConfig):
+        names = parameter_names(cls)
+        assert names <= ptz_node._DYNAMIC, names - ptz_node._DYNAMIC
+        assert all(isinstance(specs[n].default, float) and specs[n].float_range for n in names)
+    assert snapshot(Tolerances, defaults) == Tolerances(0.002, 2.0, 0.5)
+    assert snapshot(DriveSafeConfig, defaults) == DriveSafeConfig(0.2, 0.3, 4000.0, 2.0)
+    assert {"image_width", "image_height", "follow_video_params", "wait_timeout"} <= ptz_node._DYNAMIC
+    assert not {"state_rate", "timeout", "hostname"} & ptz_node._DYNAMIC
+
+
+def test_goal_kinds_match_the_action() -> None:
+    from axis_ptz_ros2.ptz.requests import GoalKind
+
+    assert {k.name: k.value for k in GoalKind} == {k.name: getattr(PtzMove.Goal, k.name) for k in GoalKind}
 
 
 def test_parameters_dynamic_and_read_only(ros: Any, cam: SimulatedCamera, config_files: tuple[str, str]) -> None:

@@ -13,6 +13,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import PtzState
+from axis_ptz_ros2.config import MountConfig, save_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, transform_msg
 from axis_ptz_ros2.nodes.visualizer import Visualizer, footprint_polylines
@@ -191,3 +192,23 @@ def test_auto_depth_uses_the_ground_when_there_is_no_laser(ros):
     assert abs(ys.mean() - ey) < 1.5
     far_x, far_y = _expected_pixel(pan, tilt, 50.0)
     assert math.hypot(far_x - ex, far_y - ey) > 10  # the fixed depth would be visibly elsewhere
+
+
+def test_state_is_in_joint_coordinates_so_mount_offsets_are_not_added_again(ros, tmp_path):
+    """ptz/state carries joint angles (the PTZ node adds the mount's encoder offsets to the head's reading,
+    ptz.control.JointOffsets.from_head), the frame the kinematics take: a mount with non-zero offsets must draw
+    the mark where the nominal mount does (the shipped mount has zero offsets, which would hide a double add)."""
+    mount = MountConfig(transform=Transform.from_xyz_rpy(*PTZ_BASE, 0.0, 0.0, 0.0), pan_offset=0.35, tilt_offset=-0.12)
+    path = tmp_path / "mount_offsets.yaml"
+    save_mount(mount, path)
+    rig = _Rig(ros, [Parameter("depth", value=5.0), Parameter("mount_file", value=str(path))])
+    assert rig.node._mount.pan_offset == pytest.approx(0.35)  # the file was really used
+    pano = _grey_panorama()
+    rig.subscribe()
+    pan, tilt = 0.6, 0.2
+    img = rig.frame_after(lambda: (rig.pano_pub.publish(pano), rig.state_pub.publish(_state(pan, tilt))))
+    ys, xs = np.nonzero(_mask(img, "red"))
+    assert xs.size > 20
+    ex, ey = _expected_pixel(pan, tilt, 5.0)
+    assert abs(xs.mean() - ex) < 1.5, (xs.mean(), ex)
+    assert abs(ys.mean() - ey) < 1.5, (ys.mean(), ey)

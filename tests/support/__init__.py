@@ -1,1 +1,2 @@
-"""Test and bench support: not part of the installed package."""
+"""Test and benchmark tooling, kept out of the installed package (two-host link, raw stream helpers, frame
+stamps, link probe, ...). bench/ and scripts/ import it with the repository root on ``sys.path``."""

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from axis_ptz_ros2.sim.link import LINK_SUBNET
 from axis_ptz_ros2.vapix import CameraConfig
+from tests.support.link import LINK_SUBNET
 
 pytestmark = pytest.mark.unit
 
@@ -31,7 +31,7 @@ def _addresses(text: str) -> set[str]:
 
 # The two-host link (tests/netns, bench_link) gives its network namespaces addresses of one private subnet and
 # routes multicast onto their veth; those exist only inside namespaces we create, and only that module names them.
-NAMESPACE_ONLY = {"axis_ptz_ros2/sim/link.py": (LINK_SUBNET, ipaddress.IPv4Network("224.0.0.0/4"))}
+NAMESPACE_ONLY = {"tests/support/link.py": (LINK_SUBNET, ipaddress.IPv4Network("224.0.0.0/4"))}
 
 
 def _allowed(addr: str, path: Path | None = None) -> bool:
@@ -45,7 +45,7 @@ def _allowed(addr: str, path: Path | None = None) -> bool:
     "path",
     sorted(
         p
-        for d in ("axis_ptz_ros2", "scripts", "bench", ".ci", "tests/netns")  # tests/netns: the two-host support
+        for d in ("axis_ptz_ros2", "scripts", "bench", ".ci", "tests/netns", "tests/support")  # the two-host support
         for p in (ROOT / d).rglob("*")
         if p.is_file() and p.suffix in ("", ".py", ".sh", ".js", ".html")
     ),

@@ -3,7 +3,7 @@
 import pytest
 
 from axis_ptz_ros2.vapix.errors import ResponseParseError
-from axis_ptz_ros2.vapix.mjpeg import MjpegParser, boundary_from_content_type
+from axis_ptz_ros2.vapix.mjpeg import MjpegParser, boundary_from_content_type, multipart_content_type, part_header
 from tests.unit.fixtures_vapix import jpeg, part
 
 pytestmark = pytest.mark.unit
@@ -58,6 +58,14 @@ def test_thesis_wire_layout_three_frames():
         0,
     )
     assert stats.bytes == len(part(F1) + part(F2) + part(F3))
+
+
+@pytest.mark.parametrize("boundary", ["myboundary", "axisframe"])
+def test_part_writer_is_the_axis_wire_layout_and_parses_back(boundary):
+    written = b"".join(part_header(boundary, len(f)) + f + b"\r\n" for f in (F1, F2))
+    assert written == part(F1, boundary=boundary.encode()) + part(F2, boundary=boundary.encode())
+    parser = MjpegParser(boundary_from_content_type(multipart_content_type(boundary)))
+    assert parser.feed(written) == [F1, F2]
 
 
 def test_frame_emitted_as_soon_as_content_length_bytes_arrive():

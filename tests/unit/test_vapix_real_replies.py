@@ -18,6 +18,7 @@ from axis_ptz_ros2.vapix import (
     ResponseParseError,
     VapixClient,
 )
+from axis_ptz_ros2.vapix.models import CIF_NTSC, CIF_PAL
 from tests.unit import fixtures_vapix as fx
 
 pytestmark = pytest.mark.unit
@@ -27,6 +28,8 @@ V2PARAM = "/axis-cgi/view/param.cgi"
 IMAGESIZE = "/axis-cgi/imagesize.cgi"
 PTZ = "/axis-cgi/com/ptz.cgi"
 NTSC_LIST = fx.PARAM_RESOLUTION_P5512_NO_ROOT  # 4CIF,2CIF,CIF,QCIF [V-obs S8]
+CIF_PAL_SIZES = [CIF_PAL[n] for n in ("4CIF", "2CIF", "CIF", "QCIF")]
+CIF_NTSC_SIZES = [CIF_NTSC[n] for n in ("4CIF", "2CIF", "CIF", "QCIF")]
 DIGEST_401 = fx.text("", 401)
 
 
@@ -50,15 +53,92 @@ def imagesize(default: str | None, per_name: dict[str, str] | None = None):
 
 
 # ---- resolutions -----------------------------------------------------------------------------------
-def test_ntsc_camera_without_imagesize_is_not_given_pal_sizes():
+def test_ntsc_camera_without_imagesize_or_standard_gets_both_standards_never_an_empty_list():
+    """No imagesize.cgi (404), no ImageSource group, no parameter definitions: the CIF names get the sizes of
+    both standards (issue 23: an empty list would refuse every request), said in resolution_problem — never
+    silently PAL."""
     vapix, rec = make({PARAM: fx.text(NTSC_LIST)})
     sizes = vapix.supported_resolutions()
-    assert Resolution(704, 576) not in sizes  # the old silent PAL fallback
-    assert sizes == ()
+    assert Resolution(704, 480) in sizes
+    assert Resolution(704, 576) in sizes
+    assert set(sizes) == {Resolution(*s) for s in (*CIF_PAL_SIZES, *CIF_NTSC_SIZES)}
     assert "4CIF" in vapix.resolution_problem
+    assert "both standards" in vapix.resolution_problem
     assert "WIDTHxHEIGHT" in vapix.resolution_problem
-    # imagesize.cgi was found missing once, not asked again for every name
+    # imagesize.cgi was found missing once (both paths), the standard and the definitions asked once each
     assert sum("imagesize" in p for p in rec.paths) == 2
+    assert sum("group=ImageSource" in p for p in rec.paths) == 1
+    assert sum("listdefinitions" in p for p in rec.paths) == 1
+
+
+# Recorded on an AXIS P5512 PTZ Dome, firmware 5.51.7 (vapix.md S8): its analogue input and the resolution
+# parameter's definition, verbatim lines of the recording.
+P5512_IMAGESOURCE_VIDEO = (
+    "root.ImageSource.I0.Video.Contrast=50\nroot.ImageSource.I0.Video.Saturation=50\n"
+    "root.ImageSource.I0.Video.XOffset=0\nroot.ImageSource.I0.Video.YOffset=0\n"
+    "root.ImageSource.I0.Video.Connector=yc\nroot.ImageSource.I0.Video.DetectedType=NTSC\n"
+    "root.ImageSource.I0.Video.CaptureMode=NTSC\nroot.ImageSource.I0.Video.DeinterlaceMode=field_blend\n"
+)
+P5512_RESOLUTION_DEFINITION = """<?xml version="1.0"?>
+<parameterDefinitions version="1.0">
+  <group name="root">
+    <group name="Image">
+      <group name="I0">
+        <group name="Appearance">
+          <parameter name="Resolution" value="4CIF" securityLevel="7714" niceName="Resolution">
+            <type>
+              <enum>
+                <entry value="4CIF" niceValue="4CIF (704x480)" />
+                <entry value="2CIF" niceValue="2CIF (704x240)" />
+                <entry value="CIF" niceValue="CIF (352x240)" />
+                <entry value="QCIF" niceValue="QCIF (176x120)" />
+              </enum>
+            </type>
+          </parameter>
+        </group>
+      </group>
+    </group>
+  </group>
+</parameterDefinitions>
+"""
+NTSC_SIZES = (Resolution(704, 480), Resolution(704, 240), Resolution(352, 240), Resolution(176, 120))
+
+
+def test_without_imagesize_the_reported_video_standard_sizes_the_cif_names():
+    vapix, rec = make(
+        {
+            f"{PARAM}?action=list&group=Properties.Image.Resolution": fx.text(NTSC_LIST),
+            f"{PARAM}?action=list&group=ImageSource.I0.Video": fx.text(P5512_IMAGESOURCE_VIDEO),
+        }
+    )
+    assert vapix.supported_resolutions() == NTSC_SIZES
+    assert vapix.resolution_problem == ""
+    assert not any("listdefinitions" in p for p in rec.paths)
+
+
+@pytest.mark.parametrize(("detected", "capture", "ntsc"), [("PAL", "NTSC", False), ("none", "NTSC", True)])
+def test_the_detected_signal_wins_over_the_capture_mode(detected, capture, ntsc):
+    body = f"root.ImageSource.I0.Video.DetectedType={detected}\nroot.ImageSource.I0.Video.CaptureMode={capture}\n"
+    vapix, _ = make(
+        {
+            f"{PARAM}?action=list&group=Properties.Image.Resolution": fx.text(NTSC_LIST),
+            f"{PARAM}?action=list&group=ImageSource.I0.Video": fx.text(body),
+        }
+    )
+    assert vapix.supported_resolutions()[0] == (Resolution(704, 480) if ntsc else Resolution(704, 576))
+
+
+def test_without_imagesize_or_standard_the_parameter_definition_sizes_the_names():
+    group = "Image.I0.Appearance.Resolution"
+    vapix, _ = make(
+        {
+            f"{PARAM}?action=list&group=Properties.Image.Resolution": fx.text(NTSC_LIST),
+            f"{PARAM}?action=list&group=ImageSource.I0.Video": fx.text(fx.PARAM_ERROR),
+            f"{PARAM}?action=listdefinitions&listformat=xmlschema&group={group}": fx.text(P5512_RESOLUTION_DEFINITION),
+        }
+    )
+    assert vapix.supported_resolutions() == NTSC_SIZES
+    assert vapix.resolution_problem == ""
 
 
 def test_ntsc_from_the_default_image_size_when_names_are_not_answered():

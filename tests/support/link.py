@@ -300,7 +300,7 @@ class Link:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m axis_ptz_ros2.sim.link check|cleanup|list``: tools and leftovers (the tests/bench build links)."""
+    """``python -m tests.support.link check|cleanup|list``: tools and leftovers (the tests/bench build links)."""
     args = list(sys.argv[1:] if argv is None else argv)
     cmd = args[0] if args else "check"
     if cmd == "check":

@@ -1,4 +1,10 @@
-"""Raw MJPEG/image helpers for tests and benchmarks of the simulator (independent of the VAPIX client)."""
+"""Raw MJPEG/image helpers for tests and benchmarks of the simulator.
+
+:func:`frames` splits a stream with the driver's own parser (:class:`axis_ptz_ros2.vapix.mjpeg.MjpegParser`), which
+hides what a fault did on the wire. The fault tests need exactly that, so :func:`parts` and :data:`PART_HEADER`
+find the part headers as written (:func:`axis_ptz_ros2.vapix.mjpeg.part_header`, with the simulator's boundary)
+and report each announced ``Content-Length`` with its offset, even when it is wrong.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +16,20 @@ import httpx
 import numpy as np
 import numpy.typing as npt
 
-PART_HEADER = re.compile(rb"--myboundary\r\nContent-Type: image/jpeg\r\nContent-Length: (\d+)\r\n\r\n")
+from axis_ptz_ros2.sim.http.mjpeg import BOUNDARY
+from axis_ptz_ros2.vapix.mjpeg import MjpegParser, boundary_from_content_type, multipart_content_type, part_header
+
+#: the simulator's ``Content-Type`` for video.cgi
+CONTENT_TYPE = multipart_content_type(BOUNDARY)
+
+
+def part_header_pattern(boundary: str) -> re.Pattern[bytes]:
+    """A pattern of the part headers :func:`part_header` writes, the ``Content-Length`` value as group 1."""
+    prefix, _, suffix = part_header(boundary, 0).rpartition(b"0")
+    return re.compile(re.escape(prefix) + rb"(\d+)" + re.escape(suffix))
+
+
+PART_HEADER = part_header_pattern(BOUNDARY)
 COM = re.compile(rb"\xff\xd8\xff\xfe..axsim seq=(\d+) t=(\d+)", re.S)
 
 
@@ -39,6 +58,12 @@ def read_stream(
 def parts(body: bytes) -> list[tuple[int, int]]:
     """Multipart parts as (announced Content-Length, offset of the JPEG) in stream order."""
     return [(int(m.group(1)), m.end()) for m in PART_HEADER.finditer(body)]
+
+
+def frames(body: bytes, content_type: str = CONTENT_TYPE) -> list[bytes]:
+    """The complete, valid JPEGs of a stream body, as the driver's parser finds them."""
+    parser = MjpegParser(boundary_from_content_type(content_type))
+    return parser.feed(body) + parser.close()
 
 
 def decode(jpeg: bytes) -> npt.NDArray[np.uint8]:

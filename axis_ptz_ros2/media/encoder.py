@@ -1,0 +1,197 @@
+"""Low-latency H.264 encoding with libx264 through PyAV (ROS-free).
+
+What viewers and a weak link need, and how it is had (facts in docs/…/h264.md, checked with PyAV 18):
+
+- Constrained Baseline, no B-frames, ``tune=zerolatency``: the access unit for frame k comes out of the same
+  :meth:`H264Encoder.encode` call (one in, one out).
+- No global header: libx264 then repeats SPS/PPS in front of every IDR, which stock decoders need.
+- VBV at open (``maxrate`` = bitrate, ``bufsize`` = bitrate/10): the rate holds per frame, and a live
+  ``bit_rate`` change takes effect (x264 cannot turn VBV on later). PyAV cannot change ``maxrate`` on an open
+  encoder, so a bitrate above the one opened with re-opens the encoder (its next frame is an IDR).
+- Keyframes: x264's own are off (``keyint=infinite``, ``scenecut=0``); this class forces an IDR every
+  ``keyframe_interval`` frames and on request (``forced-idr=1`` + ``PictureType.I``), so the interval is live too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from fractions import Fraction
+from typing import Final
+
+import av
+import av.error
+import numpy as np
+import numpy.typing as npt
+from av.video.frame import PictureType
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.errors import EncoderError
+from axis_ptz_ros2.media.frame import EncodedFrame
+
+PRESETS: Final = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium")
+MIN_BITRATE_BPS: Final = 50_000
+MAX_BITRATE_BPS: Final = 50_000_000
+MAX_KEYFRAME_INTERVAL: Final = 600
+MAX_DIMENSION: Final = 4096
+
+U8Array = npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True, slots=True)
+class EncoderConfig:
+    """Encoder parameters; every field is checked when the object is built."""
+
+    width: int
+    height: int
+    fps: int = 30
+    bitrate_bps: int = 1_000_000
+    keyframe_interval: int = 30  # frames between periodic IDRs
+    preset: str = "veryfast"
+    threads: int = 1  # 1: one slice per picture, lowest CPU; more: sliced threads (lower latency at 1080p)
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or not 16 <= v <= MAX_DIMENSION or v % 2:
+                raise EncoderError(f"{name} must be an even number of pixels in 16…{MAX_DIMENSION}, got {v!r}")
+        if not isinstance(self.fps, int) or not 1 <= self.fps <= 120:
+            raise EncoderError(f"fps must be 1…120, got {self.fps!r}")
+        check_bitrate(self.bitrate_bps)
+        check_keyframe_interval(self.keyframe_interval)
+        if self.preset not in PRESETS:
+            raise EncoderError(f"preset must be one of {', '.join(PRESETS)}; got {self.preset!r}")
+        if not isinstance(self.threads, int) or not 1 <= self.threads <= 16:
+            raise EncoderError(f"threads must be 1…16, got {self.threads!r}")
+
+
+def check_bitrate(bps: int) -> int:
+    """``bps`` if it is an int in MIN_BITRATE_BPS…MAX_BITRATE_BPS, else :class:`EncoderError`."""
+    if isinstance(bps, bool) or not isinstance(bps, int) or not MIN_BITRATE_BPS <= bps <= MAX_BITRATE_BPS:
+        raise EncoderError(f"bitrate must be {MIN_BITRATE_BPS}…{MAX_BITRATE_BPS} bit/s, got {bps!r}")
+    return bps
+
+
+def check_keyframe_interval(frames: int) -> int:
+    """``frames`` if it is an int in 1…MAX_KEYFRAME_INTERVAL, else :class:`EncoderError`."""
+    if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= MAX_KEYFRAME_INTERVAL:
+        raise EncoderError(f"keyframe interval must be 1…{MAX_KEYFRAME_INTERVAL} frames, got {frames!r}")
+    return frames
+
+
+class H264Encoder:
+    """One libx264 encoder: frames in (BGR or PyAV frames), one Annex B access unit out per frame."""
+
+    def __init__(self, config: EncoderConfig) -> None:
+        self._config = config
+        self._pts = 0
+        self._since_idr = 0
+        self._idr_requested = True
+        self._reopen = False
+        self.reopens = 0
+        self._codec_string: str | None = None
+        self._ctx = self._open(config)
+
+    # ---- parameters ----------------------------------------------------------------------------------------
+    @property
+    def config(self) -> EncoderConfig:
+        return self._config
+
+    @property
+    def opened_max_bitrate_bps(self) -> int:
+        """The VBV ``maxrate`` the encoder is open with (a live bitrate up to this needs no re-open)."""
+        return self._maxrate
+
+    @property
+    def codec_string(self) -> str | None:
+        """``avc1.PPCCLL`` of the SPS the last IDR carried (WebCodecs ``configure``); None before the first frame."""
+        return self._codec_string
+
+    def set_bitrate(self, bps: int) -> None:
+        """Change the target bitrate from the next frame on (live up to the opened maxrate, else re-open)."""
+        check_bitrate(bps)
+        self._config = replace(self._config, bitrate_bps=bps)
+        if bps > self._maxrate:
+            self._reopen = True
+        else:
+            self._ctx.bit_rate = bps
+
+    def set_keyframe_interval(self, frames: int) -> None:
+        """Periodic IDR every ``frames`` frames from now on."""
+        self._config = replace(self._config, keyframe_interval=check_keyframe_interval(frames))
+
+    def request_idr(self) -> None:
+        """Make the next encoded frame an IDR (with SPS/PPS)."""
+        self._idr_requested = True
+
+    # ---- encoding ------------------------------------------------------------------------------------------
+    def encode_bgr(self, image: U8Array, capture_ns: int | None = None) -> EncodedFrame:
+        """Encode one BGR image of the configured size."""
+        c = self._config
+        if image.dtype != np.uint8 or image.shape != (c.height, c.width, 3):
+            raise EncoderError(
+                f"expected a {c.width}x{c.height} BGR uint8 image, got shape {image.shape} dtype {image.dtype}"
+            )
+        return self.encode(av.VideoFrame.from_ndarray(image, format="bgr24"), capture_ns)
+
+    def encode(self, frame: av.VideoFrame, capture_ns: int | None = None) -> EncodedFrame:
+        """Encode one PyAV frame of the configured size (any pixel format; converted to yuv420p)."""
+        c = self._config
+        if (frame.width, frame.height) != (c.width, c.height):
+            raise EncoderError(f"frame is {frame.width}x{frame.height}, the encoder {c.width}x{c.height}")
+        if self._reopen:
+            self._ctx = self._open(c)
+            self._reopen = False
+            self.reopens += 1
+            self._idr_requested = True
+        key = self._idr_requested or self._since_idr >= c.keyframe_interval
+        frame.pts = self._pts
+        frame.time_base = self._ctx.time_base
+        frame.pict_type = PictureType.I if key else PictureType.NONE
+        try:
+            packets = self._ctx.encode(frame)
+        except av.error.FFmpegError as err:
+            raise EncoderError(f"libx264 refused the frame: {err}") from err
+        if len(packets) != 1:
+            raise EncoderError(f"libx264 returned {len(packets)} packets for one frame (expected 1)")
+        packet = packets[0]
+        keyframe = bool(packet.is_keyframe)
+        data = bytes(packet)
+        out = EncodedFrame(data, keyframe, self._pts, c.width, c.height, capture_ns)
+        self._pts += 1
+        if keyframe:
+            sps = annexb.find_sps(data)
+            if sps is None:
+                raise EncoderError("libx264 made an IDR without an SPS (opened with a global header?)")
+            self._codec_string = sps.codec_string
+            self._idr_requested = False
+            self._since_idr = 1
+        else:
+            self._since_idr += 1
+        return out
+
+    # ---- internals -----------------------------------------------------------------------------------------
+    def _open(self, c: EncoderConfig) -> av.VideoCodecContext:
+        ctx = av.VideoCodecContext.create("libx264", "w")
+        ctx.width = c.width
+        ctx.height = c.height
+        ctx.pix_fmt = "yuv420p"
+        ctx.time_base = Fraction(1, c.fps)
+        ctx.framerate = Fraction(c.fps, 1)
+        ctx.bit_rate = c.bitrate_bps
+        ctx.max_b_frames = 0
+        ctx.thread_count = c.threads
+        self._maxrate = c.bitrate_bps
+        ctx.options = {
+            "preset": c.preset,
+            "tune": "zerolatency",
+            "profile": "baseline",
+            "forced-idr": "1",
+            "maxrate": str(c.bitrate_bps),
+            "bufsize": str(max(c.bitrate_bps // 10, 1000)),
+            "x264-params": "keyint=infinite:min-keyint=1:scenecut=0:bframes=0",
+        }
+        try:
+            ctx.open()
+        except av.error.FFmpegError as err:
+            raise EncoderError(f"libx264 did not open with {c}: {err}") from err
+        return ctx

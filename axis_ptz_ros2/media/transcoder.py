@@ -1,0 +1,143 @@
+"""MJPEG → H.264 for cameras that only stream MJPEG (the 214), ROS-free.
+
+One :class:`MjpegTranscoder` per camera stream, shared by every H.264 subscriber: JPEG bytes in (the camera's
+compression 0), one :class:`~axis_ptz_ros2.media.frame.EncodedFrame` out. A JPEG of another size re-opens the
+encoder (its first frame is an IDR with the new SPS); a JPEG that does not decode raises
+:class:`~axis_ptz_ros2.media.errors.TranscodeError` and leaves the encoder as it was.
+
+JPEG decoding: ``cv2`` (libjpeg-turbo, then OpenCV's BGR→I420) or ``pyav`` (FFmpeg's mjpeg decoder, then
+swscale yuvj420p→yuv420p); ``bench/bench_transcode.py`` measures both (about the same CPU here).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Final, Literal
+
+import av
+import av.error
+import cv2
+import numpy as np
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder, check_bitrate, check_keyframe_interval
+from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
+from axis_ptz_ros2.media.frame import EncodedFrame
+
+JpegDecoder = Literal["cv2", "pyav"]
+JPEG_DECODERS: Final = ("cv2", "pyav")
+
+
+@dataclass(frozen=True, slots=True)
+class TranscoderConfig:
+    """Encoder settings that do not depend on the picture size (that comes from each JPEG)."""
+
+    fps: int = 30
+    bitrate_bps: int = 1_000_000
+    keyframe_interval: int = 30
+    preset: str = "veryfast"
+    threads: int = 1
+    stamp_sei: bool = True  # put the capture time in each access unit (our user-data SEI)
+    jpeg_decoder: JpegDecoder = "cv2"
+
+    def __post_init__(self) -> None:
+        if self.jpeg_decoder not in JPEG_DECODERS:
+            raise EncoderError(f"jpeg_decoder must be one of {', '.join(JPEG_DECODERS)}; got {self.jpeg_decoder!r}")
+        self.encoder_config(64, 64)  # validates the rest
+
+    def encoder_config(self, width: int, height: int) -> EncoderConfig:
+        return EncoderConfig(
+            width=width,
+            height=height,
+            fps=self.fps,
+            bitrate_bps=self.bitrate_bps,
+            keyframe_interval=self.keyframe_interval,
+            preset=self.preset,
+            threads=self.threads,
+        )
+
+
+class MjpegTranscoder:
+    """JPEG bytes → H.264 access units, one encoder re-opened only when the picture size changes."""
+
+    def __init__(self, config: TranscoderConfig | None = None) -> None:
+        self._config = config or TranscoderConfig()
+        self._encoder: H264Encoder | None = None
+        self._mjpeg: av.VideoCodecContext | None = None
+        self.frames = 0
+        self.bad_jpegs = 0
+        self.encoder_opens = 0
+
+    @property
+    def config(self) -> TranscoderConfig:
+        return self._config
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        """(width, height) the encoder is open for; None before the first frame."""
+        return None if self._encoder is None else (self._encoder.config.width, self._encoder.config.height)
+
+    @property
+    def codec_string(self) -> str | None:
+        """``avc1.PPCCLL`` of the current stream (from its last IDR); None before the first frame."""
+        return None if self._encoder is None else self._encoder.codec_string
+
+    def set_bitrate(self, bps: int) -> None:
+        self._config = replace(self._config, bitrate_bps=check_bitrate(bps))
+        if self._encoder is not None:
+            self._encoder.set_bitrate(bps)
+
+    def set_keyframe_interval(self, frames: int) -> None:
+        self._config = replace(self._config, keyframe_interval=check_keyframe_interval(frames))
+        if self._encoder is not None:
+            self._encoder.set_keyframe_interval(frames)
+
+    def request_idr(self) -> None:
+        """The next frame out is an IDR (a new subscriber, or a viewer that lost sync)."""
+        if self._encoder is not None:
+            self._encoder.request_idr()
+
+    def transcode(self, jpeg: bytes, capture_ns: int | None = None) -> EncodedFrame:
+        """Decode one JPEG and encode it; the access unit carries ``capture_ns`` in an SEI when configured."""
+        frame = self._decode_jpeg(jpeg)
+        w, h = frame.width, frame.height
+        if w % 2 or h % 2:
+            self.bad_jpegs += 1
+            raise TranscodeError(f"JPEG of odd size {w}x{h}: H.264 4:2:0 needs even sizes")
+        enc = self._encoder
+        if enc is None or (enc.config.width, enc.config.height) != (w, h):
+            enc = H264Encoder(self._config.encoder_config(w, h))
+            self._encoder = enc
+            self.encoder_opens += 1
+        out = enc.encode(frame, capture_ns)
+        self.frames += 1
+        if self._config.stamp_sei and capture_ns is not None:
+            out = replace(out, data=annexb.insert_capture_stamp(out.data, capture_ns))
+        return out
+
+    def _decode_jpeg(self, jpeg: bytes) -> av.VideoFrame:
+        if self._config.jpeg_decoder == "cv2":
+            bgr = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR) if jpeg else None
+            if bgr is None:
+                self.bad_jpegs += 1
+                raise TranscodeError(f"JPEG of {len(jpeg)} bytes does not decode")
+            h, w = bgr.shape[:2]
+            if w % 2 or h % 2:
+                self.bad_jpegs += 1
+                raise TranscodeError(f"JPEG of odd size {w}x{h}: H.264 4:2:0 needs even sizes")
+            i420 = np.asarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420), dtype=np.uint8)
+            return av.VideoFrame.from_ndarray(i420, format="yuv420p")
+        if self._mjpeg is None:
+            self._mjpeg = av.VideoCodecContext.create("mjpeg", "r")
+            self._mjpeg.thread_count = 1
+        try:
+            frames = self._mjpeg.decode(av.Packet(jpeg))
+        except (av.error.FFmpegError, ValueError) as err:
+            self.bad_jpegs += 1
+            self._mjpeg = None  # a fresh decoder for the next JPEG
+            raise TranscodeError(f"JPEG of {len(jpeg)} bytes does not decode: {err}") from err
+        if len(frames) != 1:
+            self.bad_jpegs += 1
+            raise TranscodeError(f"JPEG of {len(jpeg)} bytes gave {len(frames)} pictures")
+        # FFmpeg's JPEG pictures are full range (yuvj420p); H.264 viewers assume limited range.
+        return frames[0].reformat(format="yuv420p", src_color_range="JPEG", dst_color_range="MPEG")

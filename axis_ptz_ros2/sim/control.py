@@ -1,0 +1,80 @@
+"""The simulator's test-only control surface, ``/sim/state`` and ``/sim/control?…`` (ROS-free, no sockets).
+
+Never authenticated and never faulted (vapix.md §11). ``/sim/state`` is the ground truth as JSON;
+``/sim/control`` sets faults (any :class:`~axis_ptz_ros2.sim.faults.FaultConfig` field), ``reset_faults``,
+``reset_counts``, ``nonce_lifetime``, ``challenge_style``, ``teleport=pan,tilt,zoom`` and ``reboot=<seconds>``
+(with ``reboot_blackhole``, ``reboot_errors_s``, ``reboot_error``), then answers with the new state. A reboot
+starts only after that reply went out: :meth:`ControlReply.start_reboot`.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from axis_ptz_ros2.sim.faults import REBOOT_ERROR_KINDS, FaultConfig
+
+if TYPE_CHECKING:
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
+
+
+@dataclass(frozen=True)
+class ControlReply:
+    """What to answer (``status``, JSON ``body``; 404: not a control path) and a reboot to start afterwards."""
+
+    status: int
+    body: str = ""
+    reboot_s: float | None = None
+    reboot_opts: dict[str, Any] = field(default_factory=dict)
+
+    def start_reboot(self, cam: SimulatedCamera) -> None:
+        """Start the requested reboot, if any (in the background: it returns at once)."""
+        if self.reboot_s is not None:
+            threading.Thread(target=cam.reboot, args=(self.reboot_s,), kwargs=self.reboot_opts, daemon=True).start()
+
+
+def _truthy(v: str) -> bool:
+    return v.lower() in ("1", "true", "yes", "on")
+
+
+def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> ControlReply:
+    """Answer a ``/sim/…`` request (``args``: query string pairs, in order)."""
+    if path == "/sim/state":
+        return ControlReply(200, json.dumps(cam.state_dict()))
+    if path != "/sim/control":
+        return ControlReply(404)
+    reboot = None
+    reboot_opts: dict[str, Any] = {}
+    try:
+        changes: dict[str, Any] = {}
+        for k, v in args:
+            if k == "reset_faults":
+                cam.set_faults(FaultConfig())
+            elif k == "reset_counts":
+                cam.reset_counts()
+            elif k == "reboot":
+                reboot = float(v)
+            elif k == "reboot_blackhole":
+                reboot_opts["blackhole"] = _truthy(v)
+            elif k == "reboot_errors_s":
+                reboot_opts["errors_s"] = float(v)
+            elif k == "reboot_error":
+                if v not in REBOOT_ERROR_KINDS:
+                    raise ValueError(f"reboot_error must be one of {REBOOT_ERROR_KINDS}")
+                reboot_opts["error_kind"] = v
+            elif k == "nonce_lifetime":
+                cam.set_auth_options(nonce_lifetime_s=float(v))
+            elif k == "challenge_style":
+                cam.set_auth_options(challenge_style=v)
+            elif k == "teleport":
+                p, t, z = (float(x) for x in v.split(","))
+                cam.teleport(p, t, z)
+            else:
+                changes[k] = v
+        if changes:
+            cam.set_faults(**changes)
+    except (ValueError, TypeError) as err:
+        return ControlReply(400, json.dumps({"error": str(err)}))
+    return ControlReply(200, json.dumps(cam.state_dict()), reboot, reboot_opts)

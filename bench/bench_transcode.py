@@ -1,0 +1,150 @@
+"""MJPEG → H.264 transcoding cost at 704×576 @ 30 (issue 21's robot-CPU target: ≤ 25 % of one core).
+
+The simulated camera's own JPEGs (compression 0, the camera panning 0.2° per frame and back) go through
+:class:`axis_ptz_ros2.media.transcoder.MjpegTranscoder` paced at 30 fps, as the stream node would feed it, for
+both JPEG decoders (``cv2`` and ``pyav``). Reported per frame: process CPU (user + system, all threads) as
+% of one core at 30 fps, the JPEG decode and encode parts, and the wall time of one ``transcode()`` call (what
+transcoding adds to a frame's age). The machine's load average is printed with the figures: on a shared
+machine the wall times carry other processes' load, the CPU figures much less.
+
+    .venv/bin/python bench/bench_transcode.py [--seconds 10] [--bitrate 1500000] [--preset veryfast]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import statistics
+import time
+
+import av
+import cv2
+import numpy as np
+from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.transcoder import JPEG_DECODERS, MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
+from axis_ptz_ros2.sim.scene import load_world, shared_scene
+
+FPS = 30
+W, H = 704, 576
+
+
+def cpu_s() -> float:
+    """User + system CPU seconds of this process, all threads (libx264 may use several)."""
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
+def loadavg() -> str:
+    with open("/proc/loadavg", encoding="ascii") as f:
+        return " ".join(f.read().split()[:3])
+
+
+def pct(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q))
+
+
+def run(jpegs: list[bytes], cfg: TranscoderConfig, seconds: float) -> dict[str, float]:
+    """Transcode paced at FPS for ``seconds``; CPU % of one core and wall-time percentiles (ms)."""
+    tc = MjpegTranscoder(cfg)
+    for j in jpegs[:10]:  # warm-up: encoder open, first IDR, caches
+        tc.transcode(j, time.time_ns())
+    n = int(seconds * FPS)
+    walls: list[float] = []
+    sizes: list[int] = []
+    period = 1.0 / FPS
+    c0, t0 = cpu_s(), time.perf_counter()
+    for k in range(n):
+        due = t0 + k * period
+        now = time.perf_counter()
+        if due > now:
+            time.sleep(due - now)
+        s = time.perf_counter()
+        out = tc.transcode(jpegs[k % len(jpegs)], time.time_ns())
+        walls.append((time.perf_counter() - s) * 1e3)
+        sizes.append(len(out.data))
+    cpu = cpu_s() - c0
+    elapsed = time.perf_counter() - t0
+    return {
+        "cpu_pct": 100.0 * cpu / n * FPS,
+        "cpu_ms": 1e3 * cpu / n,
+        "wall_p50": statistics.median(walls),
+        "wall_p95": pct(walls, 95),
+        "kbps": 8 * sum(sizes) / elapsed / 1e3,
+        "fps": n / elapsed,
+    }
+
+
+def parts(jpegs: list[bytes], preset: str, bitrate: int, n: int = 150) -> dict[str, float]:
+    """CPU ms per frame of the parts, unpaced: cv2 JPEG decode + I420, and the encoder alone."""
+    bufs = [np.frombuffer(j, np.uint8) for j in jpegs]
+    c0 = cpu_s()
+    i420 = [cv2.cvtColor(cv2.imdecode(bufs[k % len(bufs)], cv2.IMREAD_COLOR), cv2.COLOR_BGR2YUV_I420) for k in range(n)]
+    decode_ms = 1e3 * (cpu_s() - c0) / n
+    enc = H264Encoder(EncoderConfig(W, H, fps=FPS, bitrate_bps=bitrate, preset=preset))
+    frames = [av.VideoFrame.from_ndarray(y, format="yuv420p") for y in i420[: len(bufs)]]
+    for f in frames[:10]:
+        enc.encode(f)
+    walls = []
+    c0 = cpu_s()
+    for k in range(n):
+        s = time.perf_counter()
+        enc.encode(frames[k % len(frames)])
+        walls.append((time.perf_counter() - s) * 1e3)
+    return {
+        "decode_ms": decode_ms,
+        "encode_ms": 1e3 * (cpu_s() - c0) / n,
+        "encode_wall_p50": statistics.median(walls),
+        "encode_wall_p95": pct(walls, 95),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--bitrate", type=int, default=1_500_000)
+    ap.add_argument("--preset", default="veryfast")
+    args = ap.parse_args()
+    inputs("axis_ptz_ros2/media", "bench/bench_transcode.py")
+    print(f"load average before: {loadavg()}")
+    world = load_world()
+    renderer = PtzRenderer(world, shared_scene(world))
+    path = [0.2 * i for i in range(45)]
+    jpegs = [encode_jpeg(renderer.render(-20.0 + p, -3.0, 1.0, W, H), 0) for p in path + path[::-1]]
+    print(f"{len(jpegs)} JPEGs {W}x{H} at compression 0, mean {statistics.mean(map(len, jpegs)) / 1e3:.0f} kB")
+    results = {}
+    for dec in JPEG_DECODERS:
+        cfg = TranscoderConfig(fps=FPS, bitrate_bps=args.bitrate, preset=args.preset, jpeg_decoder=dec)
+        r = run(jpegs, cfg, args.seconds)
+        results[dec] = r
+        print(
+            f"jpeg_decoder={dec:5} preset={args.preset}: CPU {r['cpu_ms']:.2f} ms/frame = {r['cpu_pct']:.1f} % "
+            f"of one core at {FPS} fps; transcode() wall p50 {r['wall_p50']:.1f} ms p95 {r['wall_p95']:.1f} ms; "
+            f"{r['kbps']:.0f} kbit/s at {r['fps']:.1f} fps; load {loadavg()}"
+        )
+    p = parts(jpegs, args.preset, args.bitrate)
+    print(
+        f"parts (cv2): JPEG decode + I420 {p['decode_ms']:.2f} ms CPU/frame; encode {p['encode_ms']:.2f} ms "
+        f"CPU/frame, encode() wall p50 {p['encode_wall_p50']:.1f} ms p95 {p['encode_wall_p95']:.1f} ms"
+    )
+    print(f"load average after: {loadavg()}")
+    best = min(results, key=lambda d: results[d]["cpu_pct"])
+    b = results[best]
+    row(
+        f"Transcoding MJPEG → H.264 704×576 @ 30 ({args.preset}, {args.bitrate // 1000} kbit/s), CPU",
+        f"{b['cpu_pct']:.1f} % of a core ({best}; "
+        + ", ".join(f"{d} {results[d]['cpu_pct']:.1f} %" for d in results)
+        + ")",
+        "≤ 25 %",
+        b["cpu_pct"] <= 25.0,
+    )
+    row(
+        "Transcoding latency, one frame (decode + encode, wall)",
+        f"p50 {b['wall_p50']:.1f} ms, p95 {b['wall_p95']:.1f} ms (encode alone p50 {p['encode_wall_p50']:.1f} ms)",
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,262 @@
+"""Encoder, transcoder and decoder on the simulated camera's own JPEGs (704×576, compression 0) and real libx264."""
+
+from __future__ import annotations
+
+import statistics
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.annexb import NalType
+from axis_ptz_ros2.media.decoder import H264Decoder
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
+from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
+from axis_ptz_ros2.sim.scene import load_world, shared_scene
+
+pytestmark = pytest.mark.unit
+
+
+@pytest.fixture(scope="module")
+def renderer() -> PtzRenderer:
+    world = load_world()
+    return PtzRenderer(world, shared_scene(world))
+
+
+@pytest.fixture(scope="module")
+def jpegs(renderer: PtzRenderer) -> list[bytes]:
+    """40 frames of the camera panning slowly, 0.2° per frame (6°/s at 30 fps), as the camera sends them."""
+    return [encode_jpeg(renderer.render(-30.0 + 0.2 * i, -3.0, 1.0, 704, 576), 0) for i in range(40)]
+
+
+@pytest.fixture(scope="module")
+def fast_pan(renderer: PtzRenderer) -> list[bytes]:
+    """30 frames panning 3° per frame: enough new picture that the bitrate limits the frame sizes."""
+    return [encode_jpeg(renderer.render(40.0 + 3.0 * i, -8.0, 1.0, 704, 576), 0) for i in range(30)]
+
+
+def bgr(jpeg: bytes) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None
+    return img
+
+
+def check_idr_headers(frame: EncodedFrame) -> None:
+    types = annexb.nal_types(frame.data)
+    assert frame.keyframe == (NalType.IDR in types)
+    if frame.keyframe:
+        assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
+    else:
+        assert NalType.SPS not in types
+        assert NalType.PPS not in types
+
+
+@pytest.mark.parametrize(
+    ("jpeg_decoder", "motion", "median_db"),
+    [("cv2", "still", 35.0), ("pyav", "still", 35.0), ("cv2", "panning", 33.0), ("pyav", "panning", 33.0)],
+)
+def test_round_trip_psnr_at_1500_kbits(jpegs: list[bytes], jpeg_decoder: str, motion: str, median_db: float) -> None:
+    """Against the camera's own compression-0 JPEG, decoded: ≥ 35 dB camera still, ≥ 33 dB panning (issue 21)."""
+    tc = MjpegTranscoder(TranscoderConfig(bitrate_bps=1_500_000, jpeg_decoder=jpeg_decoder))  # type: ignore[arg-type]
+    dec = H264Decoder()
+    psnr = []
+    sizes = []
+    frames = jpegs if motion == "panning" else [jpegs[0]] * len(jpegs)
+    for i, jpeg in enumerate(frames):
+        out = tc.transcode(jpeg, capture_ns=1_000 + i)
+        assert (out.pts, out.width, out.height, out.capture_ns) == (i, 704, 576, 1_000 + i)
+        check_idr_headers(out)
+        sizes.append(len(out.data))
+        pic = dec.decode(out.data)
+        assert pic is not None
+        assert pic.image.shape == (576, 704, 3)
+        assert pic.capture_ns == 1_000 + i
+        psnr.append(cv2.PSNR(bgr(jpeg), pic.image))
+    print(
+        f"{jpeg_decoder} {motion}: PSNR median {statistics.median(psnr):.1f} dB, min {min(psnr):.1f} dB, "
+        f"{8 * sum(sizes) / len(sizes) * 30 / 1000:.0f} kbit/s"
+    )
+    assert statistics.median(psnr) >= median_db
+    assert min(psnr) >= 30.0
+    assert dec.stats.decode_errors == 0
+    assert dec.stats.pictures == len(frames)
+    assert 8 * sum(sizes) / len(sizes) * 30 <= 1_500_000 * 1.3  # the rate holds (first IDR included)
+
+
+def test_live_bitrate_change_changes_the_output_size(fast_pan: list[bytes]) -> None:
+    images = [bgr(j) for j in fast_pan]
+    enc = H264Encoder(EncoderConfig(704, 576, bitrate_bps=2_000_000, keyframe_interval=600))
+    high = [len(enc.encode_bgr(img).data) for img in images[:15]]
+    enc.set_bitrate(300_000)
+    low = [len(enc.encode_bgr(img).data) for img in images[15:]]
+    assert enc.reopens == 0  # lowering is live, no new IDR
+    mean_high, mean_low = statistics.mean(high[3:]), statistics.mean(low[3:])
+    print(f"P-frames at 2000 kbit/s {mean_high:.0f} B, at 300 kbit/s {mean_low:.0f} B")
+    assert mean_high > 2 * mean_low
+    assert mean_low * 8 * 30 <= 300_000 * 1.5
+    # above the rate it opened with: re-opened (x264 keeps its VBV maxrate), the next frame is an IDR
+    enc.set_bitrate(3_000_000)
+    out = enc.encode_bgr(images[0])
+    assert enc.reopens == 1
+    assert out.keyframe
+    assert enc.opened_max_bitrate_bps == 3_000_000
+    check_idr_headers(out)
+
+
+def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> None:
+    images = [bgr(j) for j in jpegs[:30]]
+    enc = H264Encoder(EncoderConfig(704, 576, keyframe_interval=10))
+    keys = []
+    for i, img in enumerate(images):
+        if i == 13:
+            enc.request_idr()
+        if i == 20:
+            enc.set_keyframe_interval(4)
+        out = enc.encode_bgr(img)
+        check_idr_headers(out)
+        assert out.pts == i
+        keys.append(out.keyframe)
+    # 0 (first), 10 (interval), 13 (on demand: the very next frame), 20 (13 + 10 would be 23: new interval 4
+    # counts from 13, already past) then every 4
+    assert [i for i, k in enumerate(keys) if k] == [0, 10, 13, 20, 24, 28]
+
+
+def test_codec_string_matches_the_sps_the_decoder_uses(jpegs: list[bytes]) -> None:
+    tc = MjpegTranscoder()
+    assert tc.codec_string is None
+    out = tc.transcode(jpegs[0])
+    sps = annexb.find_sps(out.data)
+    assert sps is not None
+    assert tc.codec_string == sps.codec_string
+    assert sps.codec_string == "avc1.42C0" + f"{sps.level_idc:02X}"  # Constrained Baseline
+    assert sps.level_idc >= 30  # 704×576 @ 30 needs level 3.0+
+    pic = H264Decoder().decode(out.data)
+    assert pic is not None
+    assert pic.image.shape[1::-1] == (sps.width, sps.height)
+
+
+def test_resolution_change_reopens_the_encoder_and_the_decoder_follows(
+    jpegs: list[bytes], renderer: PtzRenderer
+) -> None:
+    small = encode_jpeg(renderer.render(0.0, -3.0, 1.0, 352, 288), 0)
+    tc = MjpegTranscoder()
+    dec = H264Decoder()
+    outs = [tc.transcode(j) for j in (jpegs[0], jpegs[1], small, small, jpegs[2])]
+    assert [o.keyframe for o in outs] == [True, False, True, False, True]
+    assert [(o.width, o.height) for o in outs][1:4] == [(704, 576), (352, 288), (352, 288)]
+    assert tc.encoder_opens == 3
+    shapes = []
+    for o in outs:
+        pic = dec.decode(o.data)
+        assert pic is not None
+        shapes.append(pic.image.shape[:2])
+    assert shapes == [(576, 704), (576, 704), (288, 352), (288, 352), (576, 704)]
+    assert dec.stats.decode_errors == 0
+
+
+def test_decoder_joining_mid_gop_waits_for_an_idr(jpegs: list[bytes]) -> None:
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=600))
+    outs = []
+    for i, j in enumerate(jpegs[:16]):
+        if i == 10:
+            tc.request_idr()
+        outs.append(tc.transcode(j))
+    dec = H264Decoder()
+    results = [dec.decode(o.data) for o in outs[3:]]  # joins at frame 3, a P-frame
+    assert all(r is None for r in results[:7])
+    assert dec.waiting_for_idr is False
+    assert all(r is not None for r in results[7:])
+    assert dec.stats.waiting_drops == 7
+    assert dec.stats.decode_errors == 0
+    assert results[7] is not None
+    assert results[7].keyframe
+
+
+def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None:
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=8))
+    outs = [tc.transcode(j).data for j in jpegs[:20]]
+    dec = H264Decoder()
+    got = []
+    for i, au in enumerate(outs):
+        if i == 3:
+            au = au[: len(au) // 3]  # truncated slice
+        elif i == 5:
+            au = b"\x00\x00\x01\x41" + bytes(range(256)) * 4  # garbage in a P-slice header
+        elif i == 6:
+            au = b"\x12\x34"  # not Annex B at all
+        got.append(dec.decode(au) is not None)
+    assert dec.stats.decode_errors >= 2
+    assert got[:3] == [True, True, True]
+    assert not any(got[3:8])  # nothing (no smeared or old picture) until the IDR at frame 8
+    assert all(got[8:])
+    assert not dec.waiting_for_idr
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "reason"),
+    [
+        ({"width": 703}, "width must be an even"),
+        ({"height": 0}, "height must be an even"),
+        ({"bitrate_bps": 10}, "bitrate must be"),
+        ({"bitrate_bps": True}, "bitrate must be"),
+        ({"keyframe_interval": 0}, "keyframe interval"),
+        ({"preset": "placebo"}, "preset must be one of"),
+        ({"fps": 0}, "fps must be"),
+        ({"threads": 0}, "threads must be"),
+    ],
+)
+def test_bad_encoder_parameters_are_refused(kwargs: dict[str, object], reason: str) -> None:
+    base: dict[str, object] = {"width": 704, "height": 576}
+    with pytest.raises(EncoderError, match=reason):
+        EncoderConfig(**(base | kwargs))  # type: ignore[arg-type]
+
+
+def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
+    for jpeg_decoder in ("cv2", "pyav"):
+        tc = MjpegTranscoder(TranscoderConfig(jpeg_decoder=jpeg_decoder))  # type: ignore[arg-type]
+        first = tc.transcode(jpegs[0])
+        for bad in (b"", b"not a jpeg", jpegs[1][:200]):
+            with pytest.raises(TranscodeError):
+                tc.transcode(bad)
+        nxt = tc.transcode(jpegs[1])
+        assert (first.pts, nxt.pts, nxt.keyframe) == (0, 1, False)
+        assert tc.bad_jpegs == 3
+    enc = H264Encoder(EncoderConfig(704, 576))
+    with pytest.raises(EncoderError, match="expected a 704x576"):
+        enc.encode_bgr(np.zeros((288, 352, 3), np.uint8))
+    with pytest.raises(EncoderError, match="bitrate"):
+        enc.set_bitrate(1)
+    with pytest.raises(EncoderError, match="jpeg_decoder"):
+        TranscoderConfig(jpeg_decoder="libjpeg")  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def short_stream(jpegs: list[bytes]) -> list[bytes]:
+    """IDR, P, P, IDR, P, P with capture stamps."""
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=3))
+    return [tc.transcode(j, capture_ns=i).data for i, j in enumerate(jpegs[:6])]
+
+
+@settings(max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_decoder_never_raises_on_mutated_streams(short_stream: list[bytes], data: st.DataObject) -> None:
+    """Random byte changes anywhere in a real IDR + P stream: pictures or counted errors, never an exception."""
+    aus = [bytearray(au) for au in short_stream]
+    for _ in range(data.draw(st.integers(1, 6))):
+        au = aus[data.draw(st.integers(0, len(aus) - 1))]
+        au[data.draw(st.integers(0, len(au) - 1))] = data.draw(st.integers(0, 255))
+    cut = data.draw(st.integers(0, len(aus) - 1))
+    aus[cut] = aus[cut][: data.draw(st.integers(0, len(aus[cut])))]
+    dec = H264Decoder()
+    out = [dec.decode(bytes(au)) for au in aus]
+    assert dec.stats.access_units == len(aus)
+    assert dec.stats.pictures == sum(pic is not None for pic in out)
+    for pic in out:
+        if pic is not None:
+            assert pic.image.shape == (576, 704, 3)
