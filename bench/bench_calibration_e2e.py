@@ -31,7 +31,7 @@ from pathlib import Path
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # tests.support (the simulated-board picker)
+sys.path.insert(0, str(ROOT))  # tests.support (the ROS harness, the simulated-board picker)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
@@ -57,13 +57,13 @@ from axis_ptz_ros2.calibration.correspondences import load_correspondences  # no
 from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import Transform  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim_picker import SimBoardPicker  # noqa: E402
 
 #: The boards in config/sim_world.yaml: 1× views see at most two boards (front + left), 12 dots in all.
