@@ -38,12 +38,12 @@ from hypothesis import strategies as st  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.teleop import keymap  # noqa: E402
 from axis_ptz_ros2.web import api  # noqa: E402
 from axis_ptz_ros2.web.view import FROM_BROWSER  # noqa: E402
 from tests.ros.test_web_console import FakePtz, jpeg  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = pytest.mark.fuzz
 

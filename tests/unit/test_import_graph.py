@@ -11,7 +11,7 @@ Layers, lowest first — a module may import its own layer and the layers below 
 3. ``nodes/``                                                        — ROS glue
 
 and ROS (``rclpy`` and message packages) only in layer 3. The simulator is a stand-in for hardware: the product's
-layers below it must not import it; only the simulated-robot nodes may.
+layers below it must not import it (``test_package_imports.py`` checks who may).
 
 The graph is the runtime one: imports under ``if TYPE_CHECKING:`` are annotations (the simulator's request handlers
 name the camera type they are handed), not dependencies, and are left out.
@@ -35,7 +35,6 @@ ROS_ROOTS = {
 LAYER_0 = {"", "tls", "strict_yaml", "vapix", "media"}
 LAYER_2 = {"sim"}
 LAYER_3 = {"nodes"}
-SIM_USERS = {"axis_ptz_ros2.nodes.panorama_sim", "axis_ptz_ros2.nodes.laser_sim"}
 # share-directory look-ups through ament_index when it is installed (optional; both work without it)
 ROS_OK_OUTSIDE_NODES = {
     "axis_ptz_ros2.camera_info_store": {"ament_index_python"},
@@ -126,17 +125,6 @@ def test_ros_only_in_nodes() -> None:
         bad += [
             f"{module} imports {t}" for t in targets if t.split(".")[0] in ROS_ROOTS and t.split(".")[0] not in allowed
         ]
-    assert not bad, "\n".join(sorted(bad))
-
-
-def test_only_the_simulated_robot_nodes_import_the_simulator() -> None:
-    bad = [
-        f"{module} imports {t}"
-        for module, targets in GRAPH.items()
-        if _layer(module) == 3 and module not in SIM_USERS
-        for t in targets
-        if t.startswith("axis_ptz_ros2.sim")
-    ]
     assert not bad, "\n".join(sorted(bad))
 
 
