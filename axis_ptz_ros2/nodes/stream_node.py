@@ -104,7 +104,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "max_bitrate_kbps",
-        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off)",
+        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off); "
+        "codec h264: caps the encoder's bitrate instead",
         "kbit/s",
         int_range=(0, 1_000_000),
     ),
@@ -492,9 +493,18 @@ class StreamNode(Node):
     def _publish_diagnostics(self) -> None:
         stats = self._reader.stats()
         rate = self._reader.meter.rate(time.monotonic())
-        level, message, values = diagnostic_status(
-            stats, rate, self._video.state(), self._client.auth_counters.as_dict()
-        )
+        extra = self._client.auth_counters.as_dict()
+        if self._video.h264:
+            h = self._stage.stats
+            extra |= {
+                "h264 encoding": self._stage.active,
+                "h264 bitrate target [kbit/s]": self._video.h264_settings().bitrate_kbps,
+                "h264 access units": h.frames,
+                "h264 IDRs": h.idrs,
+                "h264 IDRs on demand": h.idr_requests,
+                "h264 dropped inputs": h.bad_inputs,
+            }
+        level, message, values = diagnostic_status(stats, rate, self._video.state(), extra)
         name = f"{self.get_fully_qualified_name()}: MJPEG stream"
         self._diag_pub.publish(diagnostic(self, name, level, message, values, hardware_id=self._client.config.base_url))
 
