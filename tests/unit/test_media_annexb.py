@@ -81,9 +81,12 @@ def test_malformed_framing_is_refused_with_a_reason(data: bytes, reason: str) ->
 
 
 @settings(database=None)
-@given(st.binary(max_size=200), st.sampled_from([b"\x80", b"\x00\x00", b"\x01\x00\x00"]))
-def test_emulation_prevention_round_trips_and_leaves_no_start_code(body: bytes, tail: bytes) -> None:
-    rbsp = body + tail  # ends in the stop bit, or in a cabac_zero_word
+@given(st.binary(max_size=200), st.integers(1, 255), st.integers(0, 3))
+def test_emulation_prevention_round_trips_and_leaves_no_start_code(body: bytes, stop: int, zero_words: int) -> None:
+    # An RBSP ends in the byte holding rbsp_stop_one_bit (never 0), then optionally cabac_zero_words (00 00 each)
+    # (H.264 §7.3.2.10, §7.4.1). Hypothesis found that an odd run of zeros after the stop byte cannot be escaped
+    # and round-tripped; it is not an RBSP, so it is not generated.
+    rbsp = body + bytes([stop]) + b"\x00\x00" * zero_words
     ebsp = annexb.rbsp_to_ebsp(rbsp)
     for bad in (b"\x00\x00\x00", b"\x00\x00\x01", b"\x00\x00\x02"):
         assert bad not in ebsp
