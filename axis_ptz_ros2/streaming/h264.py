@@ -205,6 +205,18 @@ class H264Stage:
             self._idr_pending = True
             return self._clock() - self._last_idr_request >= IDR_MIN_INTERVAL_S
 
+    @property
+    def idr_wanted(self) -> bool:
+        """An IDR has been asked for and not yet given (for a source that makes its own: RTSP)."""
+        return self._idr_pending and self._clock() - self._last_idr_request >= IDR_MIN_INTERVAL_S
+
+    def idr_sent(self) -> None:
+        """A source that makes its own IDRs has asked for one (the rate limit counts from now)."""
+        with self._lock:
+            self._idr_pending = False
+            self._last_idr_request = self._clock()
+            self.stats.idr_requests += 1
+
     def discontinuity(self) -> None:
         """The source restarted (the reader reconnected): the next frame is an IDR, at once."""
         with self._lock:
@@ -238,7 +250,10 @@ class H264Stage:
 
     def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame | None:
         """Seam for sources that deliver H.264 (RTSP pass-through): publish one access unit as it came, with
-        SPS/PPS put in front of an IDR that lacks them. None while inactive or when it is malformed."""
+        SPS/PPS put in front of an IDR that lacks them. None while inactive or when it is malformed.
+
+        Such a source makes its own IDRs: whoever drives it reads :attr:`idr_wanted` (and calls
+        :meth:`idr_sent` once it has asked the camera, e.g. RTSP ``SET_PARAMETER`` ``Renew-Stream: yes``)."""
         with self._lock:
             if not self._active:
                 self.stats.skipped_inactive += 1

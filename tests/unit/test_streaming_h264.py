@@ -237,6 +237,16 @@ def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
         assert o is not None
         if o.keyframe:
             assert NalType.SPS in annexb.nal_types(o.data)
+    # such a source makes its own IDRs: the stage says when one is wanted, rate-limited like the transcoder's
+    h.clock.t += 1.0
+    assert h.stage.request_idr()
+    assert h.stage.idr_wanted
+    h.stage.idr_sent()
+    assert not h.stage.idr_wanted
+    h.stage.request_idr()
+    assert not h.stage.idr_wanted  # inside the interval
+    h.clock.t += IDR_MIN_INTERVAL_S
+    assert h.stage.idr_wanted
     # a bare IDR before any parameter set is refused, not published
     h2 = Harness()
     h2.stage.set_active(True)
