@@ -429,11 +429,14 @@ class StreamNode(Node):
             self.get_logger().debug(str(judgement))
 
     def _subscribed(self, consumer: str) -> bool:
-        """Whether the node named ``consumer`` (fully qualified) has a discovered image subscription."""
-        for info in self.get_subscriptions_info_by_topic(self._image_pub.topic_name):
-            ns = info.node_namespace.rstrip("/")
-            if f"{ns}/{info.node_name}" == consumer:
-                return True
+        """Whether the node named ``consumer`` (fully qualified) has a discovered image subscription (in h264 mode
+        also on the H.264 topics)."""
+        pubs = [self._image_pub, self._ffmpeg_pub, self._foxglove_pub] if self._video.h264 else [self._image_pub]
+        for pub in pubs:
+            for info in self.get_subscriptions_info_by_topic(pub.topic_name):
+                ns = info.node_namespace.rstrip("/")
+                if f"{ns}/{info.node_name}" == consumer:
+                    return True
         return False
 
     # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------

@@ -339,6 +339,30 @@ def test_camera_reboot_resumes_with_an_idr_and_no_old_frame(ros: RosHarness, cam
     print(f"frames resumed {resumed:.2f} s after the camera was back")  # noqa: T201
 
 
+def test_link_feedback_lowers_the_encoders_bitrate(ros: RosHarness, camera: SimulatedCamera) -> None:
+    """A consumer that receives a fraction of the frames: the budget goes to the encoder (smaller messages), the
+    camera is not asked for anything else (compression 0 stays)."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=1500)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 45, timeout=10)  # 3 s: the meter's window is full
+    t0 = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t0)) >= 30, timeout=10)
+    before = statistics.median(len(p.data) for p in rec.since(t0) if not p.key)
+    n0 = len(camera.request_counts.video_log)
+    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
+    report = LinkFeedback(consumer="/operator", frames=10, fps=5.0, kbps=400.0, window_s=2.0)
+    report.delay_p95_s, report.delay_min_s, report.gap_s = 0.02, 0.01, 0.1
+    pub.publish(report)
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps <= 0.8 * 400 + 1, timeout=3)
+    t1 = time.monotonic() + 0.5
+    ros.wait_for(lambda: len(rec.since(t1)) >= 30, timeout=10)
+    after = statistics.median(len(p.data) for p in rec.since(t1) if not p.key)
+    assert after < 0.6 * before, (before, after)
+    assert node._video.current.compression == 0
+    assert all(video_args(e.query)["compression"] == "0" for e in camera.request_counts.video_log[n0:])
+
+
 def test_republisher_decodes_h264_to_image(ros: RosHarness, camera: SimulatedCamera) -> None:
     make_node(ros, camera, **H264)
     rep = ros.add(RepublishNode(context=ros.context, parameter_overrides=[Parameter("input", value="h264")]))
