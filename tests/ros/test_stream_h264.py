@@ -77,6 +77,7 @@ class Packet:
     encoding: str
     stamp_ns: int
     frame_id: str
+    rx_ns: int = 0  # wall clock at receipt
 
 
 @dataclass
@@ -98,6 +99,7 @@ class H264Recorder:
             str(msg.encoding),
             msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
             str(msg.header.frame_id),
+            time.time_ns(),
         )
         with self.lock:
             self.packets.append(p)
@@ -187,6 +189,9 @@ def test_h264_frames_decode_at_full_size_and_quality(ros: RosHarness, camera: Si
         f"{statistics.median(vs_jpeg):.1f} dB against a compression-0 JPEG, {len(scores)} frames"
     )
     assert statistics.median(scores) >= 35.0
+    # age at the subscriber from the camera's own send time (the SEI), on loopback
+    ages = [(p.rx_ns - (annexb.extract_capture_stamp(p.data) or p.rx_ns)) / 1e6 for p in packets]
+    print(f"age camera -> subscriber: median {statistics.median(ages):.1f} ms, max {max(ages):.1f} ms")  # noqa: T201
     # one access unit per message, SPS/PPS with every IDR, flags bit 0 = IDR, pts strictly increasing
     for p in packets:
         types = annexb.nal_types(p.data)
