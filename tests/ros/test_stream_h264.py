@@ -32,13 +32,13 @@ from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
 from axis_ptz_ros2.media import annexb  # noqa: E402
 from axis_ptz_ros2.media.annexb import NalType  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.nodes.republish import RepublishNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.persona import AXIS_214_PICTURE  # noqa: E402
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
