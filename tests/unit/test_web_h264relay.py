@@ -59,11 +59,14 @@ def test_record_round_trip(frames: list[EncodedFrame]) -> None:
     au = AccessUnit(frames[0].data, True, 1764170000.123456, "avc1.42C00B")
     rec = encode_record(au, catch_up=True) + encode_record(AccessUnit(frames[1].data, False, 2.5, "avc1.42C00B"))
     got, rest = decode_records(rec[:-3])
-    assert len(got) == 1 and got[0] == (au, True)
+    assert len(got) == 1
+    assert got[0] == (au, True)
     assert rest == rec[len(encode_record(au)) : -3]
     got, rest = decode_records(rec)
-    assert [g[0].key for g in got] == [True, False] and rest == b""
-    assert got[1][0].stamp_s == 2.5 and not got[1][1]
+    assert [g[0].key for g in got] == [True, False]
+    assert rest == b""
+    assert got[1][0].stamp_s == 2.5
+    assert not got[1][1]
 
 
 def test_codec_string_from_the_sps_and_refusals(frames: list[EncodedFrame]) -> None:
@@ -91,10 +94,13 @@ def test_late_joiner_gets_the_gop_and_decodes_it(frames: list[EncodedFrame]) -> 
         while (r := slot.next(client, 0.01)) is not None:
             got.append(r)
         assert [g[0].data for g in got] == [f.data for f in frames[10:14]]
-        assert got[0][0].key and [g[1] for g in got] == [True, True, True, False]  # only the newest is drawn
+        assert got[0][0].key
+        assert [g[1] for g in got] == [True, True, True, False]
         slot.publish(frames[14].data, False, 0.0)
         live = slot.next(client, 1.0)
-        assert live is not None and live[0].data == frames[14].data and not live[1]
+        assert live is not None
+        assert live[0].data == frames[14].data
+        assert not live[1]
         assert _decode([g[0].data for g in got] + [live[0].data]) == 5
     assert events == [("ptz", 1), ("ptz", 0)]
     with slot.watch() as client:  # after the last watcher left, nothing old is replayed
@@ -106,14 +112,16 @@ def test_a_new_client_without_a_gop_starts_at_the_next_key_frame(frames: list[En
     with slot.watch() as client:
         slot.publish(frames[0].data, True, 0.0)  # sets the codec; the client is synced on it
         first = slot.next(client, 0.1)
-        assert first is not None and first[0].key
+        assert first is not None
+        assert first[0].key
     with slot.watch() as client:  # GOP was dropped with the last watcher: P-frames are not for this client
         for f in frames[1:10]:
             slot.publish(f.data, f.keyframe, 0.0)
         assert slot.next(client, 0.01) is None
         slot.publish(frames[10].data, True, 0.0)
         r = slot.next(client, 0.1)
-        assert r is not None and r[0].key
+        assert r is not None
+        assert r[0].key
 
 
 def test_a_slow_client_is_cut_back_to_the_next_key_frame_and_an_idr_is_asked_for() -> None:
@@ -176,7 +184,8 @@ def test_http_stream_delivers_decodable_access_units(
     conn = http.client.HTTPConnection("127.0.0.1", srv.port, timeout=5)
     conn.request("GET", "/video/ptz.h264")
     res = conn.getresponse()
-    assert res.status == 200 and res.getheader("Content-Type") == CONTENT_TYPE
+    assert res.status == 200
+    assert res.getheader("Content-Type") == CONTENT_TYPE
     deadline = time.monotonic() + 5
     while backend.h264.watchers == 0 and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -198,7 +207,8 @@ def test_http_stream_delivers_decodable_access_units(
         got += recs
     t.join()
     assert [g[0].data for g in got] == [f.data for f in frames]
-    assert got[0][0].key and got[0][0].codec == backend.h264.codec
+    assert got[0][0].key
+    assert got[0][0].codec == backend.h264.codec
     assert [g[0].stamp_s for g in got] == [100.0 + i / 30 for i in range(len(frames))]
     assert _decode([g[0].data for g in got]) == len(frames)
     res.close()
@@ -214,5 +224,6 @@ def test_http_refuses_other_streams(served: tuple[ConsoleServer, _Backend]) -> N
     conn = http.client.HTTPConnection("127.0.0.1", srv.port, timeout=5)
     conn.request("GET", "/video/panorama.h264")
     res = conn.getresponse()
-    assert res.status == 404 and b"no H.264 stream" in res.read()
+    assert res.status == 404
+    assert b"no H.264 stream" in res.read()
     conn.close()
