@@ -296,6 +296,28 @@ def test_bitrate_parameter_changes_the_message_sizes(ros: RosHarness, camera: Si
     assert statistics.median(small) < 0.5 * statistics.median(big), (big, small)
 
 
+def test_resolution_change_mid_stream_starts_with_an_idr_of_the_new_size(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    make_node(ros, camera, **H264)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 10, timeout=10)
+    (res,) = set_params(ros, probe, resolution="352x288")
+    assert res.successful, res.reason
+    ros.wait_for(lambda: sum(p.width == 352 for p in rec.since(0.0)) >= 5, timeout=5)
+    packets = rec.since(0.0)
+    first_small = next(p for p in packets if p.width == 352)
+    assert first_small.key
+    sps = annexb.find_sps(first_small.data)
+    assert sps is not None
+    assert (sps.width, sps.height) == (352, 288)
+    assert all(p.width == 352 for p in packets[packets.index(first_small) :])  # no old-size frame after it
+    sizes = [img.shape[:2] for _p, img in decode_all(packets)]  # one decoder across the change
+    assert (576, 704) in sizes
+    assert sizes[-1] == (288, 352)
+
+
 def test_invalid_codec_values_refused_with_reason_never_sent(ros: RosHarness, camera: SimulatedCamera) -> None:
     node = make_node(ros, camera, **H264)
     probe = ros.probe()
