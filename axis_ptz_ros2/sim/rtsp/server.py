@@ -150,6 +150,23 @@ class RtspListener:
                 self._conns.add(c)
             threading.Thread(target=c.run, name="rtsp-conn", daemon=True).start()
 
+    def find(self, sid: str) -> RtspSession | None:
+        """The live session ``sid`` on any connection (RTSP sessions are not tied to one connection)."""
+        with self._lock:
+            conns = list(self._conns)
+        for c in conns:
+            s = c.sessions.get(sid)
+            if s is not None:
+                return s
+        return None
+
+    def drop(self, sid: str) -> None:
+        """Forget session ``sid`` (TEARDOWN, from any connection)."""
+        with self._lock:
+            conns = list(self._conns)
+        for c in conns:
+            c.sessions.pop(sid, None)
+
     def _forget(self, conn: _Connection) -> None:
         with self._lock:
             self._conns.discard(conn)
@@ -275,8 +292,9 @@ class _Connection:
     # ---- requests ------------------------------------------------------------------------------------------
     def _answer(self, req: _Request) -> None:
         sid = (req.header("Session") or "").split(";")[0].strip()
-        if sid in self.sessions:
-            self.sessions[sid].touch()
+        found = self.listener.find(sid) if sid else None
+        if found is not None:
+            found.touch()
         resp = _Response(503) if self.cam.serving_errors() else self._dispatch(req, sid)
         lines = [f"RTSP/1.0 {resp.status} {REASONS.get(resp.status, 'Error')}", f"CSeq: {req.header('CSeq') or 0}"]
         lines.append(f"Date: {email.utils.formatdate(usegmt=True)}")
@@ -285,7 +303,9 @@ class _Connection:
             lines.append(f"Content-Length: {len(resp.body)}")
         self.send(("\r\n".join(lines) + "\r\n\r\n").encode() + resp.body)
         if req.method == "PLAY" and resp.status == 200:
-            self.sessions[sid].play()  # after the reply: no RTP before the PLAY response
+            found = self.listener.find(sid)
+            if found is not None:
+                found.play()  # after the reply: no RTP before the PLAY response
 
     def _dispatch(self, req: _Request, sid: str) -> _Response:
         if req.method not in METHODS:
@@ -299,13 +319,19 @@ class _Connection:
         verdict = self.cam.auth_result(req.header("Authorization"), req.method, req.uri)
         if verdict != "ok":
             return _Response(401, [("WWW-Authenticate", c) for c in self.cam.challenges(stale=verdict == "stale")])
-        if req.method in ("PLAY", "TEARDOWN", "GET_PARAMETER", "SET_PARAMETER") and sid not in self.sessions:
+        if req.method in ("PLAY", "TEARDOWN", "GET_PARAMETER", "SET_PARAMETER") and self.listener.find(sid) is None:
             if req.method == "GET_PARAMETER" and not sid:
                 return _Response(200)
             return _Response(454)
         handler = getattr(self, "_" + req.method.lower())
         result: _Response = handler(req, url, sid)
         return result
+
+    def _session(self, sid: str) -> RtspSession:
+        session = self.listener.find(sid)
+        if session is None:
+            raise StreamClosedError  # torn down between the check and now: nothing sensible to answer
+        return session
 
     def _media(self, url: urllib.parse.SplitResult) -> MediaRequest:
         args = urllib.parse.parse_qsl(url.query, keep_blank_values=True)
@@ -340,7 +366,7 @@ class _Connection:
         if sid and sid in self.sessions:
             session = self.sessions[sid]
         elif sid:
-            return _Response(454)
+            return _Response(454)  # SETUP of an existing session: only on the connection that carries its RTP
         else:
             try:
                 media = self._media(url)
@@ -362,7 +388,7 @@ class _Connection:
         return _Response(200, [("Transport", tp), ("Session", f"{session.id};timeout={timeout}")])
 
     def _play(self, req: _Request, url: urllib.parse.SplitResult, sid: str) -> _Response:
-        session = self.sessions[sid]
+        session = self._session(sid)
         if session.playing:
             return _Response(200, [("Session", sid), ("Range", "npt=now-")])
         seq, rtptime = session.prepare_play()
@@ -371,14 +397,15 @@ class _Connection:
         return _Response(200, [("Session", sid), ("Range", "npt=now-"), ("RTP-Info", info)])
 
     def _teardown(self, req: _Request, url: urllib.parse.SplitResult, sid: str) -> _Response:
-        self.sessions.pop(sid).stop()
+        self._session(sid).stop()
+        self.listener.drop(sid)
         return _Response(200)
 
     def _get_parameter(self, req: _Request, url: urllib.parse.SplitResult, sid: str) -> _Response:
         return _Response(200, [("Session", sid)])
 
     def _set_parameter(self, req: _Request, url: urllib.parse.SplitResult, sid: str) -> _Response:
-        session = self.sessions[sid]
+        session = self._session(sid)
         renew = False
         adjust: tuple[int | None, int | None] | None = None
         for line in req.body.decode("utf-8", "replace").splitlines():
