@@ -366,3 +366,13 @@ def test_a_reboot_drops_the_rtsp_connection(cam: SimulatedCamera) -> None:
     deadline = time.monotonic() + 10
     while cam.rebooting and time.monotonic() < deadline:
         time.sleep(0.1)
+
+
+def test_cli_rtsp_port_defaults_to_8554_or_a_free_one_with_a_free_http_port() -> None:
+    from axis_ptz_ros2.sim.cli import _rtsp_port, build_parser  # noqa: PLC0415
+
+    assert _rtsp_port(None, 8080) == 8554
+    assert _rtsp_port(None, 0) == 0  # the demo starts the camera on --port 0: two demos must not collide
+    assert _rtsp_port(-1, 8080) is None
+    assert _rtsp_port(9554, 0) == 9554
+    assert build_parser().parse_args(["--rtsp-port", "0"]).rtsp_port == 0
