@@ -1,7 +1,7 @@
 """One RTSP session of the simulated camera: the live H.264 stream of the camera's view (ROS-free).
 
-Each frame: the view rendered at the session's size and the capture time taken (``time.time_ns()`` when the
-render starts), encoded by :class:`~axis_ptz_ros2.media.encoder.H264Encoder` (libx264, Constrained Baseline,
+Each frame: the capture time taken (``time.time_ns()``), the view at the session's size as the MJPEG side makes
+it (rendered, softened and with sensor noise by the persona's camera model), encoded by :class:`~axis_ptz_ros2.media.encoder.H264Encoder` (libx264, Constrained Baseline,
 no B-frames), the SPS/PPS removed when they are the SDP's (an Axis camera sends them only in the SDP by default),
 the capture time put in an SEI (:func:`~axis_ptz_ros2.media.annexb.insert_capture_stamp`), then RTP on the 90 kHz
 clock tied to the wall clock (RTP time = ``rtp0 + (t − t0)·90 kHz``), so the RTCP sender reports (one before the
@@ -19,6 +19,10 @@ import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+import numpy.typing as npt
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import H264Encoder
@@ -69,6 +73,10 @@ class RtspSession:
         self._renew = False
         self._t0_ns = 0
         self._rtp0 = secrets.randbits(32)
+        self._view_key: tuple[float, float, float] | None = None
+        self._soft: npt.NDArray[np.uint8] | None = None
+        self._noise: tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]] | None = None
+        self._rng = np.random.default_rng()
 
     @property
     def playing(self) -> bool:
@@ -144,8 +152,7 @@ class RtspSession:
             if bitrate is not None:
                 enc.set_bitrate(bitrate)
             capture_ns = time.time_ns()
-            pan, tilt, zoom = cam.position()
-            image = cam.renderer.render(pan, tilt, zoom, req.width, req.height)
+            image = self._picture()
             try:
                 frame = enc.encode_bgr(image, capture_ns)
             except EncoderError:
@@ -175,6 +182,27 @@ class RtspSession:
                 next_t = time.monotonic()  # fell behind (slow render, stall): do not burst
             elif delay > 0:
                 self._stop.wait(delay)
+
+    def _picture(self) -> npt.NDArray[np.uint8]:
+        """The view as the sensor sees it, as on the MJPEG side (the persona's camera model: the optics' and
+        video chain's softness once per view, a new draw of sensor noise per frame); rendered only on a move."""
+        cam, req = self.cam, self.request
+        pan, tilt, zoom = cam.position()
+        key = (round(pan, 5), round(tilt, 5), round(zoom, 3))
+        model = cam.persona.picture
+        if key != self._view_key or self._soft is None:
+            self._soft = model.soften(cam.renderer.render(pan, tilt, zoom, req.width, req.height), zoom)
+            self._view_key = key
+        if not model.noisy:
+            return self._soft
+        if self._noise is None:
+            self._noise = model.noise_field(req.width, req.height)
+        pos, neg = self._noise
+        h, w = req.height, req.width
+        dy = int(self._rng.integers(0, pos.shape[0] - h + 1))
+        dx = int(self._rng.integers(0, pos.shape[1] - w + 1))
+        noisy = cv2.subtract(cv2.add(self._soft, pos[dy : dy + h, dx : dx + w]), neg[dy : dy + h, dx : dx + w])
+        return np.asarray(noisy, dtype=np.uint8)
 
     def _wire_access_unit(self, data: bytes, keyframe: bool, capture_ns: int) -> bytes:
         """What the camera sends for one frame: SPS/PPS dropped when the SDP has them, capture-time SEI added."""
