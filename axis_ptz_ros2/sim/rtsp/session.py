@@ -2,7 +2,8 @@
 
 Each frame: the capture time taken (``time.time_ns()``), the view at the session's size as the MJPEG side makes
 it (rendered, softened and with sensor noise by the persona's camera model), encoded by
-:class:`~axis_ptz_ros2.media.encoder.H264Encoder` (libx264, Constrained Baseline, no B-frames), the SPS/PPS removed when they are the SDP's (an Axis camera sends them only in the SDP by default),
+:class:`~axis_ptz_ros2.media.encoder.H264Encoder` (libx264, Constrained Baseline, no B-frames), the SPS/PPS
+removed when they are the SDP's (an Axis camera sends them only in the SDP by default),
 the capture time put in an SEI (:func:`~axis_ptz_ros2.media.annexb.insert_capture_stamp`), then RTP on the 90 kHz
 clock tied to the wall clock (RTP time = ``rtp0 + (t − t0)·90 kHz``), so the RTCP sender reports (one before the
 first frame, then every second) give a client the capture time of every frame.
