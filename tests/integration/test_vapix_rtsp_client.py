@@ -116,7 +116,7 @@ def test_wrong_password_and_unknown_path_are_typed_errors(cam: SimulatedCamera) 
     assert status.value.status_code == 404
 
 
-def test_a_stall_is_a_timeout_and_a_reboot_a_lost_connection(cam: SimulatedCamera) -> None:
+def test_a_stall_is_a_timeout_a_drop_or_reboot_a_lost_connection(cam: SimulatedCamera) -> None:
     cam.set_faults(stall_after_frames=3, stall_seconds=5.0)
     try:
         with _client(cam, read_timeout_s=1.0) as c:
@@ -128,6 +128,16 @@ def test_a_stall_is_a_timeout_and_a_reboot_a_lost_connection(cam: SimulatedCamer
             assert time.monotonic() - t0 < 2.5
     finally:
         cam.set_faults(stall_after_frames=0, stall_seconds=0.0)
+    cam.set_faults(drop_after_frames=4)
+    try:
+        with _client(cam) as c:
+            for _ in range(3):
+                c.read()
+            with pytest.raises(CameraUnreachable):  # the 4th frame is cut mid access unit: never handed out
+                c.read()
+            assert c.dropped + c.refused <= 1
+    finally:
+        cam.set_faults(drop_after_frames=0)
     with _client(cam) as c:
         c.read()
         cam.reboot(0.5)
