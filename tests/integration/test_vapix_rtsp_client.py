@@ -229,3 +229,18 @@ def test_rtsp_control_renews_the_session_our_client_plays_from_another_connectio
         assert info.value.status_code == 454
     finally:
         ctl.close()
+
+
+def test_a_packet_dropping_reboot_is_a_read_timeout_then_the_camera_plays_again(cam: SimulatedCamera) -> None:
+    with _client(cam, read_timeout_s=1.0) as c:
+        c.read()
+        cam.reboot(2.0, blackhole=True)
+        t0 = time.monotonic()
+        with pytest.raises(CameraTimeout):  # the connection goes mute, not closed
+            _read_many(c, 100)
+        assert time.monotonic() - t0 < 2.0
+    deadline = time.monotonic() + 15
+    while cam.rebooting and time.monotonic() < deadline:
+        time.sleep(0.1)
+    with _client(cam) as c:
+        assert c.read().keyframe
