@@ -376,3 +376,29 @@ def test_cli_rtsp_port_defaults_to_8554_or_a_free_one_with_a_free_http_port() ->
     assert _rtsp_port(-1, 8080) is None
     assert _rtsp_port(9554, 0) == 9554
     assert build_parser().parse_args(["--rtsp-port", "0"]).rtsp_port == 0
+
+
+def test_the_pyav_reader_of_the_driver_plays_the_simulator(cam: SimulatedCamera) -> None:
+    """vapix.rtsp.RtspReader (FFmpeg underneath): SPS/PPS from the SDP in front of every IDR, RTCP capture time."""
+    from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspReader  # noqa: PLC0415
+
+    assert cam.rtsp is not None
+    url = MediaStreamRequest(resolution="640x360", fps=15, keyframe_interval=15).url(
+        "127.0.0.1", cam.rtsp.port, "root", PASSWORD
+    )
+    aus = []
+    with RtspReader(url, open_timeout_s=10, read_timeout_s=5, secrets=(PASSWORD,)) as reader:
+        for au in reader.access_units():
+            aus.append(au)
+            if len(aus) >= 40:
+                break
+    keys = [au for au in aus if au.keyframe]
+    assert len(keys) >= 2
+    assert all(annexb.NalType.SPS in annexb.nal_types(au.data) for au in keys)
+    offsets = [
+        abs(au.capture_ns - stamp)
+        for au in aus
+        if au.capture_ns is not None and (stamp := annexb.extract_capture_stamp(au.data)) is not None
+    ]
+    assert offsets
+    assert max(offsets) < 100_000_000
