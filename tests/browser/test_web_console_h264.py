@@ -208,3 +208,38 @@ def test_without_webcodecs_the_page_falls_back_to_mjpeg(
     assert not console.subscribed("ptz.h264")
     assert "MJPEG" in (pg.locator("#r-decoder").text_content() or "")
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+FAIL_ONCE_JS = """
+window.__axisFailNext = false;
+const __decode = VideoDecoder.prototype.decode;
+VideoDecoder.prototype.decode = function (chunk) {
+  if (window.__axisFailNext && chunk.type === "delta") {
+    window.__axisFailNext = false;
+    throw new DOMException("injected by the test", "EncodingError");
+  }
+  return __decode.call(this, chunk);
+};
+"""
+
+
+def test_after_a_decode_error_the_page_recovers_at_an_idr_the_stream_node_sends(
+    suite: tuple[SimulatedCamera, WebConsole], page: tuple[Any, list[str]], ros: RosHarness
+) -> None:
+    cam, console = suite
+    pg, errors = page
+    stream = next(n for n in ros.nodes if isinstance(n, StreamNode))
+    pg.add_init_script(FAIL_ONCE_JS)
+    pg.goto(console.url, wait_until="domcontentloaded")
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= 10, 30.0, "10 frames decoded on the canvas", pg)
+    time.sleep(2.5)  # past the stream node's IDR rate limit for the new subscriber
+    asked = stream._stage.stats.idr_requests
+    pg.evaluate("window.__axisFailNext = true")
+    wait_for(lambda: not pg.evaluate("window.__axisFailNext"), 5.0, "the injected decode failure", pg)
+    n0 = pg.evaluate(FRAMES_JS)
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= n0 + 10, 10.0, "frames decoded again after the error", pg)
+    dec = wait_for(lambda: (d := console.state()["decoder"])["errors"] >= 1 and d, 10.0, "the error reported")
+    print(f"console's decoder report after the injected error: {dec}")
+    wait_for(lambda: stream._stage.stats.idr_requests > asked, 10.0, "an IDR on demand from the stream node")
+    _matches_truth(pg, cam)
+    assert not errors, f"JavaScript errors on the page: {errors}"
