@@ -227,3 +227,28 @@ def test_http_refuses_other_streams(served: tuple[ConsoleServer, _Backend]) -> N
     assert res.status == 404
     assert b"no H.264 stream" in res.read()
     conn.close()
+
+
+def test_decoder_report_is_bounded_and_summed_over_pages() -> None:
+    from axis_ptz_ros2.web import api  # noqa: PLC0415
+    from axis_ptz_ros2.web.api import BadRequest  # noqa: PLC0415
+    from axis_ptz_ros2.web.view import ConsoleModel  # noqa: PLC0415
+
+    for body, words in (
+        ({"decoded": -1}, "'decoded'"),
+        ({"errors": 2**60}, "'errors'"),
+        ({"errors": 1.5}, "integer"),
+        ({"codec": "x" * 33}, "at most 32"),
+        ({"note": "n" * 201}, "at most 200"),
+        ({"mode": "h264\x00"}, "printable"),
+    ):
+        with pytest.raises(BadRequest, match=words):
+            api.decoder_request(body)
+    model = ConsoleModel()
+    for page in ({"mode": "h264", "decoded": 30, "errors": 1, "codec": "avc1.42C01E"}, {"decoded": 5, "errors": 2}):
+        r = api.decoder_request(page)
+        model.decoder(r.mode, r.decoded, r.errors, r.codec, r.note)
+    d = model.state(True, {})["decoder"]
+    assert (d["decoded"], d["errors"], d["reports"]) == (35, 3, 2)
+    assert d["mode"] == ""
+    assert d["age_s"] is not None
