@@ -159,6 +159,10 @@ def test_h264_decoded_on_the_canvas_shows_the_scene_and_follows_a_move(
         wait_js(pg, "document.getElementById('ptz').naturalWidth > 0", 30)
         pytest.skip(f"this chromium cannot decode {codec} with WebCodecs: isConfigSupported → {support}")
 
+    t_page = time.monotonic()
+    pg.reload(wait_until="domcontentloaded")  # timed from a fresh page (the stream is already up)
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= 1, 30.0, "a first frame on the canvas", pg)
+    print(f"page load → first H.264 frame on the canvas: {time.monotonic() - t_page:.2f} s")
     wait_for(lambda: pg.evaluate(FRAMES_JS) >= 20, 30.0, "20 frames decoded on the canvas", pg)
     assert pg.evaluate("document.getElementById('ptz').hidden && !document.getElementById('ptz-canvas').hidden")
     assert console.subscribed("ptz.h264")
