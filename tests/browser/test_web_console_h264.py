@@ -87,8 +87,8 @@ def page(browser: Any) -> Iterator[tuple[Any, list[str]]]:
         ctx.close()
 
 
-def _truth(cam: SimulatedCamera) -> np.ndarray:
-    img = cv2.imdecode(np.frombuffer(cam.frame_jpeg(W, H, 0), np.uint8), cv2.IMREAD_COLOR)
+def _truth(cam: SimulatedCamera, w: int = W, h: int = H) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(cam.frame_jpeg(w, h, 0), np.uint8), cv2.IMREAD_COLOR)
     assert img is not None
     return img
 
@@ -115,10 +115,10 @@ def _still(cam: SimulatedCamera) -> None:
     wait_for(lambda: not cam.state.moving(), 20.0, "the simulated head to stop")
 
 
-def _matches_truth(pg: Any, cam: SimulatedCamera, timeout: float = 15.0) -> tuple[float, float]:
+def _matches_truth(pg: Any, cam: SimulatedCamera, timeout: float = 15.0, w: int = W, h: int = H) -> tuple[float, float]:
     """Wait until the canvas shows the simulator's current view (new frames after the head stopped)."""
     _still(cam)
-    truth = _truth(cam)
+    truth = _truth(cam, w, h)
     best = (0.0, -1.0)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -246,4 +246,26 @@ def test_after_a_decode_error_the_page_recovers_at_an_idr_the_stream_node_sends(
     print(f"console's decoder report after the injected error: {dec}")
     wait_for(lambda: stream._stage.stats.idr_requests > asked, 10.0, "an IDR on demand from the stream node")
     _matches_truth(pg, cam)
+    assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def test_a_resolution_change_reaches_the_canvas(
+    suite: tuple[SimulatedCamera, WebConsole], page: tuple[Any, list[str]]
+) -> None:
+    cam, console = suite
+    pg, errors = page
+    pg.goto(console.url, wait_until="domcontentloaded")
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= 10, 30.0, "10 frames decoded on the canvas", pg)
+    answer = pg.evaluate(
+        "async () => (await fetch('/api/video', {method: 'POST', headers: {'Content-Type': 'application/json'},"
+        " body: JSON.stringify({resolution: '352x288'})})).json()"
+    )
+    assert answer["ok"], answer
+    size = "[document.getElementById('ptz-canvas').width, document.getElementById('ptz-canvas').height]"
+    wait_for(lambda: pg.evaluate(size) == [352, 288], 15.0, "the canvas at the new size", pg)
+    n0 = pg.evaluate(FRAMES_JS)
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= n0 + 10, 10.0, "frames at the new size", pg)
+    psnr, corr = _matches_truth(pg, cam, w=352, h=288)
+    print(f"after 704x576 → 352x288: PSNR {psnr:.1f} dB, corr {corr:.3f}; decoder {console.state()['decoder']}")
+    assert pg.evaluate("!document.getElementById('ptz-canvas').hidden")
     assert not errors, f"JavaScript errors on the page: {errors}"
