@@ -269,3 +269,26 @@ def test_a_resolution_change_reaches_the_canvas(
     print(f"after 704x576 → 352x288: PSNR {psnr:.1f} dB, corr {corr:.3f}; decoder {console.state()['decoder']}")
     assert pg.evaluate("!document.getElementById('ptz-canvas').hidden")
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def test_a_second_page_starts_from_the_current_gop(
+    suite: tuple[SimulatedCamera, WebConsole], page: tuple[Any, list[str]]
+) -> None:
+    _cam, console = suite
+    pg, errors = page
+    pg.goto(console.url, wait_until="domcontentloaded")
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= 10, 30.0, "10 frames decoded on the first page", pg)
+    second = pg.context.new_page()
+    t0 = time.monotonic()
+    second.goto(console.url, wait_until="domcontentloaded")
+    wait_for(lambda: second.evaluate(FRAMES_JS) >= 1, 10.0, "a first frame on the second page", second)
+    print(f"second page: load → first frame {time.monotonic() - t0:.2f} s (no new subscription: the GOP replayed)")
+    wait_for(lambda: console.state()["h264"]["watchers"] == 2, 5.0, "two H.264 watchers")
+    n1, n2 = pg.evaluate(FRAMES_JS), second.evaluate(FRAMES_JS)
+    time.sleep(2.0)
+    assert pg.evaluate(FRAMES_JS) > n1 + 5
+    assert second.evaluate(FRAMES_JS) > n2 + 5
+    second.close()
+    wait_for(lambda: console.state()["h264"]["watchers"] == 1, 10.0, "the second page's stream ended")
+    assert console.subscribed("ptz.h264")
+    assert not errors, f"JavaScript errors on the page: {errors}"
