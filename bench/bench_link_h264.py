@@ -127,9 +127,7 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
     def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int) -> None:
         rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h}
         count[0] += 1
-        if count[0] % PSNR_EVERY == 1 or count[0] == 1:
-            if img is None:
-                return emit(rec)
+        if count[0] % PSNR_EVERY == 1 and img is not None:
             rec["psnr"] = psnr(img)
         emit(rec)
 
@@ -205,6 +203,14 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             node.create_subscription(
                 CompressedImage, "image_raw/compressed", lambda m: on_jpeg(bytes(m.data), time.time_ns()), STREAM_QOS
             )
+    from axis_ptz_interfaces.msg import VideoParams
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS
+
+    def on_params(m: Any) -> None:  # the stream node's settings and budget (latched, rarely sent)
+        emit({"t": "params", "rx": time.time_ns(), "budget": m.max_bitrate_kbps, "source": m.source,
+              "fps": m.fps, "resolution": m.resolution, "compression": m.compression})  # fmt: skip
+
+    node.create_subscription(VideoParams, "video/params", on_params, LATCHED_QOS)
     emit({"t": "ready", "rx": time.time_ns(), "start": t_start})
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -229,6 +235,7 @@ class Session:
     feedback: bool
     t0: int = 0
     pics: list[dict[str, Any]] = field(default_factory=list)
+    params: list[dict[str, Any]] = field(default_factory=list)
     lost: list[dict[str, Any]] = field(default_factory=list)
     first_s: list[float] = field(default_factory=list)  # viewer process start -> first picture (s), per start
     first_node_s: list[float] = field(default_factory=list)  # viewer node up -> first picture (s)
@@ -328,6 +335,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             time.sleep(0.1)
         s.pics = [r for r in reader.of("pic") if s.t0 <= r["rx"] < end]
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
+        s.params = reader.of("params")
         s.pose_moved = any(p["pose"] != pose0 for p in sim_log.of("pose"))
     finally:
         hosts.close()
@@ -364,15 +372,29 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:
         out[f"psnr_{ref}_p50"], out[f"psnr_{ref}_p5"] = pct(p, 0.5), pct(p, 0.05)
     out["psnr_n"] = sum(1 for r in steady if "psnr" in r)
     out["undecodable"] = len(lost)
-    out["first_s"] = max(s.first_s, default=math.nan) if s.first_s and not all(map(math.isnan, s.first_s)) else math.nan
-    if any(math.isnan(x) for x in s.first_s):
-        out["first_s"] = math.inf  # a start that showed nothing is the worst
+    # a start that showed nothing is the worst
+    out["first_s"] = math.inf if any(math.isnan(x) for x in s.first_s) else max(s.first_s, default=math.nan)
     out["first_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_s)
     out["first_node_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_node_s)
     out["starts"] = len(s.first_s)
     out["pose_moved"] = s.pose_moved
+    budgets = [p["budget"] for p in s.params if p["rx"] >= a]
+    out["budget"] = f"{min(budgets)}..{max(budgets)}" if budgets else (str(s.params[-1]["budget"]) if s.params else "?")
+    last = s.params[-1] if s.params else None
+    out["settings"] = f"{last['resolution']}@{last['fps']} c{last['compression']}" if last else "?"
     out["note"] = s.note
     return out
+
+
+def ceiling(refdir: Path) -> None:
+    """What the camera itself reaches: its compression-0 JPEG against its noise-free render."""
+    import cv2
+    import numpy as np
+
+    render = np.load(refdir / "render.npy").astype(np.float32)
+    c0 = cv2.imdecode(np.frombuffer((refdir / "c0.jpg").read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+    mse = float(np.mean((c0.astype(np.float32) - render) ** 2))
+    print(f"ceiling: the camera's compression-0 JPEG vs its noise-free render: {10 * math.log10(255**2 / mse):.1f} dB")
 
 
 def fmt(v: Any, f: str) -> str:
@@ -407,6 +429,8 @@ def print_table(results: list[dict[str, Any]], seconds: float) -> None:
     row("first picture after the viewer starts, worst [s]", "{:.1f}", "first_s", "<= 2 s (h264-nofb: 5 starts)")
     row("  every start, from process spawn [s]", "{}", "first_all")
     row("  every start, from its node up [s]", "{}", "first_node_all")
+    row("stream node's budget (video/params) [kbit/s]", "{}", "budget")
+    row("  last video/params settings", "{}", "settings")
     row("camera moved during the session (must be no)", "{}", "pose_moved")
     for r in results:
         print(f"{r['name']}: picture sizes shown (count): {r['sizes']}" + (f"; {r['note']}" if r["note"] else ""))
@@ -422,7 +446,7 @@ def plot(sessions: list[Session], seconds: float, path: Path) -> None:
     import cv2
     import numpy as np
 
-    Wd, Hd = 1400, 1220
+    Wd, Hd = 1400, 1250
     img = np.full((Hd, Wd, 3), 255, np.uint8)
     left, right = 90, Wd - 30
     font = cv2.FONT_HERSHEY_SIMPLEX
@@ -443,7 +467,7 @@ def plot(sessions: list[Session], seconds: float, path: Path) -> None:
         return int(bot - f * (bot - top))
 
     cv2.putText(
-        img, f"{W}x{H} @ 30 fps asked, 2 Mbit/s + 2 % loss each way, camera still; robot -> operator over a shaped veth",
+        img, f"{W}x{H} @ 30 fps asked, 2 Mbit/s + 2 % loss each way, camera still; robot -> operator, shaped veth",
         (left, 35), font, 0.6, (0, 0, 0), 2, cv2.LINE_AA,
     )  # fmt: skip
     for p in panels:
@@ -503,12 +527,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
     )
     m, h = results.get("mjpeg"), results.get("h264")
     if h:
-        ok = (
-            h["fps_full"] >= 29
-            and h["age_p95"] <= 100
-            and h["psnr_render_p50"] >= 37
-            and h["psnr_render_p5"] >= 34
-        )
+        ok = h["fps_full"] >= 29 and h["age_p95"] <= 100 and h["psnr_render_p50"] >= 37 and h["psnr_render_p5"] >= 34
         mj = ""
         if m:
             mj = (
@@ -518,8 +537,8 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264 + link monitor: {W}x{H} fps / age p95 / PSNR median, 5th pct "
             "(vs noise-free render, still)",
-            f"{h['fps_full']:.1f} fps / {h['age_p95']:.0f} ms / {h['psnr_render_p50']:.1f}, {h['psnr_render_p5']:.1f} dB"
-            + mj,
+            f"{h['fps_full']:.1f} fps / {h['age_p95']:.0f} ms / "
+            f"{h['psnr_render_p50']:.1f}, {h['psnr_render_p5']:.1f} dB{mj}",
             "≥ 29 fps / ≤ 100 ms / ≥ 37, ≥ 34 dB",
             bool(ok),
         )
@@ -580,6 +599,7 @@ def main() -> int:
         sessions.append(run_session(s, seconds, a.starts, logs, a.fastdds_profile))
     results = [figures(s, seconds) for s in sessions]
     print()
+    ceiling(logs / f"ref-{sessions[0].name}")
     print_table(results, seconds)
     if a.plot:
         plot(sessions, seconds, Path(a.plot))
