@@ -7,8 +7,10 @@ import pytest
 
 from axis_ptz_ros2 import geometry as g
 from axis_ptz_ros2.sim import ptz as sp
+from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
-from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, load_world, shared_scene
+from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 pytestmark = pytest.mark.unit
 
@@ -166,11 +168,11 @@ def test_position_format_and_errors_change_nothing(head):
         [("pan", "10"), ("tilt", "999")],
         [("continuouspantiltmove", "50")],
     ):
-        with pytest.raises(sp.PtzCommandError):
+        with pytest.raises(PtzCommandError):
             st.handle(bad)
     clock.t = 20.0
     assert st.position()[:2] == pytest.approx((12.34567, -5.5))
-    with pytest.raises(sp.PtzCommandError, match="query: unknown value: foo"):
+    with pytest.raises(PtzCommandError, match="query: unknown value: foo"):
         st.handle([("query", "foo")])
 
 
@@ -227,7 +229,7 @@ def test_move_presets_and_home(head):
     clock.t = 4.0
     assert st.position() == pytest.approx((0.0, 0.0, 1.0))
     st.handle_config([("removeserverpresetname", "Door")])
-    with pytest.raises(sp.PtzCommandError):
+    with pytest.raises(PtzCommandError):
         st.handle([("gotoserverpresetno", "2")])
 
 
