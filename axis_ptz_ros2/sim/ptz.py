@@ -159,6 +159,17 @@ class PtzState:
             self._pan, self._tilt, self._zoom = _Axis(home.pan), _Axis(home.tilt), _Axis(home.zoom)
             self._t = self.clock()
 
+    def arrive_now(self, pan: float, tilt: float, zoom: float) -> None:
+        """Put the head at a VAPIX pose at once (clamped to the limits), every motion stopped."""
+        if not all(math.isfinite(v) for v in (pan, tilt, zoom)):
+            raise ValueError(f"pose must be finite: {pan}, {tilt}, {zoom}")
+        with self._lock:
+            self._update()
+            self._cancel_continuous()
+            self._pan = _Axis(self._clamp_pan(pan))
+            self._tilt = _Axis(self._clamp_tilt(tilt))
+            self._zoom = _Axis(self._clamp_zoom(zoom))
+
     def set_limits(self, limits: PtzLimits) -> None:
         """Change ``PTZ.Limit.L1`` (positions are clamped into the new box)."""
         with self._lock:
