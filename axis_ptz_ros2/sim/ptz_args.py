@@ -155,6 +155,8 @@ def parse_ptz(args: list[tuple[str, str]], head: HeadFacts) -> Plan:
             plan[key] = int(value)
         else:
             raise PtzCommandError(f"Unknown argument: {raw_key}")
+    if "center" in plan and "areazoom" in plan:  # both name the point to centre on (the camera's answer: a guess)
+        raise PtzCommandError("center and areazoom cannot be combined")
     if ("imagewidth" in plan or "imageheight" in plan) and not ("center" in plan or "areazoom" in plan):
         raise PtzCommandError("imagewidth/imageheight only valid with center or areazoom")
     return plan

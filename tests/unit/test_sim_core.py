@@ -167,6 +167,7 @@ def test_position_format_and_errors_change_nothing(head):
         [("query", "foo")],
         [("pan", "10"), ("tilt", "999")],
         [("continuouspantiltmove", "50")],
+        [("center", "10,10"), ("areazoom", "10,10,200")],  # IndexError inside the simulator before (simsplit)
     ):
         with pytest.raises(PtzCommandError):
             st.handle(bad)
