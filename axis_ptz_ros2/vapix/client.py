@@ -341,12 +341,12 @@ class VapixClient:
     def _read_capped(
         self, response: httpx.Response, max_bytes: int, *, strict: bool, total_s: float | None = None
     ) -> bytes:
-        where = describe_request(response.request)
+        where = response.request  # named in an error only (describe_request is not free, the poll's reply is)
         ctype = response.headers.get("content-type", "")
         if strict and ctype.lower().startswith("multipart/"):
             raise ResponseParseError(
-                f"{where}: the camera answers with a stream ({ctype!r}), not a reply: is this the camera's "
-                "VAPIX port, or a video/stream port?"
+                f"{describe_request(where)}: the camera answers with a stream ({ctype!r}), not a reply: is this "
+                "the camera's VAPIX port, or a video/stream port?"
             )
         total = self._config.timeout_s if total_s is None else total_s
         deadline = time.monotonic() + total
@@ -362,15 +362,15 @@ class VapixClient:
                     chunks.append(chunk[: max(0, len(chunk) - (size - max_bytes))])
                     break
                 raise ResponseParseError(
-                    f"{where}: reply larger than {max_bytes} bytes ({ctype or 'no content type'}): not a VAPIX "
-                    "reply (a stream or a huge page; check the port)"
+                    f"{describe_request(where)}: reply larger than {max_bytes} bytes "
+                    f"({ctype or 'no content type'}): not a VAPIX reply (a stream or a huge page; check the port)"
                 )
             chunks.append(chunk)
             if time.monotonic() > deadline:
                 if not strict:
                     break
                 raise CameraTimeout(
-                    f"{where}: reply still arriving after {total:g} s ({size} bytes): not a "
+                    f"{describe_request(where)}: reply still arriving after {total:g} s ({size} bytes): not a "
                     "VAPIX reply (a stream or a trickling page; check the port)"
                 )
         return b"".join(chunks)

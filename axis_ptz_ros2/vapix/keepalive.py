@@ -153,7 +153,10 @@ class KeepAliveTransport(httpx.BaseTransport):
 
     def handle_request(self, request: httpx.Request) -> httpx.Response:
         """Send ``request`` on a kept-alive connection; the body is streamed (see :class:`_BodyStream`)."""
-        body = b"".join(request.stream) if request.method not in ("GET", "HEAD") else b""
+        stream = request.stream
+        if not isinstance(stream, httpx.SyncByteStream):
+            raise RuntimeError("KeepAliveTransport is synchronous")
+        body = b"".join(stream) if request.method not in ("GET", "HEAD") else b""
         timeout = request.extensions.get("timeout", {})
         connection = self._take(request.url, timeout)
         conn = connection.conn
@@ -192,8 +195,10 @@ class KeepAliveTransport(httpx.BaseTransport):
             response.status,
             headers=response.getheaders(),
             stream=_BodyStream(self, connection, response),
-            extensions={"http_version": b"HTTP/1.1" if response.version == 11 else b"HTTP/1.0",
-                        "reason_phrase": response.reason.encode("latin-1", "replace")},  # fmt: skip
+            extensions={
+                "http_version": b"HTTP/1.1" if response.version == 11 else b"HTTP/1.0",
+                "reason_phrase": response.reason.encode("latin-1", "replace"),
+            },  # fmt: skip
         )
 
     def close(self) -> None:
@@ -203,4 +208,3 @@ class KeepAliveTransport(httpx.BaseTransport):
             idle, self._idle = self._idle, []
         for connection in idle:
             connection.conn.close()
-
