@@ -232,7 +232,11 @@ def main() -> int:
 
         spin_for(1.0)
         dead_cases = (
-            ("stalled (accepts, answers after 5 s)", lambda: cam.set_faults(latency_ms=5000.0), cam.set_faults),
+            (
+                "stalled (accepts, answers after 5 s)",
+                lambda: cam.set_faults(latency_ms=5000.0),
+                lambda: cam.set_faults(FaultConfig()),
+            ),
             ("black-holed (packets dropped)", lambda: cam.reboot(a.seconds + 2.0, blackhole=True), lambda: None),
         )
         for label, begin, end in dead_cases:
