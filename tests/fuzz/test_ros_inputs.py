@@ -26,11 +26,11 @@ from rclpy.parameter import Parameter  # noqa: E402
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, LookAt, MovePtz, Preset, SetZoom  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]
 
@@ -161,6 +161,7 @@ def test_command_topics_then_the_node_still_moves_the_camera(rig: Any) -> None:
         absolute.publish(PtzCommand(pan=x, tilt=x, zoom=x, speed=x))
         velocity.publish(PtzVelocity(pan_rate=x, tilt_rate=x, zoom_rate=x))
         center.publish(PixelTarget(u=x, v=x, image_width=2**32 - 1, image_height=0, zoom_delta=x))
+
     # Messages on different topics are not ordered with each other: re-send a valid absolute command on the same
     # topic as the garbage until the camera holds it, so no garbage is still in flight when the service is called.
     def holds_topic_target() -> bool:
