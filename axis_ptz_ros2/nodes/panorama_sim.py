@@ -23,11 +23,13 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import (
+    JPEG_FORMAT_BGR8,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
     declare_params,
     make_tf_broadcasters,
+    publisher,
     run_nodes,
     stamp_from_ns,
     transform_msg,
@@ -62,8 +64,8 @@ class PanoramaSim(Node):
             f"from {world.T_base_pano.t.round(3).tolist()}"
         )
         self._count = 0
-        self._pub = self.create_publisher(CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
-        self._tf_pub = self.create_publisher(TransformStamped, "panorama/transform", LATCHED_QOS)
+        self._pub = publisher(self, CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
+        self._tf_pub = publisher(self, TransformStamped, "panorama/transform", LATCHED_QOS)
         tf_msg = transform_msg(self.T_base_pano, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
         self._tf_pub.publish(tf_msg)
         _, static_tf = make_tf_broadcasters(self)
@@ -98,7 +100,7 @@ class PanoramaSim(Node):
         msg = CompressedImage()
         msg.header.stamp = stamp_from_ns(ns)
         msg.header.frame_id = self._frame_id
-        msg.format = "bgr8; jpeg compressed bgr8"
+        msg.format = JPEG_FORMAT_BGR8
         msg.data = buf.tobytes()
         self._pub.publish(msg)
         self._count += 1
