@@ -38,6 +38,7 @@ import numpy.typing as npt
 
 from axis_ptz_ros2.geometry import Intrinsics
 from axis_ptz_ros2.strict_yaml import YamlError, load_strict
+from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -175,10 +176,9 @@ def nominal_camera_info(intr: Intrinsics) -> CameraInfoData:
 
 
 def _problem(ci: CameraInfoData) -> str | None:
-    if isinstance(ci.width, bool) or not isinstance(ci.width, int) or ci.width <= 0:
-        return f"image_width must be a positive integer, got {ci.width!r}"
-    if isinstance(ci.height, bool) or not isinstance(ci.height, int) or ci.height <= 0:
-        return f"image_height must be a positive integer, got {ci.height!r}"
+    for name, side in (("image_width", ci.width), ("image_height", ci.height)):
+        if isinstance(side, bool) or not isinstance(side, int) or not 1 <= side <= MAX_IMAGE_SIDE:
+            return f"{name} must be an integer in 1..{MAX_IMAGE_SIDE}, got {side!r}"
     for name, vals, n in (("camera_matrix", ci.K, 9), ("rectification_matrix", ci.R, 9)):
         if len(vals) != n or not all(math.isfinite(v) for v in vals):
             return f"{name} needs {n} finite numbers, got {list(vals)}"
@@ -234,7 +234,11 @@ def _matrix(d: dict[str, Any], key: str, rows: int | None, cols: int | None, sou
         raise CameraInfoError(f"{source}: {key}: expected a mapping with rows, cols and data, got {m!r}")
     out = []
     for i, x in enumerate(data):
-        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(float(x)):
+        try:
+            finite = not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(float(x))
+        except OverflowError:  # an integer beyond a double (found by the fuzz tier)
+            finite = False
+        if not finite:
             raise CameraInfoError(f"{source}: {key}.data[{i}]: expected a finite number, got {x!r}")
         out.append(float(x))
     return tuple(out)

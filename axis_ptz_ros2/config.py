@@ -195,7 +195,7 @@ def camera_model_from_dict(
         where = "camera_info_zoom"
         ci_zoom = d.get("camera_info_zoom")
         ci_zoom_f = None if ci_zoom is None else float(ci_zoom)
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:  # OverflowError: an integer beyond a double (fuzz tier)
         raise CameraModelError(f"{source}: {where}: {err}") from err
     ci = None
     ref = d.get("camera_info")

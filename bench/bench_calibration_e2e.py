@@ -2,9 +2,10 @@
 
 The loop of ``tests/ros/test_calibration_e2e.py``: simulated Axis 214 (in-process HTTP on 127.0.0.1) + stream
 node + PTZ node running the NOMINAL mount (config/mount.yaml) + laser sim node with range noise; the
-``axis_calibrate capture --pick auto`` logic commands the poses (jittered per seed), records state, frame and
-laser snapshot per view and picks the board dots with the picker the user gets (``--pick-mode`` default
-``blob``, the CLI's default); ``calibrate`` runs with the solve command's defaults (σ_px 1 px, σ_3D 2 cm: a
+``axis_calibrate capture`` logic commands the poses (jittered per seed), records state, frame and
+laser snapshot per view and picks the board dots with the simulated-board picker plug-in the e2e test passes
+to ``axis_calibrate capture --picker`` (``tests/support/sim_picker.py``; ``--pick-mode`` default ``blob``, the
+CLI's default); ``calibrate`` runs with the solve command's defaults (σ_px 1 px, σ_3D 2 cm: a
 user has no ground truth to measure the picking noise with) and recovers ``base_link → ptz_base``.
 
 Two worlds: ``config`` (config/sim_world.yaml, whose true mount is only 0.91 cm / 1.21° from the nominal one,
@@ -25,15 +26,18 @@ uses the world's two boards (12 dots, 8 views): the default runs both, to show w
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # tests.support (the ROS harness, the simulated-board picker)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
@@ -44,7 +48,6 @@ from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
     CaptureSession,
     PoseCommand,
-    SimBoardPicker,
     capture_views,
     next_view_names,
     parse_poses,
@@ -54,13 +57,14 @@ from axis_ptz_ros2.calibration.correspondences import load_correspondences  # no
 from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import Transform  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.sim_picker import SimBoardPicker  # noqa: E402
 
 #: The boards in config/sim_world.yaml: 1× views see at most two boards (front + left), 12 dots in all.
 POSES = "25,7,1;0,5,1;-38,1,1;25,20,1;25,-5,1;12.7,7.5,1200;38.4,9.3,1200;-38.5,0.8,1200"
@@ -187,7 +191,7 @@ def run_once(
             time.sleep(0.02)
         session = CaptureSession(probe, T_base_laser=robot.laser.pose, laser_frame=robot.laser.frame, timeout_s=20)
         session.wait_ready()
-        picker = SimBoardPicker(world_file, model, nominal.transform, mode=args.pick_mode)
+        picker = SimBoardPicker(model, nominal.transform, mode=args.pick_mode, world_file=world_file)
         t1 = time.monotonic()
         report = capture_views(session, out, next_view_names(out, len(poses)), poses=poses, picker=picker, log=log)
         t_capture = time.monotonic() - t1
@@ -250,13 +254,15 @@ def main() -> int:
         "axis_ptz_ros2/sim",
         "config/sim_world.yaml",
         "bench/bench_calibration_e2e.py",
+        "tests/support/sim_picker.py",
     )
     tmp = Path(tempfile.mkdtemp(prefix="bench_calib_e2e_"))
     nominal = load_mount(default_config_path("mount.yaml"))
     t0 = time.monotonic()
     print(
         f"End-to-end calibration, {args.seeds} seeds per world: laser range noise σ {args.range_noise * 100:.1f} cm, "
-        f"picker '{args.pick_mode}' (axis_calibrate capture --pick auto), solve with σ_px {args.sigma_px} px, "
+        f"picker '{args.pick_mode}' (axis_calibrate capture --picker tests.support.sim_picker:SimBoardPicker), "
+        f"solve with σ_px {args.sigma_px} px, "
         f"σ_3D {args.sigma_3d * 100:.1f} cm, poses jittered ±{args.jitter_deg}° per seed\n"
     )
     summary: list[tuple[str, float, float, list[Run]]] = []

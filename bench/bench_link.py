@@ -4,7 +4,7 @@ Two network namespaces joined by a veth pair (``tests.support.link``), shaped bo
 random loss with nftables, cuts). The robot runs the simulated camera (on its loopback) and ``axis_camera``
 with the default discovery range, asked for 704x576 @ 30 fps, compression 30, with no budget set by hand; the
 operator runs the web console, the keyboard teleop (keys written to its stdin) and a measuring viewer
-(``axis_ptz_ros2.nodes.link_probe``, which reports what it receives on ``video/feedback`` as the console does).
+(``tests/support/link_probe.py``, which reports what it receives on ``video/feedback`` as the console does).
 Frame age = operator receipt - the simulator's send stamp (JPEG comment); both namespaces share one clock.
 
 Timeline, run twice in one invocation: adaptation on (``adapt_to_link:=true``, the default) and off:

@@ -43,6 +43,7 @@ from pathlib import Path
 
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support (the subscriber reads sim stamps)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
 os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))

@@ -9,11 +9,12 @@
   ``jpg/image.cgi`` after a ``ptz.cgi`` move; the lower row enlarges the frame centre 2× (nearest neighbour),
   so the plate is a few unreadable pixels at zoom 1 and readable at 9999.
 * ``bitrate.png`` / ``bitrate.csv`` — like the thesis's Tables 6.2–6.4: the MJPEG stream's bitrate over
-  resolution × fps × compression, measured on ``mjpg/video.cgi``: mean bytes per part (JPEG + multipart
-  headers) × 8 × the requested fps (the achieved fps is recorded beside it; on a loaded machine the simulator
-  may not reach 30 fps, which would understate a bytes-per-second figure). The thesis's values for the real
-  214 are drawn beside ours: the simulator's synthetic scene is sharper than an analogue camera's picture, so
-  its JPEGs are larger.
+  resolution × fps × compression, measured on ``mjpg/video.cgi`` at the home view, camera still: mean bytes
+  per part (JPEG + multipart headers) × 8 × the requested fps (the achieved fps is recorded beside it; on a
+  loaded machine the simulator may not reach 30 fps, which would understate a bytes-per-second figure). The
+  thesis's values for the real 214 are drawn beside ours, read as kB/s (printed as "kBit/s"; see
+  ``camera_model.THESIS_UNIT_BYTES``): ``thesis_kbit_s`` = printed value × 8, ``thesis_printed`` as printed.
+  ``bench/bench_bitrate.py`` prints the same comparison with JPEG sizes only, still and panning.
 
 Needs matplotlib (installed by scripts/bootstrap). The simulator runs in this process on a free loopback port.
 """
@@ -32,6 +33,7 @@ import numpy as np
 
 from axis_ptz_ros2.geometry import AXIS_214_ZOOM
 from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.camera_model import THESIS_TABLES, thesis_kbit_s
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.scene import load_world
 
@@ -43,12 +45,8 @@ ZOOMS = (1, 2500, 5000, 7500, 9999)
 RESOLUTIONS = ("704x576", "352x288", "176x144")
 FPS = (1, 15, 30)
 COMPRESSIONS = (0, 30, 100)
-#: the thesis's measurements on the real Axis 214 (Tables 6.2-6.4), kbit/s: resolution -> compression -> fps
-THESIS = {
-    "704x576": {0: (239, 2190, 3440), 30: (118, 1350, 2340), 100: (43, 540, 950)},
-    "352x288": {0: (87, 1020, 2040), 30: (43, 530, 820), 100: (8, 104, 180)},
-    "176x144": {0: (26, 250, 400), 30: (7, 65, 180), 100: (1.3, 19, 30)},
-}
+#: the thesis's measurements on the real Axis 214 (Tables 6.2-6.4), as printed (kB/s): resolution -> compression -> fps
+THESIS = THESIS_TABLES
 
 
 def log(msg: str) -> None:
@@ -169,13 +167,26 @@ def bitrate(client: httpx.Client, out_png: Path, out_csv: Path, resolutions: tup
             for fps in FPS:
                 seconds = (2.5 if quick else 4.5) if fps == 1 else (1.0 if quick else 2.0)
                 kbps, achieved, n = stream_rate(client, res, fps, comp, seconds)
-                rows.append((res, fps, comp, kbps, achieved, n, THESIS[res][comp][FPS.index(fps)]))
+                printed = THESIS[res][comp][FPS.index(fps)]
+                rows.append((res, fps, comp, kbps, achieved, n, thesis_kbit_s(res, comp, fps), printed))
                 log(f"{res} {fps:>2} fps compression {comp:>3}: {kbps:8.0f} kbit/s (achieved {achieved:.1f} fps)")
     with open(out_csv, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["resolution", "fps", "compression", "sim_kbit_s", "sim_achieved_fps", "frames", "thesis_kbit_s"])
+        w.writerow(
+            [
+                "resolution",
+                "fps",
+                "compression",
+                "sim_kbit_s",
+                "sim_achieved_fps",
+                "frames",
+                "thesis_kbit_s",
+                "thesis_printed",
+                "ratio",
+            ]
+        )
         for r in rows:
-            w.writerow([r[0], r[1], r[2], f"{r[3]:.1f}", f"{r[4]:.2f}", r[5], r[6]])
+            w.writerow([r[0], r[1], r[2], f"{r[3]:.1f}", f"{r[4]:.2f}", r[5], f"{r[6]:g}", r[7], f"{r[3] / r[6]:.2f}"])
     fig, axes = plt.subplots(1, len(resolutions), figsize=(4.0 * len(resolutions), 4.2), dpi=100, sharey=True)
     axes = np.atleast_1d(axes)
     colors = {0: "tab:red", 30: "tab:blue", 100: "tab:green"}
@@ -184,7 +195,12 @@ def bitrate(client: httpx.Client, out_png: Path, out_csv: Path, resolutions: tup
             sim = [r[3] for r in rows if r[0] == res and r[2] == comp]
             ax.plot(FPS, sim, "o-", color=colors[comp], label=f"simulator, compression {comp}")
             ax.plot(
-                FPS, THESIS[res][comp], "s--", color=colors[comp], alpha=0.6, label=f"thesis 214, compression {comp}"
+                FPS,
+                [thesis_kbit_s(res, comp, f) for f in FPS],
+                "s--",
+                color=colors[comp],
+                alpha=0.6,
+                label=f"thesis 214, compression {comp}",
             )
         ax.set_yscale("log")
         ax.set_xticks(FPS)
@@ -194,7 +210,10 @@ def bitrate(client: httpx.Client, out_png: Path, out_csv: Path, resolutions: tup
     axes[0].set_ylabel("kbit/s")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=3)
-    fig.suptitle("MJPEG bitrate vs. settings: simulated camera (solid) and the thesis's Axis 214 (dashed)", fontsize=10)
+    fig.suptitle(
+        "MJPEG bitrate vs. settings: simulated camera (solid) and the thesis's Axis 214 (dashed, tables read as kB/s)",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0.0, 0.14, 1.0, 1.0))
     fig.savefig(out_png, dpi=100)
     plt.close(fig)

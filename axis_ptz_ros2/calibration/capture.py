@@ -13,8 +13,9 @@ For every view the tool records
 
 optionally after commanding the head to a list of poses (``ptz/move_absolute`` with ``wait=true``). The view
 is then appended to the correspondence file with :func:`~axis_ptz_ros2.calibration.correspondences.append_view`
-— with its picked points when picking is automatic (:mod:`~axis_ptz_ros2.calibration.picking`, simulated
-boards), otherwise with none for a person to add (see the ``axis_calibrate`` docs).
+— with its picked points when a :class:`BoardPicker` plug-in picks them (``--picker MODULE:CLASS``; the tests
+pass in the simulated boards' picker, ``tests/support/sim_picker.py``), otherwise with none for a person to
+add (see the ``axis_calibrate`` docs).
 
 Picking by hand (a real robot; no automatic picker)::
 
@@ -39,14 +40,16 @@ imported only when a session is created, so ``axis_ptz_ros2.calibration`` stays 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import math
 import re
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, cast
 
 import cv2
 import numpy as np
@@ -63,9 +66,7 @@ from axis_ptz_ros2.calibration.picking import (
     NoiseStats,
     PickedPoint,
     PickMode,
-    pick_view,
     picking_noise,
-    scene_dot_features,
 )
 from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Transform
@@ -429,45 +430,68 @@ class CaptureSession:
 # --------------------------------------------------------------------------------------------------------
 # Running a capture (used by ``axis_calibrate capture``)
 # --------------------------------------------------------------------------------------------------------
-class SimBoardPicker:
-    """Automatic picking for the simulated scene's calibration boards (:mod:`~.picking`).
+class BoardPicker(Protocol):
+    """Automatic picking of one captured view's 2-D/3-D pairs: a plug-in of ``axis_calibrate capture``.
 
-    The scene's true dot positions are used only to choose the laser point an operator would click (and to
-    report the 3-D picking noise); which board a dot belongs to is decided with ``T_base_ptz_guess`` (the
-    nominal mount), and nothing here ever sees the simulator's true mount.
+    The product ships none (a person picks by hand, see the module docs); the simulated scene's board picker
+    (``tests/support/sim_picker.py``) is one the tests and benches pass in. A picker returns
+    :class:`~axis_ptz_ros2.calibration.picking.PickedPoint` s whose ``feature.point`` is where the picker
+    believes the feature is (for the simulated boards: the scene's truth), which
+    :meth:`CaptureReport.picking_noise` compares the picked laser points with.
     """
-
-    def __init__(
-        self,
-        world_file: str | Path | None,
-        camera_model: CameraModel,
-        T_base_ptz_guess: Transform,
-        *,
-        mode: PickMode = "blob",
-        max_angle_deg: float = 3.0,
-    ) -> None:
-        from axis_ptz_ros2.sim.scene import Scene, load_world
-
-        self.features = scene_dot_features(Scene(load_world(world_file)))
-        self.camera_model = camera_model
-        self.T_base_ptz_guess = T_base_ptz_guess
-        self.mode: PickMode = mode
-        self.max_angle_deg = max_angle_deg
 
     def __call__(self, cap: CapturedView) -> list[PickedPoint]:
         """Pick the pairs of one captured view."""
-        return pick_view(
-            cap.image(),
-            cap.cloud,
-            cap.pan,
-            cap.tilt,
-            cap.zoom,
-            self.features,
-            self.camera_model,
-            self.T_base_ptz_guess,
-            mode=self.mode,
-            max_angle_deg=self.max_angle_deg,
-        )
+        ...
+
+
+class PickerFactory(Protocol):
+    """How ``axis_calibrate capture --picker MODULE:CLASS`` builds a :class:`BoardPicker`: called with the
+    camera model, the *guessed* (nominal) mount, the laser refinement ``mode`` (``--pick-mode``) and the
+    ``--picker-arg KEY=VALUE`` options as strings."""
+
+    def __call__(
+        self, camera_model: CameraModel, T_base_ptz_guess: Transform, *, mode: PickMode, **options: str
+    ) -> BoardPicker:
+        """A picker for these inputs (``ValueError`` / ``OSError`` with the reason when it cannot be made)."""
+        ...
+
+
+def load_picker_factory(spec: str) -> PickerFactory:
+    """The :class:`PickerFactory` named by ``MODULE:NAME`` (an importable module) or ``PATH.py:NAME`` (a file).
+
+    Raises ``ValueError`` naming what is wrong (bad spec, module or file not found, no such name)."""
+    where, sep, name = spec.rpartition(":")
+    if not sep or not where or not name.isidentifier():
+        raise ValueError(f"picker {spec!r}: expected MODULE:NAME or PATH.py:NAME")
+    try:
+        if where.endswith(".py"):
+            path = Path(where).expanduser()
+            loader_spec = importlib.util.spec_from_file_location(f"_axis_calibrate_picker_{path.stem}", path)
+            if loader_spec is None or loader_spec.loader is None or not path.is_file():
+                raise ValueError(f"picker {spec!r}: no file {path}")
+            module = importlib.util.module_from_spec(loader_spec)
+            sys.modules[loader_spec.name] = module  # dataclasses and pickling look classes up there
+            loader_spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(where)
+    except ImportError as err:
+        raise ValueError(f"picker {spec!r}: cannot import {where!r} ({err}; is it on PYTHONPATH?)") from err
+    factory = getattr(module, name, None)
+    if not callable(factory):
+        raise ValueError(f"picker {spec!r}: {where} has no callable {name!r}")
+    return cast(PickerFactory, factory)
+
+
+def parse_picker_options(items: Sequence[str]) -> dict[str, str]:
+    """``["key=value", ...]`` → ``{"key": "value"}`` (``ValueError`` naming a malformed item)."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip().isidentifier():
+            raise ValueError(f"picker option {item!r}: expected KEY=VALUE")
+        out[key.strip()] = value
+    return out
 
 
 @dataclass
@@ -478,7 +502,8 @@ class CaptureReport:
     picked: list[PickedPoint] = field(default_factory=list)  # auto picking only
 
     def picking_noise(self) -> NoiseStats:
-        """3-D picking error of the automatically picked points against the scene's truth."""
+        """3-D picking error of the automatically picked points against the picker's feature positions (for the
+        simulated boards: the scene's truth)."""
         return picking_noise([p.laser.point for p in self.picked], [p.feature.point for p in self.picked])
 
 
@@ -502,7 +527,7 @@ def capture_views(
     names: Sequence[str],
     *,
     poses: Sequence[PoseCommand] | None = None,
-    picker: Callable[[CapturedView], list[PickedPoint]] | None = None,
+    picker: BoardPicker | None = None,
     camera_model_ref: str | None = None,
     prompt: Callable[[str], bool] | None = None,
     log: Callable[[str], None] = lambda s: None,

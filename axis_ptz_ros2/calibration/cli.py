@@ -8,9 +8,10 @@ Sub-commands::
     axis_calibrate synth OUT.yaml [--seed 0] [--views 5] [--points 8] [--pixel-noise 1] [--point-noise 0.02]
                    [--outliers 0.1] [--distortion plumb_bob --camera-info-out ost.yaml] [--fixed]
 
-    axis_calibrate capture OUT.yaml [--poses "pan_deg,tilt_deg[,zoom];..."] [--views N] [--pick none|auto]
+    axis_calibrate capture OUT.yaml [--poses "pan_deg,tilt_deg[,zoom];..."] [--views N]
+                   [--picker MODULE:NAME [--picker-arg KEY=VALUE ...] [--pick-mode blob]]
                    [--camera-model ...] [--mount config/mount.yaml] [--robot config/robot.yaml]
-                   [--laser-pose x,y,z,roll_deg,pitch_deg,yaw_deg] [--sim-world config/sim_world.yaml]
+                   [--laser-pose x,y,z,roll_deg,pitch_deg,yaw_deg]
 
 Exit codes: 0 success, 1 bad input (file or arguments), 2 calibration refused (the reason is printed),
 3 capture failed (ROS data missing, head did not arrive; the reason is printed).
@@ -23,8 +24,9 @@ refuses only when the data cannot determine the pose; ``--max-sigma-cm`` / ``--m
 
 ``capture`` records views from the running ROS system (``ptz/state``, ``image_raw/compressed``,
 ``laser/points``; see :mod:`axis_ptz_ros2.calibration.capture`) and appends them to OUT.yaml with
-:func:`~axis_ptz_ros2.calibration.correspondences.append_view`. With ``--pick auto`` (simulated calibration
-boards only) the pairs are picked automatically; otherwise a person adds them to each view's ``points``.
+:func:`~axis_ptz_ros2.calibration.correspondences.append_view`. With ``--picker`` a plug-in
+(:class:`~axis_ptz_ros2.calibration.capture.BoardPicker`; the tests pass the simulated boards' picker) picks
+the pairs automatically; otherwise a person adds them to each view's ``points``.
 """
 
 from __future__ import annotations
@@ -286,8 +288,13 @@ def _cmd_capture(args: argparse.Namespace) -> int:
         laser_frame = args.laser_frame or robot.laser.frame
         names = cap.next_view_names(args.out, n_views, args.name_prefix)
         picker = None
-        if args.pick == "auto":
-            picker = cap.SimBoardPicker(args.sim_world, model, mount.transform, mode=args.pick_mode)
+        if args.picker:
+            factory = cap.load_picker_factory(args.picker)
+            options = cap.parse_picker_options(args.picker_arg)
+            try:
+                picker = factory(model, mount.transform, mode=args.pick_mode, **options)
+            except TypeError as err:  # an option the picker does not take
+                raise ValueError(f"picker {args.picker}: {err}") from err
     except (OSError, ValueError, CorrespondenceError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
@@ -334,7 +341,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     if picker is not None:
         noise = report.picking_noise()
         print(
-            f"automatic picking: {noise.n} pairs; 3-D picking error against the simulated scene "
+            f"automatic picking: {noise.n} pairs; 3-D picking error against the picker's feature positions "
             f"({args.pick_mode}): RMS {noise.rms * 100:.2f} cm ({noise.rms_per_axis * 100:.2f} cm per axis), "
             f"median {noise.median * 100:.2f} cm, max {noise.max * 100:.2f} cm"
         )
@@ -393,9 +400,21 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("out", type=Path, help="correspondence YAML to append the views to (created if missing)")
     c.add_argument("--poses", default=None, help='"pan_deg,tilt_deg[,zoom];..." REP-103 degrees, VAPIX zoom units')
     c.add_argument("--views", type=int, default=None, help="number of views (default: one per pose)")
-    c.add_argument("--pick", choices=["none", "auto"], default="none", help="auto: simulated boards only")
+    c.add_argument(
+        "--picker",
+        default=None,
+        metavar="MODULE:NAME",
+        help="automatic picking plug-in (MODULE:NAME or PATH.py:NAME, e.g. the tests' simulated-board picker "
+        "tests/support/sim_picker.py:SimBoardPicker); default: none, a person picks",
+    )
+    c.add_argument(
+        "--picker-arg",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="option for the picker (repeatable), e.g. world_file=config/sim_world.yaml",
+    )
     c.add_argument("--pick-mode", choices=["nearest", "plane", "blob"], default="blob", help="laser pick refinement")
-    c.add_argument("--sim-world", type=Path, default=None, help="simulated world (auto picking; default built-in)")
     c.add_argument("--camera-model", type=Path, default=None, help="camera model YAML (recorded in the file)")
     c.add_argument(
         "--mount",

@@ -14,9 +14,10 @@ What a person does with an image viewer and a point-cloud viewer, done by code f
   around it and projecting onto it (``"plane"``), or by taking the centroid of the laser returns *on* the dot
   (a dot is darker than the white board in the intensity channel) projected onto the board plane (``"blob"``).
 
-The simulated scene's true feature positions (:func:`scene_dot_features`) may be used ONLY to choose which
-cloud point an operator would click and to measure the picking noise — the calibration never sees the true
-mount. :func:`picking_noise` reports the 3-D error of the picked points against that truth.
+The candidate :class:`Feature` s come from the caller: for the simulated scene, its true dot positions
+(``tests/support/sim_picker.py``), which may be used ONLY to choose which cloud point an operator would click
+and to measure the picking noise — the calibration never sees the true mount. :func:`picking_noise` reports
+the 3-D error of the picked points against the features' positions.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -33,9 +34,6 @@ import numpy.typing as npt
 from axis_ptz_ros2.calibration.correspondences import Correspondence
 from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Intrinsics, Transform
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 U8Array = npt.NDArray[np.uint8]
@@ -302,20 +300,8 @@ def _tuple3(p: npt.ArrayLike) -> tuple[float, float, float]:
 
 
 # --------------------------------------------------------------------------------------------------------
-# The simulated scene's features (truth: for choosing the click and for measuring the noise only)
+# Picking noise against known feature positions
 # --------------------------------------------------------------------------------------------------------
-def scene_dot_features(scene: Scene, *, kinds: Sequence[str] = ("calib",)) -> list[Feature]:
-    """The coloured dots of the simulated scene's boards as :class:`Feature` s (labels ``board/dot_colour``)."""
-    out: list[Feature] = []
-    for t in scene.targets:
-        if t.spec.kind not in kinds:
-            continue
-        for name, p in t.features().items():
-            if name.startswith("dot_"):
-                out.append(Feature(f"{t.name}/{name}", name[4:], _tuple3(p), 0.08 * t.width))
-    return out
-
-
 @dataclass(frozen=True, slots=True)
 class NoiseStats:
     """3-D picking error against the truth (m)."""

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
@@ -25,8 +25,10 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.context import Context
 from rclpy.exceptions import InvalidHandle, InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
@@ -38,9 +40,6 @@ from sensor_msgs.msg import CameraInfo
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
 from axis_ptz_ros2.streaming.jpeg import jpeg_components
 from axis_ptz_ros2.vapix import CameraConfig
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.nodes.tf_publish import StaticTfBroadcaster, TfBroadcaster
 
 _C = TypeVar("_C")
 
@@ -378,23 +377,10 @@ def diagnostic(
     return arr
 
 
-def make_tf_broadcasters(
-    node: Node, enabled: bool = True
-) -> tuple[TfBroadcaster | None, StaticTfBroadcaster | None]:
-    """(``/tf`` broadcaster, ``/tf_static`` broadcaster): ``tf2_msgs/TFMessage`` publishers with tf2's QoS and
-    tf2_ros's ``sendTransform`` (:mod:`axis_ptz_ros2.nodes.tf_publish`; no ``tf2_ros`` needed); (None, None)
-    when not ``enabled``."""
-    if not enabled:
-        return None, None
-    from axis_ptz_ros2.nodes import tf_publish  # noqa: PLC0415  # it imports this module
-
-    return tf_publish.TfBroadcaster(node), tf_publish.StaticTfBroadcaster(node)
-
-
 # ---------------------------------------------------------------------------------------------------------
 # Runner
 # ---------------------------------------------------------------------------------------------------------
-def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) -> bool:
+def wait_for_running_callbacks(executor: Executor, timeout: float) -> bool:
     """After ``executor.shutdown()``: wait (at most ``timeout`` s) until no callback is still running.
 
     rclpy Jazzy's ``Executor.shutdown`` sets its shutdown flag and then skips its own wait for outstanding work
@@ -414,7 +400,29 @@ def wait_for_running_callbacks(executor: MultiThreadedExecutor, timeout: float) 
     return True
 
 
-def spin_once(executor: MultiThreadedExecutor, timeout_sec: float) -> None:
+def retrieve_task_errors(executor: Executor, logger_name: str = "axis_ptz_ros2") -> int:
+    """After the spin has ended: fetch (and log) the exception of every finished callback that nobody fetched.
+
+    ``MultiThreadedExecutor`` fetches a callback's exception only on its next ``spin_once``; a callback that
+    failed while the spin ended (typically on a handle destroyed at shutdown) would otherwise print "The following
+    exception was never retrieved" from rclpy's ``Future.__del__`` at interpreter exit. Returns how many."""
+    tasks = getattr(executor, "_futures", None)
+    if not isinstance(tasks, list):
+        return 0
+    n = 0
+    for t in list(tasks):
+        if t.done():
+            err = t.exception()  # marks it fetched
+            if err is not None:
+                n += 1
+                rclpy.logging.get_logger(logger_name).warning(
+                    f"a callback failed while the executor stopped: {type(err).__name__}: {err}"
+                )
+    tasks.clear()
+    return n
+
+
+def spin_once(executor: Executor, timeout_sec: float | None) -> None:
     """``executor.spin_once``, surviving an entity destroyed by another thread while the executor built its wait set.
 
     rclpy Jazzy adds every subscription's event handler to the wait set without a guard, so a subscription that a
@@ -429,13 +437,111 @@ def spin_once(executor: MultiThreadedExecutor, timeout_sec: float) -> None:
             raise
 
 
+def new_executor(context: Context | None = None) -> MultiThreadedExecutor:
+    """A multi-threaded executor: callbacks run in a pool of threads, for nodes whose callback groups let
+    callbacks run at the same time (the PTZ node's motion services and ``ptz/move`` goals block until the head
+    arrives, and a cancel or a topic command must get through meanwhile)."""
+    return MultiThreadedExecutor(num_threads=4, context=context)
+
+
+def callbacks_serialised(node: Node) -> bool:
+    """True if every callback of ``node`` is in its default, mutually exclusive callback group (checked over the
+    entities it has now): a multi-threaded executor then runs them one at a time anyway."""
+    group = node.default_callback_group
+    if not isinstance(group, MutuallyExclusiveCallbackGroup):
+        return False
+    entities: list[Any] = [
+        *node.subscriptions,
+        *node.timers,
+        *node.clients,
+        *node.services,
+        *node.guards,
+        *node.waitables,
+    ]
+    return all(getattr(e, "callback_group", group) is group for e in entities)
+
+
+def executor_for(node: Node, context: Context | None = None) -> Executor:
+    """The executor for one node: single-threaded when its callbacks run one at a time anyway
+    (:func:`callbacks_serialised`), else :func:`new_executor`.
+
+    Same semantics, a third of the cost per callback: ``MultiThreadedExecutor`` hands every callback to a pool
+    thread and wakes up twice more to rebuild its wait set (once when the pool thread has taken the message, once
+    when it is done), where ``SingleThreadedExecutor`` runs it in place. The stream node's 20 Hz ``ptz/state``
+    subscription cost 5.8 % of a core on the multi-threaded executor and 2.4 % on the single-threaded one
+    (bench/bench_cpu.py's numbers, loaded machine). A node that later adds a callback group of its own would
+    run that group's callbacks one at a time too: such a node must create its groups in its constructor.
+    """
+    if callbacks_serialised(node):
+        return SingleThreadedExecutor(context=context)
+    return new_executor(context)
+
+
+class Spinner:
+    """Spins an executor in a thread of its own, blocking until there is work (no periodic wake-ups).
+
+    Why not ``spin_once(timeout)`` in a loop: rclpy builds a new wait set of every entity of every node on each
+    call, and a timeout also creates (and destroys) an rcl timer each time; ten idle wake-ups a second cost a
+    composed process a few percent of a core. Blocking ``spin()`` wakes only for work; :meth:`stop` (the
+    executor's shutdown) wakes it to end. An ``InvalidHandle`` from an entity destroyed under the wait-set
+    build (see :func:`spin_once`) does not end the spin, and an exception from a callback is kept in
+    :attr:`error` for the owner to raise."""
+
+    def __init__(self, executor: Executor, name: str = "executor") -> None:
+        self.executor = executor
+        self.error: BaseException | None = None
+        self._stopping = False
+        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> Spinner:
+        self.thread.start()
+        return self
+
+    def _run(self) -> None:
+        ctx = self.executor.context
+        try:
+            while ctx.ok() and not self._stopping:
+                try:
+                    self.executor.spin()  # returns once the executor is shut down or the context is
+                    return
+                except InvalidHandle:
+                    if not ctx.ok():
+                        return
+                except ExternalShutdownException:
+                    return
+        except BaseException as err:  # noqa: BLE001 - handed to the owner (a callback's exception ends the spin)
+            if not self._stopping and ctx.ok():
+                self.error = err
+
+    def alive(self) -> bool:
+        return self.thread.is_alive()
+
+    def stop(self, timeout: float = 2.0) -> bool:
+        """Shut the executor down (wakes the spin) and join the thread; True if it ended in time."""
+        self._stopping = True
+        self.executor.shutdown(timeout_sec=0.0)
+        if self.thread.ident is not None:
+            self.thread.join(timeout)
+        return not self.thread.is_alive()
+
+    def wait_idle(self, timeout: float) -> bool:
+        """After :meth:`stop`: wait until no callback runs any more (in the spin thread itself for a
+        single-threaded executor, in the pool for a multi-threaded one); True if none does."""
+        deadline = time.monotonic() + timeout
+        if self.thread.ident is not None:
+            self.thread.join(timeout)
+        return wait_for_running_callbacks(self.executor, max(0.0, deadline - time.monotonic())) and (
+            not self.thread.is_alive()
+        )
+
+
 class _Stop(BaseException):
     """SIGINT/SIGTERM while a :func:`run_nodes` process builds its nodes (a BaseException, like KeyboardInterrupt)."""
 
 
 class _Signals:
     """SIGINT/SIGTERM for :func:`run_nodes`: raise while nodes are being built (a constructor may wait on the
-    camera), only set a flag once spinning (the main thread sees it within its 0.1 s spin timeout). An exception
+    camera), only set a flag once spinning (the main thread sees it within its 0.1 s wait). An exception
     raised inside the executor's own code could leave its state or a lock half-done; the flag cannot."""
 
     def __init__(self) -> None:
@@ -464,14 +570,18 @@ class _Signals:
 
 
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
-    """Create nodes in one process and spin them on a multi-threaded executor until SIGINT/SIGTERM or shutdown.
+    """Create nodes in one process and spin them until SIGINT/SIGTERM or shutdown.
 
+    Each node has an executor of its own (:func:`executor_for`: a wake-up rebuilds the wait set of one node's
+    entities, not of every node in the process, and one node's blocking callbacks never hold up another's),
+    spinning in a thread of its own and blocking until there is work (:class:`Spinner`); the main thread only
+    waits for a signal, a spin ending or the context going (a 0.1 s wait that costs nothing measurable).
     Shutdown order: the executor stops, callbacks still running finish, every node is destroyed (joining its
     threads) while the context is still valid, and only then the context is shut down. rclpy's own signal
     handler is not installed: it shuts the context down inside the signal, so nodes would be destroyed after it,
     and destroying a publisher of a shut-down context crashed ``axis_visualizer`` with SIGSEGV in a CI run
-    (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Our handlers (:class:`_Signals`) end the
-    spin instead, which runs with a 0.1 s timeout so that a signal is acted on promptly.
+    (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Our handlers (:class:`_Signals`) only set
+    a flag once spinning; a second signal is ignored during clean-up.
     """
     if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
         faulthandler.enable()
@@ -479,16 +589,25 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     signals.install()
     rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Node] = []
-    executor = MultiThreadedExecutor(num_threads=4)
+    spinners: list[Spinner] = []
     code = 0
     try:
         for f in factories:
             n = f()
             nodes.append(n)
+            # one executor per node: a wake-up (a message, a timer) rebuilds the wait set of that node's entities
+            # only, and one node's blocking callbacks never hold up another's
+            executor = executor_for(n)
             executor.add_node(n)
+            spinners.append(Spinner(executor, f"executor:{n.get_name()}"))
         signals.spinning = True
-        while rclpy.ok() and not signals.stop.is_set():
-            spin_once(executor, 0.1)
+        for s in spinners:
+            s.start()
+        while rclpy.ok() and not signals.stop.is_set() and all(s.alive() for s in spinners):
+            spinners[0].thread.join(0.1)  # wakes this thread only; a signal's flag is seen within 0.1 s
+        for s in spinners:
+            if s.error is not None:
+                raise s.error
     except (_Stop, KeyboardInterrupt, ExternalShutdownException):
         pass
     except ValueError as err:  # start-up configuration errors: say why, exit non-zero
@@ -499,10 +618,15 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
         # a clean-up that hangs leaves every thread's stack in the log before whoever stopped us kills us
         faulthandler.dump_traceback_later(5.0)
         try:
-            executor.shutdown(timeout_sec=1.0)
-            wait_for_running_callbacks(executor, 2.0)
+            for s in spinners:
+                s.stop(timeout=1.0)
+            deadline = time.monotonic() + 2.0
+            for s in spinners:
+                s.wait_idle(max(0.0, deadline - time.monotonic()))
             for n in nodes:
                 n.destroy_node()
+            for s in spinners:
+                retrieve_task_errors(s.executor)
             rclpy.try_shutdown()
         finally:
             faulthandler.cancel_dump_traceback_later()

@@ -26,11 +26,11 @@ from axis_ptz_ros2.nodes.common import (
     LATCHED_QOS,
     ParamSpec,
     declare_params,
-    make_tf_broadcasters,
     publisher,
     run_nodes,
     transform_msg,
 )
+from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.sim.scene import Scene, load_world, shared_scene
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -132,7 +132,7 @@ class LaserSim(Node):
         tf_msg = transform_msg(self.T_base_laser, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
         self._tf_pub.publish(tf_msg)
         _, static_tf = make_tf_broadcasters(self)
-        if static_tf is not None:  # pragma: no cover - only with tf2_ros installed
+        if static_tf is not None:
             static_tf.sendTransform(tf_msg)
         self._scan()
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)

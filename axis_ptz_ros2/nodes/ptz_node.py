@@ -45,12 +45,14 @@ from axis_ptz_ros2.nodes.common import (
     check_params,
     declare_params,
     diagnostic,
-    make_tf_broadcasters,
+    field_spec,
     publisher,
     run_nodes,
+    snapshot,
     stamp_from_ns,
     transform_msg,
 )
+from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
 from axis_ptz_ros2.ptz.commander import Commander, Order, Progress, Tolerances, wait_accepted
@@ -59,9 +61,9 @@ from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSaf
 from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus
 from axis_ptz_ros2.ptz.health import Health, diagnostic_values, judge, stale_after, state_age
 from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
-from axis_ptz_ros2.ptz.settings import snapshot
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop
+from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
@@ -71,10 +73,12 @@ PARAMS: tuple[ParamSpec, ...] = (
               "config/generic.yaml with the camera's own optics)", read_only=True),
     ParamSpec("mount_file", "", "mount YAML base_link -> PTZ base ('' = config/mount.yaml)", read_only=True),
     ParamSpec("state_rate", 20.0, "state polling/publishing rate", "Hz", float_range=(0.1, 100.0), read_only=True),
-    ParamSpec("velocity_timeout", 0.5, "stop a velocity command after this long without a new one", "s",
-              float_range=(0.05, 10.0)),
-    ParamSpec("arrival_tolerance", 0.002, "pan/tilt distance counted as arrived", "rad", float_range=(1e-5, 0.2)),
-    ParamSpec("zoom_tolerance", 2.0, "zoom distance counted as arrived", "zoom units", float_range=(0.0, 1000.0)),
+    field_spec(Tolerances, "velocity_timeout_s", "stop a velocity command after this long without a new one", "s",
+               name="velocity_timeout", float_range=(0.05, 10.0)),
+    field_spec(Tolerances, "pan_tilt_rad", "pan/tilt distance counted as arrived", "rad", name="arrival_tolerance",
+               float_range=(1e-5, 0.2)),
+    field_spec(Tolerances, "zoom_units", "zoom distance counted as arrived", "zoom units", name="zoom_tolerance",
+               float_range=(0.0, 1000.0)),
     ParamSpec("wait_timeout", 15.0, "default timeout of services with wait=true", "s", float_range=(0.1, 300.0)),
     ParamSpec("image_width", 704, "stream width for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
     ParamSpec("image_height", 576, "stream height for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
@@ -90,14 +94,14 @@ PARAMS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec("drive_topic_type", "odometry", "message type of drive_topic: nav_msgs/Odometry or "
               "geometry_msgs/Twist", choices=("odometry", "twist"), read_only=True),
-    ParamSpec("drive_speed_threshold", 0.2, "drive-safe zoom: cap the zoom above this linear speed", "m/s",
-              float_range=(0.0, 100.0)),
-    ParamSpec("drive_turn_threshold", 0.3, "drive-safe zoom: cap the zoom above this turn rate", "rad/s",
-              float_range=(0.0, 100.0)),
-    ParamSpec("drive_zoom_cap", 4000.0, "drive-safe zoom: highest zoom while driving (thesis: above ~4000 "
-              "unusable on cobblestones)", "VAPIX units", float_range=(1.0, 99999.0)),
-    ParamSpec("drive_hold_time", 2.0, "drive-safe zoom: restore the operator's zoom after the robot has been "
-              "below both thresholds this long", "s", float_range=(0.0, 600.0)),
+    field_spec(DriveSafeConfig, "speed_mps", "drive-safe zoom: cap the zoom above this linear speed", "m/s",
+               name="drive_speed_threshold", float_range=(0.0, 100.0)),
+    field_spec(DriveSafeConfig, "turn_rps", "drive-safe zoom: cap the zoom above this turn rate", "rad/s",
+               name="drive_turn_threshold", float_range=(0.0, 100.0)),
+    field_spec(DriveSafeConfig, "zoom_cap", "drive-safe zoom: highest zoom while driving (thesis: above ~4000 "
+               "unusable on cobblestones)", "VAPIX units", name="drive_zoom_cap", float_range=(1.0, 99999.0)),
+    field_spec(DriveSafeConfig, "hold_s", "drive-safe zoom: restore the operator's zoom after the robot has been "
+               "below both thresholds this long", "s", name="drive_hold_time", float_range=(0.0, 600.0)),
 )  # fmt: skip
 _SPECS = {s.name: s for s in PARAMS}
 _DYNAMIC = frozenset(s.name for s in PARAMS if not s.read_only)  # copied into self._p when set at run time
@@ -157,7 +161,7 @@ class PtzNode(Node):
         period = 1.0 / float(p["state_rate"])
         self._poller = StatePoller(self._backend.read_state, period, max_backoff_s=max(2.0, period))
         self._cmd = Commander(
-            self._backend, self._slot, self._poller, lambda: self.limits, snapshot(Tolerances, p), self._offsets
+            self._backend, self._slot, self._poller, lambda: self.limits, snapshot(Tolerances, PARAMS, p), self._offsets
         )
         self._req = Requests(
             self._cmd,
@@ -171,7 +175,8 @@ class PtzNode(Node):
         self._follower = Follower(self._cmd, self._poller, self._offsets, float(p["timeout"]))
         self._drive: DriveSafeCap | None = None
         if p["drive_topic"]:
-            self._drive = DriveSafeCap(DriveSafeZoom(snapshot(DriveSafeConfig, p)), self._cmd, self.get_logger().info)
+            zoom = DriveSafeZoom(snapshot(DriveSafeConfig, PARAMS, p))
+            self._drive = DriveSafeCap(zoom, self._cmd, self.get_logger().info)
 
         # Publishers.
         self._state_pub = publisher(self, PtzState, "ptz/state", STREAM_QOS)
@@ -248,12 +253,12 @@ class PtzNode(Node):
     # -- parameters -----------------------------------------------------------------------------------
     def _post_set_params(self, params: list[Parameter]) -> None:
         self._p.update((prm.name, prm.value) for prm in params if prm.name in _DYNAMIC)
-        self._cmd.tol = snapshot(Tolerances, self._p)
+        self._cmd.tol = snapshot(Tolerances, PARAMS, self._p)
         if self._drive is not None:
-            self._drive.reconfigure(snapshot(DriveSafeConfig, self._p))
+            self._drive.reconfigure(snapshot(DriveSafeConfig, PARAMS, self._p))
 
     def _on_video_params(self, msg: VideoParams) -> None:
-        if self._p["follow_video_params"] and msg.width > 0 and msg.height > 0:
+        if self._p["follow_video_params"] and 0 < msg.width <= MAX_IMAGE_SIDE and 0 < msg.height <= MAX_IMAGE_SIDE:
             self._p["image_width"], self._p["image_height"] = int(msg.width), int(msg.height)
 
     # -- state ----------------------------------------------------------------------------------------

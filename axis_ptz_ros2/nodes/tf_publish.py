@@ -64,3 +64,12 @@ class StaticTfBroadcaster:
         for t in _as_list(transforms):
             self._by_child[t.child_frame_id] = t
         self._pub.publish(TFMessage(transforms=list(self._by_child.values())))
+
+
+def make_tf_broadcasters(
+    node: Node, enabled: bool = True
+) -> tuple[TfBroadcaster | None, StaticTfBroadcaster | None]:
+    """(``/tf`` broadcaster, ``/tf_static`` broadcaster) of ``node``; (None, None) when not ``enabled``."""
+    if not enabled:
+        return None, None
+    return TfBroadcaster(node), StaticTfBroadcaster(node)

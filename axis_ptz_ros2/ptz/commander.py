@@ -26,9 +26,8 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 from axis_ptz_ros2.geometry import wrap_angle
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
@@ -121,18 +120,12 @@ def describe(r: PtzReading) -> str:
 
 @dataclass(frozen=True, slots=True)
 class Tolerances:
-    """Arrival tolerances and the velocity timeout: a snapshot of the node's dynamic parameters (replaced as a
-    whole when one changes; defaults and ranges are the parameters')."""
+    """Arrival tolerances and the velocity timeout: a frozen snapshot of the node's dynamic parameters (replaced
+    as a whole when one changes). The defaults here are the parameters' defaults."""
 
-    pan_tilt_rad: float
-    zoom_units: float
-    velocity_timeout_s: float
-
-    PARAMS: ClassVar[Mapping[str, str]] = {
-        "pan_tilt_rad": "arrival_tolerance",
-        "zoom_units": "zoom_tolerance",
-        "velocity_timeout_s": "velocity_timeout",
-    }
+    pan_tilt_rad: float = 0.002
+    zoom_units: float = 2.0
+    velocity_timeout_s: float = 0.5
 
 
 @dataclass

@@ -199,7 +199,10 @@ def pixel_center_target(
         raise ValueError("the current pose is not known yet")
     if not (math.isfinite(u) and math.isfinite(v) and 0.0 <= u <= width - 1 and 0.0 <= v <= height - 1):
         raise ValueError(f"pixel ({u:g}, {v:g}) outside the {width}x{height} image")
-    pan, tilt = center_target(reading, u, v, width, height, zoom_model)
+    with np.errstate(all="ignore"):  # an absurd image size must give a refusal, not a numpy warning
+        pan, tilt = center_target(reading, u, v, width, height, zoom_model)
+    if not (math.isfinite(pan) and math.isfinite(tilt)):
+        raise ValueError(f"pixel ({u:g}, {v:g}) of a {width}x{height} image gives no finite pose")
     zoom = None
     if math.isfinite(zoom_delta) and zoom_delta != 0.0:
         zoom = clamp_zoom(reading.zoom + zoom_delta, lim)
@@ -215,10 +218,17 @@ def area_zoom_command(
     lim: PtzLimitsRos,
 ) -> tuple[float, float, float]:
     """An area-zoom command checked: :func:`area_zoom_target` with the zoom clamped to the head's range.
-    Raises ValueError with the reason of a refusal (pose unknown, box not finite or empty)."""
+    Raises ValueError with the reason of a refusal (pose unknown, box not finite, empty or centred outside the
+    image, or no finite pose from it)."""
     if reading is None:
         raise ValueError("the current pose is not known yet")
     if not all(math.isfinite(b) for b in box):
         raise ValueError("the box is not finite")
-    pan, tilt, zoom = area_zoom_target(reading, box, width, height, zoom_model)
+    u0, v0, u1, v1 = box
+    if not (min(u0, u1) >= 0.0 and max(u0, u1) <= width and min(v0, v1) >= 0.0 and max(v0, v1) <= height):
+        raise ValueError(f"the box ({u0:g}, {v0:g})-({u1:g}, {v1:g}) is not inside the {width}x{height} image")
+    with np.errstate(all="ignore"):  # a degenerate box must give a refusal, not a numpy warning
+        pan, tilt, zoom = area_zoom_target(reading, box, width, height, zoom_model)
+    if not all(math.isfinite(x) for x in (pan, tilt, zoom)):
+        raise ValueError(f"the box {box} of a {width}x{height} image gives no finite pose")
     return pan, tilt, clamp_zoom(zoom, lim)

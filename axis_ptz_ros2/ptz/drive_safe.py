@@ -13,29 +13,21 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar
 
 from axis_ptz_ros2.ptz.commander import Commander
 
 
 @dataclass(frozen=True, slots=True)
 class DriveSafeConfig:
-    """Thresholds (m/s, rad/s), the cap (VAPIX zoom units) and the hold time (s): a snapshot of the node's
-    ``drive_*`` parameters (defaults and ranges are the parameters')."""
+    """Thresholds (m/s, rad/s), the cap (VAPIX zoom units) and the hold time (s): a frozen snapshot of the
+    node's ``drive_*`` parameters. The defaults here are the parameters' defaults."""
 
-    speed_mps: float
-    turn_rps: float
-    zoom_cap: float
-    hold_s: float
-
-    PARAMS: ClassVar[Mapping[str, str]] = {
-        "speed_mps": "drive_speed_threshold",
-        "turn_rps": "drive_turn_threshold",
-        "zoom_cap": "drive_zoom_cap",
-        "hold_s": "drive_hold_time",
-    }
+    speed_mps: float = 0.2
+    turn_rps: float = 0.3
+    zoom_cap: float = 4000.0
+    hold_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "turn_rps", "zoom_cap", "hold_s"):

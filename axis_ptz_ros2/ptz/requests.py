@@ -17,6 +17,7 @@ from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
 from axis_ptz_ros2.ptz.commander import Commander, Order, axis_value
 from axis_ptz_ros2.ptz.control import area_zoom_command, look_at_target, pixel_center_target, zoom_target
+from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 
 class GoalKind(IntEnum):
@@ -71,7 +72,10 @@ class Requests:
         self._image_size = image_size
 
     def size(self, width: int = 0, height: int = 0) -> tuple[int, int]:
-        """``width``×``height``, each 0 replaced by the stream's."""
+        """``width``×``height``, each 0 replaced by the stream's; ValueError beyond a real image's size (a uint32
+        field can carry 2^32 - 1: such a size is refused, never wrapped or carried on)."""
+        if not (0 <= int(width) <= MAX_IMAGE_SIDE and 0 <= int(height) <= MAX_IMAGE_SIDE):
+            raise ValueError(f"image size {width}x{height} outside 1..{MAX_IMAGE_SIDE} px per side (0 = the stream's)")
         w, h = self._image_size()
         return (int(width) or w), (int(height) or h)
 
@@ -86,8 +90,8 @@ class Requests:
 
     def center(self, u: float, v: float, width: int, height: int, zoom_delta: float) -> Order:
         """Bring pixel (u, v) to the image centre, optionally zooming by ``zoom_delta`` units."""
-        w, h = self.size(width, height)
         try:
+            w, h = self.size(width, height)
             pan, tilt, zoom = pixel_center_target(
                 self._cmd.reading(), u, v, w, h, self._zoom, zoom_delta, self._limits()
             )
@@ -97,8 +101,8 @@ class Requests:
 
     def area_zoom(self, box: tuple[float, float, float, float], width: int, height: int) -> Order:
         """Centre on the box ``(u_min, v_min, u_max, v_max)`` and zoom so it fills the view."""
-        w, h = self.size(width, height)
         try:
+            w, h = self.size(width, height)
             pan, tilt, zoom = area_zoom_command(self._cmd.reading(), box, w, h, self._zoom, self._limits())
         except ValueError as err:
             return self._cmd.refuse("area_zoom", str(err))

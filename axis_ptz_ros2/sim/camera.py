@@ -126,7 +126,7 @@ class SimulatedCamera:
         self.params = self.persona.parameter_tree(self.world.limits, self.world.zoom_model, self.mac, auth)
         if self.persona.key != "axis214":
             self.params["HTTPS.Enabled"] = "yes" if self.https else "no"
-        self.frames = FrameSource(self.world, self.state)
+        self.frames = FrameSource(self.world, self.state, self.persona.picture)
         self.requests = RequestLog()
         self._http = HttpListener(self, host, port)
         self._listeners: list[Listener] = [self._http]

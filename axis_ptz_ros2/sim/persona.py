@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from axis_ptz_ros2.geometry import PtzKinematics, ZoomCurve, ZoomModel
+from axis_ptz_ros2.sim.camera_model import CameraModel
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import PtzLimits
 
@@ -277,6 +278,7 @@ class Persona:
     whoami: str = "Sony_camblock"
     server_header: str = ""  # "" = no Server header
     aliases: tuple[str, ...] = ()
+    picture: CameraModel = field(default_factory=CameraModel)  # softness, noise, JPEG quality (camera_model.py)
 
     @property
     def accepted_sizes(self) -> frozenset[tuple[int, int]]:
@@ -315,6 +317,38 @@ def _axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str
     return parameter_tree(limits, zoom, mac, auth)
 
 
+#: The 214's picture (``sim/camera_model.py``; README "What the simulated camera's pictures are made of").
+#: Sources: PAL 4CIF sampled per ITU-R BT.601 (13.5 MHz, 704 active samples); PAL chroma bandwidth ~1.3 MHz
+#: and the line-averaging delay line (PAL system standard); Kell factor ~0.7 for interlaced CCDs (textbook).
+#: Guesses: luminance bandwidth 4 MHz (composite/Y-C decoder of the camera block), lens σ 0.5…1.0 px
+#: (wide…tele). Fitted to the thesis's Tables 6.2-6.4 (read as kB/s, bench/bench_bitrate.py): temporal noise
+#: 2.0 / 0.7 DN (luma / chroma at 704×576), scaler softness 0.3 px per halving of the width, and the
+#: compression → IJG quality curve q(c) = 98 − (98 − 60)·(c/100)^1.7, 27 quality points lower at compression 100
+#: per halving of the width (q(0, 10, 30, 60, 100) = 98, 97, 93, 82, 60 at 704×576; 98, 97, 90, 71, 33 at
+#: 352×288; 98, 96, 86, 59, 6 at 176×144). The exponent 1.7 rather than 2 keeps a first compression step of 10
+#: visible in the frame size (with 2 it rounds to the same quality: the stream node's budget controller then
+#: learns that compression does nothing). No source explains the per-resolution drop; the tables need it (the real 214's
+#: small pictures shrink far more at compression 100 than its 704×576 picture).
+AXIS_214_PICTURE = CameraModel(
+    native_width=704,
+    sample_rate_mhz=13.5,
+    luma_bandwidth_mhz=4.0,
+    chroma_bandwidth_mhz=1.3,
+    chroma_vertical_sigma=0.7,
+    kell_factor=0.7,
+    lens_sigma_wide=0.5,
+    lens_sigma_tele=1.0,
+    scaler_sigma=0.3,
+    tele_zoom=9999.0,
+    noise_luma=2.0,
+    noise_chroma=0.7,
+    quality_at_0=98.0,
+    quality_at_100=60.0,
+    quality_gamma=1.7,
+    quality_drop_per_halving=27.0,
+    pool_frames=8,
+)
+
 AXIS_214 = Persona(
     key="axis214",
     product="AXIS 214 PTZ",
@@ -329,6 +363,7 @@ AXIS_214 = Persona(
     preset_params=True,  # every recorded listing keeps presets under PTZ.Preset.P0 (assumed for fw 4.49)
     server_header="",  # a real Axis MJPEG reply has no Server header; for other replies of fw 4.49: unknown
     aliases=("214",),
+    picture=AXIS_214_PICTURE,
 )
 
 #: The modern persona's resolution list: 16:9 sizes and a few 4:3 ones (square pixels, 4:3 = sides cropped).
@@ -480,6 +515,26 @@ def _modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str,
     return p
 
 
+#: The modern persona's picture: a digital 1080p sensor (no analogue band limit, progressive). All guesses:
+#: temporal noise 1.0 / 0.5 DN (a current 1/2.8" CMOS in office light after the camera's noise filter), lens
+#: σ 0 (no softening: it would cost a 1080p frame ~10 ms while panning), the compression curve linear from
+#: quality 98 to 30 (close to the earlier noise-free mapping 100 − c) without the per-resolution drop.
+#: bench/bench_bitrate.py prints the resulting 1080p bytes per frame (README: no Axis figure to compare with).
+Q6075_PICTURE = CameraModel(
+    native_width=1920,
+    sample_rate_mhz=148.5,
+    kell_factor=1.0,
+    lens_sigma_wide=0.0,
+    lens_sigma_tele=0.0,
+    tele_zoom=9999.0,
+    noise_luma=1.0,
+    noise_chroma=0.5,
+    quality_at_0=98.0,
+    quality_at_100=30.0,
+    quality_gamma=1.0,
+    pool_frames=8,
+)
+
 AXIS_Q6075 = Persona(
     key="q6075",
     product="AXIS Q6075-E",
@@ -501,6 +556,7 @@ AXIS_Q6075 = Persona(
     whoami="Axis_PTZ",
     server_header="Apache",
     aliases=("q6075-e", "modern"),
+    picture=Q6075_PICTURE,
 )
 
 PERSONAS: dict[str, Persona] = {p.key: p for p in (AXIS_214, AXIS_Q6075)}

@@ -11,7 +11,8 @@ of the requested stream size (PAL 704×576: ``fy = fx·12/11``). Pose: the world
 * targets: composited exactly with the plane-induced homography of each target (``cv2.warpPerspective`` of
   the mip level that matches the on-screen scale, premultiplied alpha), far to near.
 
-Rendered views are cached per (pose, zoom, size), so a still camera costs nothing but the JPEG encode.
+Rendered views are cached per (pose, zoom, size). The picture is ideal (sharp, noise-free): what a camera makes
+of it (softness, sensor noise, JPEG quality) is ``sim/camera_model.py``.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
+from axis_ptz_ros2.sim.camera_model import CameraModel, encode
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
 from axis_ptz_ros2.sim.scene import Scene, SimWorld, Target, shared_scene
 
@@ -184,13 +186,19 @@ class PtzRenderer:
         roi[:] = np.clip(blended + 0.5, 0, 255).astype(np.uint8)
 
 
-def encode_jpeg(img: U8Array, compression: int) -> bytes:
-    """JPEG-encode with VAPIX ``compression`` 0…100 (quality ≈ 100 − compression, at least 5)."""
-    quality = max(5, min(100, 100 - int(compression)))
-    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        raise RuntimeError("JPEG encoding failed")
-    return bytes(buf)
+def encode_jpeg(img: U8Array, compression: int, picture: CameraModel | None = None) -> bytes:
+    """JPEG-encode ``img`` as it is at VAPIX ``compression`` 0…100.
+
+    Without ``picture``: IJG quality ≈ 100 − compression (at least 5), the noise-free ideal. With a camera
+    model: that camera's quality curve for this width (``CameraModel.quality``); the softening and sensor noise
+    of a camera's frames are applied by :class:`axis_ptz_ros2.sim.camera_model.PicturePool`, which the
+    simulated camera serves its frames from.
+    """
+    if picture is not None:
+        quality = picture.quality(compression, img.shape[1])
+    else:
+        quality = max(5, min(100, 100 - int(compression)))
+    return encode(img, quality)
 
 
 def insert_comment(jpeg: bytes, text: bytes) -> bytes:

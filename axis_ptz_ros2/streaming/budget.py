@@ -8,7 +8,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
-from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, Resolution, VideoParams
 
 # Relative JPEG size against compression, from the thesis's Table 6.2 (704x576 @ 30 fps: 3440, 2340 and
 # 950 kbit/s at compression 0, 30 and 100). Only a prior: observed sizes replace it as soon as known.
@@ -26,7 +26,7 @@ AXIS214_PAL_RESOLUTIONS: tuple[Resolution, ...] = (
 
 def compression_size_factor(compression: int) -> float:
     """Prior relative frame size at ``compression`` (1.0 at 0), piecewise linear through Table 6.2."""
-    c = min(max(compression, 0), 100)
+    c = min(max(compression, COMPRESSION_RANGE[0]), COMPRESSION_RANGE[1])
     for (c0, f0), (c1, f1) in zip(_COMPRESSION_PRIOR, _COMPRESSION_PRIOR[1:], strict=False):
         if c <= c1:
             return f0 + (f1 - f0) * (c - c0) / (c1 - c0)

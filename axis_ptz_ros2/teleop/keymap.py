@@ -21,16 +21,19 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from types import MappingProxyType
 
+from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS
+from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # R/F and Y/H stop at the camera's ends
+
 FPS_STEP = 3  #: R/F change the frame rate by this many frames per second
-FPS_RANGE = (1, 30)
 COMPRESSION_STEP = 10  #: Y/H change the JPEG compression by this much
-COMPRESSION_RANGE = (0, 100)
 FAST_FACTOR = 5  #: SHIFT multiplies pan/tilt steps by this
 ZOOM_UNITS_PER_STEP = 10  #: Q/E zoom by this many VAPIX units per step-size unit
 FAST_ZOOM_UNITS_PER_STEP = 100  #: SHIFT+Q/E
-#: Axis 214 PAL stream sizes (4CIF/2CIFEXP, 2CIF, CIF, QCIF; vapix.md §5.5), used until the stream node says
-#: otherwise.
-DEFAULT_RESOLUTIONS: tuple[str, ...] = ("176x144", "352x288", "704x288", "704x576")
+#: Axis 214 PAL stream sizes (4CIF/2CIFEXP, 2CIF, CIF, QCIF; vapix.md §5.5), smallest first, used until the
+#: stream node says otherwise (the stream node's own fallback list, ``streaming.budget``).
+DEFAULT_RESOLUTIONS: tuple[str, ...] = tuple(
+    str(r) for r in sorted(AXIS214_PAL_RESOLUTIONS, key=lambda r: (r.width * r.height, r.width))
+)
 
 CTRL_C = "\x03"
 CTRL_Q = "\x11"

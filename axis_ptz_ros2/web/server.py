@@ -9,7 +9,7 @@ client starts / the last client stops watching a stream so it subscribes to a to
 Security: by default the server binds 127.0.0.1 and checks the ``Host`` header (no DNS rebinding); binding
 any other address requires a token, and then every request must carry it (``Authorization: Bearer``,
 ``X-Axis-Token`` or the ``axis_token`` cookie set by the login form), and HTTPS (:mod:`.tls`; plain HTTP off
-loopback only when explicitly allowed). Wrong tokens are throttled per client address on every path
+loopback only when explicitly allowed). Wrong tokens are throttled per client network on every path
 (:mod:`.auth`). POSTs must be ``application/json`` and same-origin (no cross-site request forgery from another
 page in the operator's browser). Every malformed request gets a 4xx answer. The token is never logged, echoed
 or put into a URL; the cookie is ``HttpOnly; SameSite=Strict`` (and ``Secure`` over HTTPS).
@@ -23,6 +23,7 @@ import math
 import select
 import socket
 import ssl
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -37,8 +38,12 @@ from typing import Any, Protocol
 from urllib.parse import parse_qs, quote, unquote, urlsplit
 
 from axis_ptz_ros2.vapix.mjpeg import multipart_content_type, part_header
+from axis_ptz_ros2.web.api import COMMANDS as COMMAND_FIELDS
+from axis_ptz_ros2.web.api import STREAM_NAMES, BadRequest
+from axis_ptz_ros2.web.api import integer as integer  # re-exported for callers of this module
+from axis_ptz_ros2.web.api import number as number
 from axis_ptz_ros2.web.auth import AuthThrottle, token_matches
-from axis_ptz_ros2.web.tls import TlsIdentity
+from axis_ptz_ros2.web.tls import TlsIdentity, load_identity
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 STATIC_TYPES = {
@@ -51,8 +56,8 @@ STATIC_TYPES = {
 BOUNDARY = "axisframe"
 COOKIE = "axis_token"
 MAX_BODY = 64 * 1024
-STREAMS = ("ptz", "panorama", "overlay")
-COMMANDS = ("center", "look_panorama", "key", "video", "home")
+STREAMS = STREAM_NAMES
+COMMANDS = tuple(COMMAND_FIELDS)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -148,10 +153,6 @@ class CommandResult:
         return {"ok": self.ok, "message": self.message, **self.extra}
 
 
-class BadRequest(ValueError):  # noqa: N818 - reads as the HTTP status
-    """A request body the console cannot use (→ HTTP 400 with the reason)."""
-
-
 class ConsoleBackend(Protocol):
     """What the HTTP side needs from the ROS side."""
 
@@ -166,32 +167,6 @@ class ConsoleBackend(Protocol):
 
     def command(self, name: str, body: dict[str, Any]) -> CommandResult:
         """Run one of :data:`COMMANDS` (may raise :class:`BadRequest`); must return within a bounded time."""
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Body validation helpers (shared by the node)
-# ---------------------------------------------------------------------------------------------------------
-def number(body: dict[str, Any], key: str, default: float | None = None) -> float:
-    """A finite number from a JSON body, or :class:`BadRequest`."""
-    if key not in body or body[key] is None:
-        if default is None:
-            raise BadRequest(f"missing {key!r}")
-        return default
-    v = body[key]
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise BadRequest(f"{key!r} must be a number, got {v!r}")
-    f = float(v)
-    if f != f or f in (float("inf"), float("-inf")):
-        raise BadRequest(f"{key!r} must be finite")
-    return f
-
-
-def integer(body: dict[str, Any], key: str, default: int | None = None) -> int:
-    """An integer (JSON number without fraction) from a body, or :class:`BadRequest`."""
-    f = number(body, key, None if default is None else float(default))
-    if f != int(f):
-        raise BadRequest(f"{key!r} must be an integer, got {f!r}")
-    return int(f)
 
 
 def is_loopback(host: str) -> bool:
@@ -233,6 +208,7 @@ class ConsoleServer(ThreadingHTTPServer):
         tls: TlsIdentity | None = None,
         allow_plain_http: bool = False,
         throttle: AuthThrottle | None = None,
+        debug: Callable[[str], None] | None = None,
     ) -> None:
         if not is_loopback(bind) and not token:
             raise ValueError(
@@ -249,7 +225,12 @@ class ConsoleServer(ThreadingHTTPServer):
         self.token = token or None
         self.static_dir = static_dir
         self.log = log
+        self.debug = debug
         self.tls = tls
+        #: clients that hung up before their answer was complete (counted, logged at debug level only)
+        self.clients_gone = 0
+        #: requests that failed inside the server (a bug: logged as one line, never a traceback)
+        self.handler_errors = 0
         self.throttle = throttle or AuthThrottle()
         self.stop_event = threading.Event()
         self._conns: set[socket.socket] = set()
@@ -339,6 +320,29 @@ class ConsoleServer(ThreadingHTTPServer):
                     conn.shutdown(socket.SHUT_WR)
                 conn.close()
 
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A handler raised: a client that hung up is counted quietly; anything else is one error line.
+
+        (The stdlib prints a traceback to stderr here: anyone reaching the port could flood the log with them.)
+        """
+        err = sys.exc_info()[1]
+        who = client_address[0] if isinstance(client_address, tuple) and client_address else "?"
+        if isinstance(err, ConnectionError | TimeoutError | ssl.SSLError):
+            with self._conns_lock:
+                self.clients_gone += 1
+            if self.debug:
+                self.debug(f"client {who} went away before its answer: {type(err).__name__}")
+            return
+        with self._conns_lock:
+            self.handler_errors += 1
+        if self.log:
+            self.log(f"request from {who} failed: {type(err).__name__}: {str(err)[:200]}")
+
+    def counters(self) -> dict[str, int]:
+        """Open connections, clients gone before their answer, failed requests (for the page and tests)."""
+        with self._conns_lock:
+            return {"open": len(self._conns), "clients_gone": self.clients_gone, "errors": self.handler_errors}
+
     @property
     def open_connections(self) -> int:
         """HTTP connections currently open (for tests and diagnostics)."""
@@ -353,6 +357,41 @@ class ConsoleServer(ThreadingHTTPServer):
         if not presented:
             return False
         return token_matches(presented, self.token)
+
+
+def serve(
+    backend: ConsoleBackend,
+    *,
+    bind: str,
+    port: int,
+    token: str | None,
+    tls_files: tuple[str, str, str] = ("", "", ""),
+    allow_plain_http: bool = False,
+    tls_on_loopback: bool = False,
+    throttle: AuthThrottle | None = None,
+    info: Callable[[str], None] = print,
+    warn: Callable[[str], None] = print,
+    error: Callable[[str], None] | None = None,
+    debug: Callable[[str], None] | None = None,
+) -> ConsoleServer:
+    """Start a console: HTTPS when :func:`needs_tls` (``tls_files`` = certificate, key, directory for a generated
+    one), the URL and the certificate's fingerprint reported through ``info``."""
+    tls: TlsIdentity | None = None
+    if needs_tls(bind, allow_plain_http, tls_on_loopback):
+        tls = load_identity(tls_files[0], tls_files[1], bind, tls_files[2])
+    elif not is_loopback(bind):
+        warn(f"allow_plain_http: serving plain HTTP on {bind}: the token crosses the network unencrypted")
+    server = ConsoleServer(
+        backend, bind=bind, port=port, token=token, tls=tls, allow_plain_http=allow_plain_http, throttle=throttle,
+        log=error, debug=debug,
+    )  # fmt: skip
+    server.start()
+    info(f"web console at {server.url} ({'token required' if token else 'no token (loopback only)'})")
+    if tls is not None:
+        origin = "generated self-signed" if tls.generated else "given"
+        where = f", {tls.cert_path}" if tls.cert_path else ""
+        info(f"HTTPS certificate ({origin}{where}) SHA-256 fingerprint {tls.fingerprint}")
+    return server
 
 
 class ConsoleHandler(BaseHTTPRequestHandler):
@@ -374,6 +413,21 @@ class ConsoleHandler(BaseHTTPRequestHandler):
             return self._method_not_allowed
         raise AttributeError(name)
 
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
+        """The stdlib's own refusals (bad request line, header too long, …) as JSON with a reason, like ours.
+
+        An HTTP version the console does not speak is a 400 too (the stdlib's 505 is the only 5xx it sends).
+        """
+        if code == HTTPStatus.HTTP_VERSION_NOT_SUPPORTED:
+            code, message = HTTPStatus.BAD_REQUEST, "only HTTP/1.0 and HTTP/1.1 are served"
+        self.close_connection = True
+        self._unread_body = True  # the rest of the connection is not a request we understood
+        text = message or HTTPStatus(code).phrase
+        self.command = getattr(self, "command", None) or ""  # before parse_request it may not exist yet
+        if not getattr(self, "request_version", ""):
+            self.request_version = self.default_request_version
+        self._error(code, text[:200])
+
     def _method_not_allowed(self) -> None:
         self._unread_body = True  # whatever body it has is not read: close after answering
         self._send(
@@ -387,10 +441,19 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         """The stdlib's parsing plus a strict ``Content-Length`` (digits only, one value, no chunked bodies)."""
         self._unread_body = False
         self._body_len = 0
+        words = str(self.raw_requestline, "iso-8859-1").split()
+        if len(words) == 2:  # HTTP/0.9 ("GET /"): answer now; the stdlib would wait for headers that never come
+            self.command, self.request_version, self.requestline = "", "HTTP/1.0", " ".join(words)[:100]
+            self.close_connection = True
+            self._error(HTTPStatus.BAD_REQUEST, "HTTP/0.9 requests are not served: send HTTP/1.1 with a Host header")
+            return False
         if not super().parse_request():
             return False
-        if len(self.requestline.split()) != 3:  # HTTP/0.9 ("GET /"): no headers, so no Host and no token
-            self._error(HTTPStatus.BAD_REQUEST, "HTTP/0.9 requests are not served")
+        if len(self.requestline.split()) != 3 or self.request_version not in ("HTTP/1.0", "HTTP/1.1"):
+            # HTTP/0.9 has no headers (no Host, no token) and would be answered without a status line; a
+            # request line that only names it ("X Y HTTP/0.9") gets a real status line too
+            self.request_version, self.close_connection = "HTTP/1.0", True
+            self._error(HTTPStatus.BAD_REQUEST, "only HTTP/1.0 and HTTP/1.1 are served")
             return False
         if self.headers.get("Transfer-Encoding"):
             self._unread_body = True
@@ -498,7 +561,7 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         if wait <= 0:
             return False
         secs = str(max(1, math.ceil(wait)))
-        text = f"too many wrong tokens from this address: try again in {secs} s"
+        text = f"too many wrong tokens from this network: try again in {secs} s"
         if page:
             self._login_page(text.capitalize() + ".", HTTPStatus.TOO_MANY_REQUESTS, {"Retry-After": secs})
         else:

@@ -21,8 +21,8 @@ import cv2
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.demo import Demo, DemoConfig, DemoError
 from axis_ptz_ros2.sim.scene import load_world
+from scripts.demo import Demo, DemoConfig, DemoError
 
 pytestmark = pytest.mark.browser
 

@@ -21,10 +21,10 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from axis_ptz_interfaces.msg import PtzCommand  # noqa: E402
 from axis_ptz_interfaces.srv import MovePtz  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 from .test_web_console_browser import shot, wait_js  # noqa: E402
 

@@ -22,12 +22,12 @@ pytest.importorskip("rclpy")
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 from .test_web_console_browser import LAYOUT_JS, green_blob, shot, wait_for, wait_js  # noqa: E402
 

@@ -82,7 +82,7 @@ def _apply(doc: Any, edits: list[tuple[tuple[Any, ...], str, Any]]) -> Any:
     for path, action, value in edits:
         try:
             doc = _edit(doc, path, action, value)
-        except (KeyError, IndexError, TypeError):
+        except (KeyError, IndexError, TypeError, AttributeError):
             continue  # an earlier edit removed or replaced the path's parent
     return doc
 

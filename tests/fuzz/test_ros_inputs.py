@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from collections.abc import Iterator
 from typing import Any
 from urllib.parse import parse_qsl
@@ -25,11 +26,11 @@ from rclpy.parameter import Parameter  # noqa: E402
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, LookAt, MovePtz, Preset, SetZoom  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]
 
@@ -160,7 +161,16 @@ def test_command_topics_then_the_node_still_moves_the_camera(rig: Any) -> None:
         absolute.publish(PtzCommand(pan=x, tilt=x, zoom=x, speed=x))
         velocity.publish(PtzVelocity(pan_rate=x, tilt_rate=x, zoom_rate=x))
         center.publish(PixelTarget(u=x, v=x, image_width=2**32 - 1, image_height=0, zoom_delta=x))
-    velocity.publish(PtzVelocity())  # stop
+
+    # Messages on different topics are not ordered with each other: re-send a valid absolute command on the same
+    # topic as the garbage until the camera holds it, so no garbage is still in flight when the service is called.
+    def holds_topic_target() -> bool:
+        absolute.publish(PtzCommand(pan=math.radians(-10.0), tilt=math.radians(5.0), zoom=math.nan, speed=math.nan))
+        time.sleep(0.5)
+        pan, tilt, _ = cam.position()
+        return abs(pan - 10.0) < 0.5 and abs(tilt - 5.0) < 0.5
+
+    ros.wait_for(holds_topic_target, 20.0)
     request = MovePtz.Request(command=PtzCommand(pan=math.radians(-20.0), tilt=math.radians(10.0), zoom=500.0))
     request.wait, request.timeout_s = True, 20.0
     response = _answer(ros, probe, MovePtz, "ptz/move_absolute", request)

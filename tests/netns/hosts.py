@@ -37,7 +37,7 @@ def host_env(**extra: str) -> dict[str, str]:
 
 
 class Probe:
-    """``axis_ptz_ros2.nodes.link_probe`` in a namespace: its JSON lines collected by a thread."""
+    """``tests.support.link_probe`` in a namespace: its JSON lines collected by a thread."""
 
     def __init__(self, proc: subprocess.Popen[bytes]) -> None:
         """Start collecting ``proc``'s stdout."""
@@ -93,8 +93,8 @@ class TwoHosts:
         return proc
 
     def probe(self, side: str = "operator", args: Sequence[str] = (), env: dict[str, str] | None = None) -> Probe:
-        """``axis_ptz_ros2.nodes.link_probe`` on ``side``: the operator's measuring viewer."""
-        argv = [sys.executable, "-m", "axis_ptz_ros2.nodes.link_probe", *args]
+        """``tests.support.link_probe`` on ``side``: the operator's measuring viewer."""
+        argv = [sys.executable, "-m", "tests.support.link_probe", *args]
         err = open(self.logs / f"{self.tag}-probe-{side}-{len(self.procs)}.log", "wb")  # noqa: SIM115
         proc = self.link.popen(
             side, argv, env=env or host_env(), stdout=subprocess.PIPE, stdin=subprocess.PIPE, stderr=err, cwd=str(ROOT)

@@ -40,7 +40,7 @@ def pytest_pycollect_makemodule(module_path: Path, parent):  # noqa: ANN001, ANN
 
 
 if MISSING is None:
-    from axis_ptz_ros2.nodes.harness import RosHarness
+    from tests.support.harness import RosHarness
 
     @pytest.fixture
     def ros() -> Iterator[RosHarness]:

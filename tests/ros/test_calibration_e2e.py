@@ -3,8 +3,9 @@
 Simulated camera (in-process, loopback HTTP) + stream node + PTZ node running the NOMINAL mount
 (config/mount.yaml — the tools never see the simulator's true mount) + laser sim node. ``axis_calibrate
 capture`` commands the head through ``ptz/move_absolute``, records state, a frame and a laser snapshot per view
-and picks the board dots automatically; ``axis_calibrate solve`` recovers ``base_link → ptz_base``, which is
-checked against the simulator's truth (``load_world().ptz_mount``, here ``T_base_ptz``).
+and picks the board dots automatically with the simulated-board picker plug-in (``--picker``,
+``tests/support/sim_picker.py``); ``axis_calibrate solve`` recovers ``base_link → ptz_base``, which is checked
+against the simulator's truth (``load_world().ptz_mount``, here ``T_base_ptz``).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from axis_ptz_ros2.calibration.capture import (  # noqa: E402
 )
 from axis_ptz_ros2.calibration.cli import main as cli_main  # noqa: E402
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
-from axis_ptz_ros2.calibration.picking import picking_noise, scene_dot_features  # noqa: E402
+from axis_ptz_ros2.calibration.picking import picking_noise  # noqa: E402
 from axis_ptz_ros2.calibration.solver import rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import quaternion_to_matrix  # noqa: E402
@@ -47,6 +48,7 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import Scene, load_world  # noqa: E402
+from tests.support.sim_picker import scene_dot_features  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(150)]
 
@@ -127,7 +129,7 @@ def test_capture_pick_and_calibrate_recovers_the_true_mount(ros, cam, system, tm
             "capture",
             str(out),
             f"--poses={POSES}",
-            "--pick=auto",
+            "--picker=tests.support.sim_picker:SimBoardPicker",
             "--camera-model",
             str(system["model"]),
             "--mount",

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from axis_ptz_ros2.demo import count_mjpeg_frames
+from scripts.demo import count_mjpeg_frames
 
 pytestmark = pytest.mark.ros
 
@@ -122,7 +122,7 @@ def test_scripts_demo_serves_live_video_and_stops_after_duration(tmp_path: Path)
 
 def test_demo_stops_everything_on_sigterm(tmp_path: Path) -> None:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "axis_ptz_ros2.demo", "--port", "0", "--log-dir", str(tmp_path)],
+        [sys.executable, "-m", "scripts.demo", "--port", "0", "--log-dir", str(tmp_path)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

@@ -21,11 +21,11 @@ from sensor_msgs.msg import CompressedImage  # noqa: E402
 from axis_ptz_interfaces.msg import PtzCommand  # noqa: E402
 from axis_ptz_interfaces.srv import MovePtz  # noqa: E402
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.stamps import sim_stamp  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]

@@ -225,7 +225,7 @@ def test_demo_with_the_modern_camera_serves_1080p_through_the_console(tmp_path: 
     import http.client
     import json
 
-    from axis_ptz_ros2.demo import Demo, DemoConfig
+    from scripts.demo import Demo, DemoConfig
 
     with Demo(DemoConfig(console_port=0, fps=5, model="q6075", log_dir=tmp_path)) as demo:
         url = demo.wait_ready(90.0)

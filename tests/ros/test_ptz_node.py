@@ -534,22 +534,25 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
 
 
 def test_settings_snapshots_are_built_from_dynamic_parameter_specs() -> None:
-    """One source for defaults and ranges: every field of the ROS-free settings comes from a parameter the
-    node copies on a runtime change (a read-only or unknown name would never reach it), and the specs' own
-    defaults build a valid snapshot."""
+    """One source for defaults: every field of the ROS-free settings (Tolerances, DriveSafeConfig) is filled
+    by a parameter whose default is the field's, and each of those parameters is dynamic (the node rebuilds the
+    snapshot on a change; a read-only one would never reach it)."""
+    import dataclasses
+
     from axis_ptz_ros2.nodes import ptz_node
+    from axis_ptz_ros2.nodes.common import snapshot
     from axis_ptz_ros2.ptz.commander import Tolerances
     from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig
-    from axis_ptz_ros2.ptz.settings import parameter_names, snapshot
 
-    specs = {s.name: s for s in ptz_node.PARAMS}
     defaults = {s.name: s.default for s in ptz_node.PARAMS}
     for cls in (Tolerances, DriveSafeConfig):
-        names = parameter_names(cls)
-        assert names <= ptz_node._DYNAMIC, names - ptz_node._DYNAMIC
-        assert all(isinstance(specs[n].default, float) and specs[n].float_range for n in names)
-    assert snapshot(Tolerances, defaults) == Tolerances(0.002, 2.0, 0.5)
-    assert snapshot(DriveSafeConfig, defaults) == DriveSafeConfig(0.2, 0.3, 4000.0, 2.0)
+        specs = [s for s in ptz_node.PARAMS if s.config is cls]
+        assert sorted(s.field for s in specs) == sorted(f.name for f in dataclasses.fields(cls))
+        assert all(s.name in ptz_node._DYNAMIC and s.float_range is not None for s in specs)
+        assert snapshot(cls, ptz_node.PARAMS, defaults) == cls()
+    changed = dict(defaults, drive_zoom_cap=2500.0, arrival_tolerance=0.01)
+    assert snapshot(DriveSafeConfig, ptz_node.PARAMS, changed).zoom_cap == 2500.0
+    assert snapshot(Tolerances, ptz_node.PARAMS, changed).pan_tilt_rad == 0.01
     assert {"image_width", "image_height", "follow_video_params", "wait_timeout"} <= ptz_node._DYNAMIC
     assert not {"state_rate", "timeout", "hostname"} & ptz_node._DYNAMIC
 

@@ -18,9 +18,9 @@ from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_interfaces.msg import LinkFeedback, VideoParams  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, LATCHED_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.harness import RosHarness  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
+from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

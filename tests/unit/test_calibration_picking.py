@@ -30,7 +30,6 @@ from axis_ptz_ros2.calibration.picking import (
     pick_laser_point,
     pick_view,
     picking_noise,
-    scene_dot_features,
 )
 from axis_ptz_ros2.config import CameraModel, load_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
@@ -38,6 +37,7 @@ from axis_ptz_ros2.pointcloud import CloudField, decode_cloud
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from tests.support.sim_picker import scene_dot_features
 
 pytestmark = pytest.mark.unit
 

@@ -372,7 +372,7 @@ sys.meta_path.insert(0, _Blocker())
 import axis_ptz_ros2.ptz.axis_backend, axis_ptz_ros2.ptz.command_slot, axis_ptz_ros2.ptz.control
 import axis_ptz_ros2.ptz.state, axis_ptz_ros2.ptz.commander, axis_ptz_ros2.ptz.drive_safe
 import axis_ptz_ros2.ptz.state_loop, axis_ptz_ros2.ptz.health, axis_ptz_ros2.ptz.goals
-import axis_ptz_ros2.ptz.requests, axis_ptz_ros2.ptz.settings
+import axis_ptz_ros2.ptz.requests
 print("ok")
 """
 
@@ -670,7 +670,7 @@ def test_drive_safe_zoom_thresholds_and_hold() -> None:
     clock.t += 5.0
     assert not d.tick()  # no messages for the hold time: released
     with pytest.raises(ValueError, match="zoom_cap"):
-        DriveSafeConfig(speed_mps=0.2, turn_rps=0.3, zoom_cap=-1.0, hold_s=2.0)
+        DriveSafeConfig(zoom_cap=-1.0)
 
 
 def test_preemption_bookkeeping() -> None:

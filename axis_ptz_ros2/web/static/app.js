@@ -250,7 +250,7 @@ function render(s) {
   const st = s.stream || {};
   const drv = s.driver || {};
   const fps = st.measured_at === "console" ? st.fps : parseFloat(drv.fps);
-  const kbps = st.measured_at === "console" ? st.kbps : parseFloat(drv["kbit/s"] ?? drv.kbps);
+  const kbps = st.measured_at === "console" ? st.kbps : parseFloat(drv["kbit/s"]);
   $("r-fps").textContent = fmt(Number.isFinite(fps) ? fps : null, 1, " fps");
   $("r-kbps").textContent = fmt(Number.isFinite(kbps) ? kbps : null, 0, " kbit/s");
   $("r-latency").textContent = fmt(st.latency_ms, 0, " ms");

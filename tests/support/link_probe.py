@@ -1,6 +1,7 @@
-"""A measuring subscriber for the two-host test tier and ``bench/bench_link.py`` (not an installed executable):
-``python -m axis_ptz_ros2.nodes.link_probe`` prints one JSON line per message received, flushed at once, so
-the parent process (in another network namespace) sees arrivals live:
+"""A measuring subscriber for the two-host test tier and ``bench/bench_link.py`` (test tooling, not shipped).
+
+``python -m tests.support.link_probe`` (from the repository root) prints one JSON line per message received,
+flushed at once, so the parent process (in another network namespace) sees arrivals live:
 
 - ``{"t": "image", "rx": <time_ns at receipt>, "stamp": <header stamp ns>, "seq": <sim seq>, "sim": <sim send
   time_ns>, "bytes": <JPEG size>, "w": <width>, "h": <height>}`` (``seq``/``sim`` from the simulated camera's
@@ -35,7 +36,7 @@ from axis_ptz_interfaces.msg import PtzCommand, PtzState, VideoParams
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, publisher
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.streaming import jpeg_size
-from tests.support.stamps import sim_stamp  # test/bench tooling: this probe runs from the repository root
+from tests.support.stamps import sim_stamp
 
 _lock = threading.Lock()
 

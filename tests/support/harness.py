@@ -1,45 +1,33 @@
-"""An in-process ROS graph: a private rclpy context with a multi-threaded executor spinning in a background
-thread. Used by the ROS test tier and by benchmarks that run nodes in one process."""
+"""An in-process ROS graph: a private rclpy context with the node processes' executor (multi-threaded, blocking
+spin in a background thread: :class:`~axis_ptz_ros2.nodes.common.Spinner`). Used by the ROS test tier and by
+benchmarks that run nodes in one process (test and bench tooling: not part of the installed package)."""
 
 from __future__ import annotations
 
 import os
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
-from axis_ptz_ros2.nodes.common import spin_once, wait_for_running_callbacks
+from axis_ptz_ros2.nodes.common import Spinner, new_executor, retrieve_task_errors, wait_for_running_callbacks
 
 #: Multiplier of every ``wait_for`` deadline (conditions are awaited, not timed).
 DEADLINE_SCALE = float(os.environ.get("AXIS_TEST_DEADLINE_SCALE", "4"))
 
 
 class RosHarness:
-    """A private rclpy context with a multi-threaded executor spinning in a background thread."""
+    """A private rclpy context with the node processes' executor spinning in a background thread."""
 
     def __init__(self) -> None:
         self.context = Context()
         rclpy.init(context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
+        self.executor = new_executor(self.context)
         self.nodes: list[Node] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok() and not self._stop.is_set():
-            try:
-                spin_once(self.executor, 0.05)
-            except Exception:  # noqa: BLE001 - context shut down under us at teardown
-                if not self.context.ok():
-                    return
-                raise
+        self._spinner = Spinner(self.executor, "harness-executor").start()
 
     def add(self, node: Node) -> Node:
         """Spin ``node`` (created with ``context=harness.context``) and destroy it at teardown."""
@@ -75,14 +63,16 @@ class RosHarness:
         return fut.result()
 
     def close(self) -> None:
-        self._stop.set()  # stop spinning before anything is destroyed (no callback on a destroyed handle)
-        self._thread.join(timeout=2.0)
+        # stop spinning before anything is destroyed (no callback on a destroyed handle): the executor's shutdown
+        # wakes the blocking spin, which ends
+        self._spinner.stop(timeout=2.0)
         wait_for_running_callbacks(self.executor, 3.0)
         for n in reversed(self.nodes):
             try:
                 self.executor.remove_node(n)
             finally:
                 n.destroy_node()
-        self.executor.shutdown(timeout_sec=2.0)
+        retrieve_task_errors(self.executor)
         rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
+        if self._spinner.error is not None:  # a callback failed during the test: the test must not pass
+            raise self._spinner.error

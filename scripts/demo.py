@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from axis_ptz_ros2.vapix.models import FPS_RANGE
+
 #: executable → module holding its ``main`` (checked before starting, for a clear message).
 EXECUTABLES = {
     "axis_camera_sim": "axis_ptz_ros2.sim.cli",
@@ -311,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="demo", description=__doc__.split("\n\n")[0])
     p.add_argument("--port", type=int, default=8090, help="web console port (0 = pick a free one)")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0 = until Ctrl-C)")
-    p.add_argument("--fps", type=int, default=10, help="PTZ stream frame rate (1..30)")
+    p.add_argument("--fps", type=int, default=10, help=f"PTZ stream frame rate ({FPS_RANGE[0]}..{FPS_RANGE[1]})")
     p.add_argument("--resolution", default="", help="PTZ stream resolution ('' = the largest the camera lists)")
     p.add_argument("--model", default="axis214", help="simulated camera: axis214 (default) or q6075 (modern dome)")
     p.add_argument("--split", action="store_true", help="run axis_stream + axis_ptz instead of axis_camera")
@@ -321,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m axis_ptz_ros2.demo``."""
+    """``python -m scripts.demo`` (from the repository root; ``./scripts/demo`` bootstraps first)."""
     args = build_parser().parse_args(argv)
     stop = threading.Event()
 

@@ -1,0 +1,249 @@
+"""Bytes the simulated cameras send, beside the thesis's Tables 6.2–6.4 (the real Axis 214 PTZ).
+
+Run: ``.venv/bin/python bench/bench_bitrate.py [--quick]``. Starts the simulated 214 in this process on a free
+loopback port with the demo's world (``config/sim_world.yaml``) and reads ``mjpg/video.cgi`` for each of the
+thesis's 27 cells (704×576, 352×288, 176×144 × compression 0, 30, 100 × 1, 15, 30 fps) at the home view
+(pan 0, tilt 0, zoom 1), first with the camera still, then panning (``continuouspantiltmove=20,0``). A cell's
+figure is the mean JPEG size × 8 × the requested fps (kbit/s; the achieved fps is printed beside it), compared
+with the thesis's cell read as kB/s (``camera_model.THESIS_UNIT_BYTES``; the README says why) and, for
+reference, as printed. Then:
+
+* the still camera's frame-to-frame size variation (sensor noise: the coefficient of variation of the JPEG
+  sizes over the cell's frames);
+* the thesis's Figure 6.4 statement as a measure, per resolution, on one frame per compression (the same
+  sensor noise in each): "almost indistinguishable from 0" = luma SSIM against the compression-0 frame
+  ≥ 0.95 at compression 30; "usable" = luma SSIM ≥ 0.90 and PSNR ≥ 30 dB against the noise-free (softened)
+  view at 60; "not usable" = SSIM < 0.90 or PSNR < 30 dB against it at 100;
+* the current-Axis persona's 1920×1080 MJPEG bytes per frame at compression 0, 30, 60 and 100.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import httpx
+import numpy as np
+from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support
+
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.sim.camera_model import THESIS_FPS, THESIS_TABLES, PicturePool, thesis_kbit_s
+from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
+from axis_ptz_ros2.sim.renderer import PtzRenderer
+from axis_ptz_ros2.sim.scene import load_world
+from tests.support.sim import parts, read_stream
+
+COMPRESSIONS = (0, 30, 100)
+
+
+def move_and_wait(client: httpx.Client, pan: float, tilt: float, zoom: int, timeout: float = 30.0) -> None:
+    """Absolute move (VAPIX degrees / units) and wait until the camera reports that pose."""
+    client.get("/axis-cgi/com/ptz.cgi", params={"pan": pan, "tilt": tilt, "zoom": zoom}).raise_for_status()
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        text = client.get("/axis-cgi/com/ptz.cgi", params={"query": "position"}).text
+        p = dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
+        err = (abs(float(p["pan"]) - pan), abs(float(p["tilt"]) - tilt), abs(float(p["zoom"]) - zoom))
+        if err[0] < 0.05 and err[1] < 0.05 and err[2] < 1.5:
+            return
+        time.sleep(0.05)
+    raise RuntimeError(f"camera did not reach pan {pan} tilt {tilt} zoom {zoom}")
+
+
+def cell(client: httpx.Client, res: str, fps: int, comp: int, seconds: float) -> tuple[list[int], float]:
+    """(JPEG sizes of the complete frames, achieved fps) of one MJPEG stream."""
+    url = f"/axis-cgi/mjpg/video.cgi?resolution={res}&fps={fps}&compression={comp}"
+    _status, _headers, body, marks = read_stream(client, url, max_seconds=seconds)
+    complete = [n for n, off in parts(body) if off + n <= len(body)]
+    if len(complete) < 2:
+        raise RuntimeError(f"{res} {fps} fps compression {comp}: only {len(complete)} frames in {seconds} s")
+    elapsed = max(1e-6, marks[-1][0] - marks[0][0])
+    return complete, (len(complete) - 1) / elapsed
+
+
+def ssim(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean SSIM of two 8-bit planes (Wang et al. 2004, 11×11 Gaussian window σ 1.5)."""
+    x, y = a.astype(np.float64), b.astype(np.float64)
+    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
+
+    def g(v: np.ndarray) -> np.ndarray:
+        return np.asarray(cv2.GaussianBlur(v, (11, 11), 1.5), dtype=np.float64)
+
+    mx, my = g(x), g(y)
+    sxx, syy, sxy = g(x * x) - mx * mx, g(y * y) - my * my, g(x * y) - mx * my
+    m = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
+    return float(m.mean())
+
+
+def luma(img: np.ndarray) -> np.ndarray:
+    return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2YCrCb)[:, :, 0])
+
+
+Cells = dict[tuple[str, int, int], tuple[float, float, list[int]]]  # (res, comp, fps) → (kbit/s, fps, sizes)
+
+
+def measure_cells(client: httpx.Client, panning: bool, quick: bool) -> Cells:
+    out: Cells = {}
+    for res in THESIS_TABLES:
+        for comp in COMPRESSIONS:
+            for fps in THESIS_FPS:
+                seconds = (3.2 if quick else 5.5) if fps == 1 else (1.2 if quick else 2.5)
+                if panning:
+                    move_and_wait(client, -120.0, 0.0, 1)
+                    client.get("/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "20,0"}).raise_for_status()
+                sizes, achieved = cell(client, res, fps, comp, seconds)
+                if panning:
+                    client.get("/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "0,0"}).raise_for_status()
+                kbit = statistics.fmean(sizes) * 8.0 * fps / 1000.0
+                out[(res, comp, fps)] = (kbit, achieved, sizes)
+    return out
+
+
+def print_cells(title: str, cells: Cells) -> list[float]:
+    print(f"\n{title}")
+    print(
+        f"{'resolution':>10} {'comp':>4} {'fps':>3} | {'sim kbit/s':>10} {'achieved':>8} {'bytes/frame':>11} "
+        f"{'size CV':>7} | {'thesis kbit/s':>13} {'ratio':>6} | {'as printed':>10} {'ratio':>6}"
+    )
+    ratios = []
+    for (res, comp, fps), (kbit, achieved, sizes) in cells.items():
+        th = thesis_kbit_s(res, comp, fps)
+        printed = THESIS_TABLES[res][comp][THESIS_FPS.index(fps)]
+        cv = statistics.pstdev(sizes) / statistics.fmean(sizes)
+        ratios.append(kbit / th)
+        print(
+            f"{res:>10} {comp:>4} {fps:>3} | {kbit:10.0f} {achieved:8.1f} {statistics.fmean(sizes):11.0f} "
+            f"{100 * cv:6.1f}% | {th:13.0f} {kbit / th:6.2f} | {printed:10g} {kbit / printed:6.1f}"
+        )
+    print(
+        f"ratio to the thesis (kB/s reading): min {min(ratios):.2f}, median {statistics.median(ratios):.2f}, "
+        f"max {max(ratios):.2f}"
+    )
+    return ratios
+
+
+def figure_6_4(width: int = 704, height: int = 576) -> tuple[dict[int, tuple[float, float, float, int]], bool]:
+    """{compression: (SSIM vs the compression-0 frame, PSNR dB and SSIM vs the noise-free view, bytes)} of one
+    frame (the same noise in each) of the home view; and whether the thesis's statement holds by the measure of
+    the module docstring."""
+    world = load_world()
+    renderer = PtzRenderer(world)
+    model = AXIS_214.picture
+    view = renderer.render(0.0, 0.0, 1.0, width, height)
+    ref = luma(model.soften(view, 1.0))
+    frames = {}
+    for comp in (0, 10, 30, 60, 80, 100):
+        pool = PicturePool(model)  # a new pool: its first frame has the same noise as the others' first
+        jpeg = pool.jpeg("home", lambda: view, 1.0, comp)
+        frames[comp] = (luma(cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)), len(jpeg))
+    out: dict[int, tuple[float, float, float, int]] = {}
+    for comp, (y, n) in frames.items():
+        out[comp] = (ssim(frames[0][0], y), float(cv2.PSNR(ref, y)), ssim(ref, y), n)
+    ok = out[30][0] >= 0.95 and out[60][2] >= 0.90 and out[60][1] >= 30.0 and (out[100][2] < 0.90 or out[100][1] < 30.0)
+    return out, ok
+
+
+def modern_1080p() -> dict[int, tuple[float, float]]:
+    """{compression: (mean bytes/frame, size CV)} of the current-Axis persona at 1920×1080, home view."""
+    world = load_world()
+    cam = SimulatedCamera(world, port=0, model=AXIS_Q6075.key)
+    renderer = cam.renderer
+    view = renderer.render(0.0, 0.0, 1.0, 1920, 1080)
+    out = {}
+    for comp in (0, 30, 60, 100):
+        pool = PicturePool(AXIS_Q6075.picture)
+        sizes = [len(pool.jpeg("home", lambda: view, 1.0, comp)) for _ in range(8)]
+        out[comp] = (statistics.fmean(sizes), statistics.pstdev(sizes) / statistics.fmean(sizes))
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="shorter streams (a smoke run, not for the README)")
+    a = ap.parse_args()
+    inputs(
+        "bench/bench_bitrate.py",
+        "axis_ptz_ros2/sim/camera_model.py",
+        "axis_ptz_ros2/sim/persona.py",
+        "axis_ptz_ros2/sim/renderer.py",
+        "axis_ptz_ros2/sim/scene.py",
+        "axis_ptz_ros2/sim/frames.py",
+        "axis_ptz_ros2/sim/camera.py",
+        "config/sim_world.yaml",
+    )
+    cam = SimulatedCamera(load_world(), port=0).start()
+    t0 = time.monotonic()
+    try:
+        with httpx.Client(base_url=cam.base_url, timeout=10.0) as client:
+            move_and_wait(client, 0.0, 0.0, 1)
+            still = measure_cells(client, panning=False, quick=a.quick)
+            panning = measure_cells(client, panning=True, quick=a.quick)
+    finally:
+        cam.stop()
+    r_still = print_cells("Camera still, home view (pan 0, tilt 0, zoom 1):", still)
+    r_pan = print_cells("Camera panning (continuouspantiltmove=20,0):", panning)
+    cvs = {k: statistics.pstdev(v[2]) / statistics.fmean(v[2]) for k, v in still.items() if k[2] != 1}
+    cv_lo, cv_hi = min(cvs.values()), max(cvs.values())
+    print(
+        f"\nstill camera, frame-to-frame JPEG size variation (CV, 15 and 30 fps cells): {100 * cv_lo:.2f}–"
+        f"{100 * cv_hi:.2f} %"
+    )
+    figs = {}
+    for w, h in ((704, 576), (352, 288), (176, 144)):
+        fig, fig_ok = figure_6_4(w, h)
+        figs[w] = (fig, fig_ok)
+        print(f"\nFigure 6.4 statement, {w}×{h}: SSIM vs the compression-0 frame; PSNR, SSIM vs the noise-free view:")
+        for comp, (s0, psnr, s, n) in fig.items():
+            print(
+                f"  compression {comp:>3} (IJG quality {AXIS_214.picture.quality(comp, w):>3}): SSIM {s0:.3f}; "
+                f"PSNR {psnr:5.1f} dB, SSIM {s:.3f}; {n} bytes"
+            )
+        print(f"  statement holds by the measure: {fig_ok}")
+    modern = modern_1080p()
+    print("\ncurrent-Axis persona, 1920×1080, home view, camera still:")
+    for comp, (mean, cv) in modern.items():
+        print(
+            f"  compression {comp:>3}: {mean / 1000:6.0f} kB/frame (size CV {100 * cv:.2f} %), "
+            f"{mean * 8 * 30 / 1e6:5.1f} Mbit/s at 30 fps"
+        )
+    print(f"\n(total {time.monotonic() - t0:.0f} s)")
+
+    med = statistics.median(r_still)
+    ok = min(r_still) >= 0.5 and max(r_still) <= 2.0 and 0.8 <= med <= 1.25
+    row(
+        "simulated 214 MJPEG bitrate vs thesis Tables 6.2–6.4 (27 cells, read as kB/s), camera still / panning: "
+        "ratio min–max, median",
+        f"{min(r_still):.2f}–{max(r_still):.2f}, median {med:.2f} / {min(r_pan):.2f}–{max(r_pan):.2f}, "
+        f"median {statistics.median(r_pan):.2f}",
+        "every cell 0.5–2×, median 0.8–1.25 (still)",
+        ok,
+    )
+    row(
+        "still camera: frame-to-frame JPEG size variation (sensor noise), coefficient of variation",
+        f"{100 * cv_lo:.2f}–{100 * cv_hi:.2f} %",
+        "non-zero",
+        cv_lo > 0,
+    )
+    for w, (fig, fig_ok) in figs.items():
+        row(
+            f"thesis Fig. 6.4 as a measure, {w} px wide: SSIM vs compression 0 at 30 / PSNR, SSIM vs the noise-free "
+            "view at 60 / at 100",
+            f"{fig[30][0]:.3f} / {fig[60][1]:.1f} dB, {fig[60][2]:.3f} / {fig[100][1]:.1f} dB, {fig[100][2]:.3f}",
+            "≥ 0.95 / ≥ 30 dB and ≥ 0.90 / < 30 dB or < 0.90",
+            fig_ok,
+        )
+    row(
+        "current-Axis persona 1920×1080 MJPEG, bytes per frame at compression 0 / 30 / 60 / 100",
+        " / ".join(f"{modern[c][0] / 1000:.0f} kB" for c in (0, 30, 60, 100)),
+    )
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

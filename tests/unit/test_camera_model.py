@@ -1,0 +1,106 @@
+"""The simulated camera's picture model (sim/camera_model.py): refusals, noise, softness, quality curve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.sim.camera_model import CameraModel, PicturePool, thesis_kbit_s
+from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
+from tests.support.sim import decode
+
+
+def _scene(w: int = 176, h: int = 144) -> np.ndarray:
+    rng = np.random.default_rng(1)
+    img = np.zeros((h, w, 3), np.uint8)
+    img[:, : w // 2] = (40, 120, 200)
+    img[h // 3 :, :] = rng.integers(0, 255, (h - h // 3, w, 3), dtype=np.uint8)
+    return img
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "reason"),
+    [
+        ("noise_luma", -1.0, "outside"),
+        ("noise_luma", float("nan"), "not a finite number"),
+        ("kell_factor", 1.5, "outside"),
+        ("pool_frames", 2.5, "must be an integer"),
+        ("luma_bandwidth_mhz", 0.1, "below 0.5 MHz"),
+        ("quality_at_0", 3.0, "must not be better"),
+    ],
+)
+def test_out_of_range_values_are_refused_with_a_reason(field: str, value: float, reason: str) -> None:
+    with pytest.raises(ValueError, match=reason) as e:
+        CameraModel(**{field: value})  # type: ignore[arg-type]
+    assert field in str(e.value)
+
+
+def test_quality_curve_falls_with_compression_and_matches_the_documented_points() -> None:
+    m = AXIS_214.picture
+    assert [m.quality(c, 704) for c in (0, 10, 30, 60, 100)] == [98, 97, 93, 82, 60]
+    assert [m.quality(c, 176) for c in (0, 30, 60, 100)] == [98, 86, 59, 6]
+    for w in (704, 352, 176):
+        q = [m.quality(c, w) for c in range(0, 101, 5)]
+        assert q == sorted(q, reverse=True)
+    assert m.quality(-5) == m.quality(0)
+    assert m.quality(500) == m.quality(100)
+
+
+def test_still_camera_frames_differ_in_content_and_size_and_cycle_through_the_pool() -> None:
+    m = AXIS_214.picture
+    pool = PicturePool(m)
+    img = _scene()
+    frames = [pool.jpeg("v", lambda: img, 1.0, 30) for _ in range(2 * m.pool_frames)]
+    assert len(set(frames[: m.pool_frames])) == m.pool_frames  # every new frame carries new noise
+    assert frames[m.pool_frames :] == frames[: m.pool_frames]  # then the pool is cycled
+    assert len({len(f) for f in frames}) > 1
+    assert pool.encodes == m.pool_frames
+    a, b = decode(frames[0]).astype(int), decode(frames[1]).astype(int)
+    assert 0.5 < float(np.std(a - b)) < 8.0  # noise of a plausible magnitude, not a different picture
+
+
+def test_noise_free_model_serves_one_frame_and_softness_lowers_detail() -> None:
+    sharp = CameraModel(quality_at_0=90, quality_at_100=90)
+    soft = CameraModel(
+        quality_at_0=90, quality_at_100=90, luma_bandwidth_mhz=3.0, lens_sigma_wide=1.0, lens_sigma_tele=2.0
+    )
+    img = _scene(704, 576)
+    p = PicturePool(sharp)
+    assert p.jpeg("v", lambda: img, 1.0, 0) == p.jpeg("v", lambda: img, 1.0, 0)
+    assert p.encodes == 1
+    assert len(PicturePool(soft).jpeg("v", lambda: img, 1.0, 0)) < len(p.jpeg("v", lambda: img, 1.0, 0))
+    assert soft.sigmas(704, 9999)[0] > soft.sigmas(704, 1)[0]  # the lens is softer at tele (as configured)
+
+
+def test_render_is_called_once_per_view_and_overlay_is_drawn() -> None:
+    calls = []
+    img = _scene()
+
+    def render() -> np.ndarray:
+        calls.append(1)
+        return img
+
+    drawn = []
+    pool = PicturePool(AXIS_Q6075.picture)
+    for _ in range(3):
+        pool.jpeg("v", render, 1.0, 30, "txt", lambda im, t: drawn.append(t))
+    assert len(calls) == 1
+    assert drawn == ["txt"] * 3
+
+
+def test_thesis_cells_are_read_as_kilobytes() -> None:
+    assert thesis_kbit_s("704x576", 0, 30) == 3440 * 8
+    assert thesis_kbit_s("176x144", 100, 1) == pytest.approx(10.4)
+
+
+def test_memory_stays_bounded_with_a_changing_overlay() -> None:
+    pool = PicturePool(AXIS_214.picture, views=2)
+    img = _scene()
+    for second in range(50):  # a clock overlay: a new text every second on a still camera
+        for _ in range(3):
+            pool.jpeg("v", lambda: img, 1.0, 30, f"t={second}", lambda im, t: None)
+    for v in range(5):
+        pool.jpeg(("view", v), lambda: img, 1.0, 30)
+    views = pool._views  # noqa: SLF001 - the bound is the point of this test
+    assert len(views) == 2
+    assert all(len(v.pools) <= 4 for v in views.values())
