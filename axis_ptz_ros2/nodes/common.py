@@ -565,6 +565,11 @@ class _Signals:
             signal.signal(sig, signal.SIG_IGN)
 
     def restore(self) -> None:
+        """After clean-up. Once a stop signal came the process is ending: the signals stay ignored, because the
+        interpreter resets Python-level handlers to SIG_DFL while it finalises, and the second SIGINT of a
+        Ctrl-C under ``ros2 launch`` (terminal and launch both signal) then killed it (exit -2)."""
+        if self.stop.is_set():
+            return
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
 
