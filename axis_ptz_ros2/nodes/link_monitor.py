@@ -9,22 +9,37 @@ arrives (frames/s, kbit/s, delay from the stream node's stamp to receipt) and pu
 viewer on the operator's station). Run it on the *operator's* host only where nothing else reports: every
 subscriber across the link receives its own copy of each frame, so a second subscriber doubles the video's
 share of the link.
+
+With ``codec`` = ``h264`` the monitor subscribes to the H.264 topic (``h264_topic``, ``FFMPEGPacket``) instead and
+decodes what arrives (:class:`~axis_ptz_ros2.streaming.h264.AccessUnitReceiver`): access units lost on the way
+or that do not decode are reported as ``decode_errors``, and the stream node answers them with an IDR.
 """
 
 from __future__ import annotations
 
 import time
+from collections import deque
 from typing import Any
 
+from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
+from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topic", "image_raw/compressed", "JPEG topic whose reception is reported", read_only=True),
+    ParamSpec(
+        "codec",
+        "mjpeg",
+        "which video to watch: image_topic (JPEG) or h264_topic",
+        choices=("mjpeg", "h264"),
+        read_only=True,
+    ),
+    ParamSpec("h264_topic", "image_raw/ffmpeg", "H.264 topic (FFMPEGPacket) watched with codec h264", read_only=True),
     ParamSpec("feedback_topic", "video/feedback", "where the reports go (the stream node listens)", read_only=True),
     ParamSpec("period", 0.5, "report period", "s", float_range=(0.05, 10.0), read_only=True),
     ParamSpec("window", 2.0, "measurement window of a report", "s", float_range=(0.1, 30.0), read_only=True),
@@ -56,6 +71,7 @@ class FeedbackPublisher:
         self._pub = publisher(node, LinkFeedback, feedback_topic, FEEDBACK_QOS)
         self._timer = node.create_timer(period_s, self._report, callback_group=callback_group)
         self._since: float | None = None
+        self._errors: deque[tuple[float, int]] = deque()
         self.reports = 0
 
     def watch(self) -> None:
@@ -76,11 +92,19 @@ class FeedbackPublisher:
             return
         self._meter.add(rx, stamp, len(msg.data) if nbytes is None else nbytes)
 
+    def add_errors(self, count: int) -> None:
+        """``count`` frames received now could not be shown (H.264: lost before them, corrupt, or waiting for
+        an IDR)."""
+        if count > 0:
+            self._errors.append((time.time(), count))
+
     def _report(self) -> None:
         since = self._since
         if since is None:
             return
         now = time.time()
+        while self._errors and self._errors[0][0] <= now - self._meter.window_s:
+            self._errors.popleft()
         r = self._meter.report(now)
         msg = LinkFeedback()
         msg.header.stamp = self._node.get_clock().now().to_msg()
@@ -93,6 +117,7 @@ class FeedbackPublisher:
         msg.delay_p95_s = float(r.delay_p95_s)
         msg.delay_min_s = float(r.delay_min_s)
         msg.gap_s = float(min(r.gap_s, now - since))
+        msg.decode_errors = sum(n for _t, n in self._errors)
         self._pub.publish(msg)
         self.reports += 1
 
@@ -104,11 +129,26 @@ class LinkMonitorNode(Node):
         """``kwargs`` go to :class:`rclpy.node.Node`."""
         super().__init__("axis_link_monitor", **kwargs)
         p = declare_params(self, PARAMS)
-        self.feedback = FeedbackPublisher(
-            self, str(p["image_topic"]), str(p["feedback_topic"]), float(p["period"]), float(p["window"])
-        )
-        self.create_subscription(CompressedImage, str(p["image_topic"]), self.feedback.add, STREAM_QOS)
+        h264 = p["codec"] == "h264"
+        topic = str(p["h264_topic"] if h264 else p["image_topic"])
+        self.feedback = FeedbackPublisher(self, topic, str(p["feedback_topic"]), float(p["period"]), float(p["window"]))
+        self.receiver: AccessUnitReceiver | None = None
+        if h264:
+            self.receiver = AccessUnitReceiver()
+            self.create_subscription(FFMPEGPacket, topic, self._on_packet, STREAM_QOS)
+        else:
+            self.create_subscription(CompressedImage, topic, self.feedback.add, STREAM_QOS)
         self.feedback.watch()
+
+    def _on_packet(self, msg: FFMPEGPacket) -> None:
+        """Decode; count what arrives whole as received, what cannot be shown as decode errors."""
+        assert self.receiver is not None
+        data = bytes(msg.data)
+        if self.receiver.feed(data, int(msg.pts)) is not None:
+            self.feedback.add(msg, len(data))
+        else:
+            self.feedback.watch()
+        self.feedback.add_errors(self.receiver.take_unusable())
 
 
 def main(args: list[str] | None = None) -> int:

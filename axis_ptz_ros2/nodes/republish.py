@@ -4,6 +4,10 @@ The thesis ran image_transport's republish node for this (§6, Table 6.5: the ra
 compressed one, so it belongs next to its consumer, not on the robot's link). This node decodes with
 ``cv2.imdecode`` and is lazy: it subscribes to the compressed topic only while someone subscribes to
 ``image_raw`` (checked on publisher-matched events and a 10 Hz timer), so it costs nothing otherwise.
+
+``input`` = ``h264``: it decodes the stream node's ``image_raw/ffmpeg`` (``FFMPEGPacket``) instead, with
+:class:`~axis_ptz_ros2.streaming.h264.AccessUnitReceiver`: nothing before an IDR, nothing after a lost or corrupt
+access unit until the next IDR (never a picture predicted from frames it did not see); errors are counted.
 """
 
 from __future__ import annotations
@@ -12,15 +16,24 @@ from typing import Any
 
 import cv2
 import numpy as np
+from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
+from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("lazy", True, "subscribe to image_raw/compressed only while image_raw has subscribers"),
+    ParamSpec("lazy", True, "subscribe to the input only while image_raw has subscribers"),
+    ParamSpec(
+        "input",
+        "jpeg",
+        "what to decode: image_raw/compressed (jpeg) or image_raw/ffmpeg (h264)",
+        choices=("jpeg", "h264"),
+        read_only=True,
+    ),
 )
 
 
@@ -32,6 +45,8 @@ class RepublishNode(Node):
         super().__init__(name, **kwargs)
         p = declare_params(self, PARAMS)
         self._lazy = bool(p["lazy"])
+        self._h264 = p["input"] == "h264"
+        self._receiver: AccessUnitReceiver | None = None
         self._sub: Subscription | None = None
         self.decoded = 0
         self.failed = 0
@@ -48,12 +63,26 @@ class RepublishNode(Node):
     def _update(self) -> None:
         want = not self._lazy or self._pub.get_subscription_count() > 0
         if want and self._sub is None:
-            self._sub = self.create_subscription(
-                CompressedImage, "image_raw/compressed", self._on_compressed, STREAM_QOS
-            )
+            if self._h264:
+                self._receiver = AccessUnitReceiver()  # a new subscription waits for an IDR
+                self._sub = self.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", self._on_packet, STREAM_QOS)
+            else:
+                self._sub = self.create_subscription(
+                    CompressedImage, "image_raw/compressed", self._on_compressed, STREAM_QOS
+                )
         elif not want and self._sub is not None:
             self.destroy_subscription(self._sub)
             self._sub = None
+
+    def _on_packet(self, msg: FFMPEGPacket) -> None:
+        receiver = self._receiver
+        if receiver is None:
+            return
+        picture = receiver.feed(bytes(msg.data), int(msg.pts))
+        self.failed = receiver.decoder_errors + receiver.stats.lost  # waiting for the first IDR is no failure
+        if picture is None:
+            return
+        self._publish(msg.header, picture.image)
 
     def _on_compressed(self, msg: CompressedImage) -> None:
         buf = np.frombuffer(msg.data, dtype=np.uint8)
@@ -64,8 +93,11 @@ class RepublishNode(Node):
                 f"cannot decode a {msg.format!r} frame of {buf.size} bytes", throttle_duration_sec=5.0
             )
             return
+        self._publish(msg.header, img)
+
+    def _publish(self, header: Any, img: np.ndarray) -> None:
         out = Image()
-        out.header = msg.header
+        out.header = header
         out.height, out.width = int(img.shape[0]), int(img.shape[1])
         out.encoding = "bgr8"
         out.is_bigendian = 0

@@ -13,8 +13,14 @@ the on-set callback (never sent to the camera when invalid), applied in the post
 reconnects with the new request). ``video/set_params`` sets several atomically. ``video/params`` (latched)
 carries what is in effect after every change, including those of the bandwidth budget.
 
-Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/compressed`` or
-``camera_info``.
+Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/compressed``, ``camera_info``
+or (with ``codec`` = ``h264``) the H.264 topics.
+
+H.264 (``codec`` = ``h264``): :class:`~axis_ptz_ros2.streaming.h264.H264Stage` turns the camera's JPEGs (asked for
+at compression 0) into one H.264 stream shared by ``image_raw/ffmpeg`` (``FFMPEGPacket``) and
+``image_raw/foxglove`` (``CompressedVideo``): the same bytes, one access unit per message, stamped with the
+frame's capture time; encoded only while one of them has a subscriber. A new subscriber, a reconnect, or a
+consumer's report of decode errors on ``video/feedback`` asks the stage for an IDR.
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+from foxglove_msgs.msg import CompressedVideo
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
@@ -60,6 +68,15 @@ from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, St
 from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
+from axis_ptz_ros2.streaming.h264 import (
+    BITRATE_RANGE_KBPS,
+    CODECS,
+    FFMPEG_ENCODING,
+    H264_PRESETS,
+    KEYFRAME_RANGE,
+    H264Stage,
+    StagedFrame,
+)
 from axis_ptz_ros2.streaming.status import LogLine, LogThrottle, diagnostic_status, reader_event_line
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
@@ -91,7 +108,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "max_bitrate_kbps",
-        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off)",
+        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off); "
+        "codec h264: caps the encoder's bitrate instead",
         "kbit/s",
         int_range=(0, 1_000_000),
     ),
@@ -116,10 +134,33 @@ PARAMS: tuple[ParamSpec, ...] = (
         "s",
         float_range=(2.0, 3600.0),
     ),
+    _live(
+        "codec",
+        "'h264': the camera is asked for compression 0 and its frames are encoded to image_raw/ffmpeg and "
+        "image_raw/foxglove, the budget drives the encoder's bitrate instead of the MJPEG ladder",
+        choices=CODECS,
+    ),
+    _live(
+        "h264_bitrate_kbps",
+        "H.264 bitrate; applies as is without feedback, a lower budget (link or max_bitrate_kbps) lowers it",
+        "kbit/s",
+        int_range=BITRATE_RANGE_KBPS,
+    ),
+    _live(
+        "h264_keyframe_interval",
+        "frames between periodic IDRs (at most fps, one second, applies)",
+        "frames",
+        int_range=KEYFRAME_RANGE,
+    ),
+    _live("h264_preset", "libx264 preset (CPU against quality)", choices=H264_PRESETS),
     ParamSpec(
         "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
     ),
-    ParamSpec("lazy", True, "stream only while someone subscribes to image_raw/compressed or camera_info"),
+    ParamSpec(
+        "lazy",
+        True,
+        "stream only while someone subscribes to image_raw/compressed, camera_info or (codec h264) the H.264 topics",
+    ),
     # -- frames and model (read-only) --
     ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
     ParamSpec(
@@ -204,6 +245,19 @@ class StreamNode(Node):
         self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
         self._image_msg = CompressedImage()
         self._image_msg.header.frame_id = self._frame_id
+        self._ffmpeg_pub = publisher(self, FFMPEGPacket, "image_raw/ffmpeg", STREAM_QOS, event_callbacks=events)
+        self._foxglove_pub = publisher(self, CompressedVideo, "image_raw/foxglove", STREAM_QOS, event_callbacks=events)
+        self._ffmpeg_msg = FFMPEGPacket(encoding=FFMPEG_ENCODING, is_bigendian=False)
+        self._ffmpeg_msg.header.frame_id = self._frame_id
+        self._foxglove_msg = CompressedVideo(format="h264", frame_id=self._frame_id)
+        self._h264_subscribers = 0
+        self._ffmpeg_wanted = self._foxglove_wanted = False
+        self._stage = H264Stage(
+            self._video.h264_settings,
+            self._publish_h264,
+            on_problem=lambda text: self._log(LogLine("warn", text, "h264", 10.0)),
+        )
+        self._told_transcoding = False
 
         self.create_subscription(PtzState, "ptz/state", self._on_ptz_state, STREAM_QOS)
         self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)
@@ -253,6 +307,8 @@ class StreamNode(Node):
         if "zoom" in names:
             self._zoom_param = float(self.get_parameter("zoom").value)
         self._video.apply(self._settings_with([]), names, self._pending_source)
+        if "codec" in names:
+            self._update_activity()
 
     def _on_set_video_params(
         self, request: SetVideoParams.Request, response: SetVideoParams.Response
@@ -337,9 +393,28 @@ class StreamNode(Node):
                 self._info_cache[key] = info
             info.header.stamp = stamp
             self._info_pub.publish(info)
+        self._stage.on_jpeg(jpeg, arrival_ns)  # nothing while no H.264 subscriber (or codec mjpeg)
         step = self._video.on_frame(time.monotonic())
         if step is not None:
             self.get_logger().debug(str(step))
+
+    def _publish_h264(self, frame: StagedFrame) -> None:
+        """One access unit (reader thread): the same bytes on both H.264 topics."""
+        stamp = stamp_from_ns(frame.stamp_ns)
+        if self._ffmpeg_wanted:
+            msg = self._ffmpeg_msg
+            msg.header.stamp = stamp
+            msg.width, msg.height = frame.width, frame.height
+            msg.pts = frame.pts
+            msg.flags = 1 if frame.keyframe else 0
+            msg._data = frame.data  # noqa: SLF001 - as for the JPEGs: no copy into an array.array
+            self._ffmpeg_pub.publish(msg)
+        if self._foxglove_wanted:
+            fox = self._foxglove_msg
+            fox.timestamp = stamp
+            fox._data = frame.data  # noqa: SLF001
+            self._foxglove_pub.publish(fox)
+        self._video.on_h264_frame(time.monotonic(), len(frame.data))
 
     def _on_ptz_state(self, msg: PtzState) -> None:
         self._zoom_ptz = float(msg.zoom)
@@ -356,16 +431,21 @@ class StreamNode(Node):
             gap_s=float(msg.gap_s),
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
         )
+        if msg.decode_errors > 0 and self._stage.active:
+            self._stage.request_idr()  # the consumer lost sync: a start point now, not at the next periodic IDR
         judgement = self._video.feedback(report, self._subscribed)
         if judgement is not None:
             self.get_logger().debug(str(judgement))
 
     def _subscribed(self, consumer: str) -> bool:
-        """Whether the node named ``consumer`` (fully qualified) has a discovered image subscription."""
-        for info in self.get_subscriptions_info_by_topic(self._image_pub.topic_name):
-            ns = info.node_namespace.rstrip("/")
-            if f"{ns}/{info.node_name}" == consumer:
-                return True
+        """Whether the node named ``consumer`` (fully qualified) has a discovered image subscription (in h264 mode
+        also on the H.264 topics)."""
+        pubs = [self._image_pub, self._ffmpeg_pub, self._foxglove_pub] if self._video.h264 else [self._image_pub]
+        for pub in pubs:
+            for info in self.get_subscriptions_info_by_topic(pub.topic_name):
+                ns = info.node_namespace.rstrip("/")
+                if f"{ns}/{info.node_name}" == consumer:
+                    return True
         return False
 
     # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------
@@ -373,7 +453,22 @@ class StreamNode(Node):
         # Cached for the hot path (no rmw call per frame); refreshed on matched events and at 1 Hz.
         self._image_wanted = self._image_pub.get_subscription_count() > 0
         self._info_wanted = self._info_pub.get_subscription_count() > 0
-        return not self._lazy or self._image_wanted or self._info_wanted
+        ffmpeg = self._ffmpeg_pub.get_subscription_count()
+        foxglove = self._foxglove_pub.get_subscription_count()
+        self._ffmpeg_wanted, self._foxglove_wanted = ffmpeg > 0, foxglove > 0
+        h264 = ffmpeg + foxglove
+        if h264 > self._h264_subscribers:
+            self._stage.request_idr()  # a new viewer needs a start point
+        self._h264_subscribers = h264
+        encode = self._video.h264 and h264 > 0
+        if encode and not self._told_transcoding:
+            self._told_transcoding = True
+            self.get_logger().info(
+                "codec h264: the camera's MJPEG (compression 0) is transcoded to H.264 on this host "
+                "(RTSP pass-through of a camera's own H.264 is not available yet)"
+            )
+        self._stage.set_active(encode)
+        return not self._lazy or self._image_wanted or self._info_wanted or encode
 
     def _update_activity(self) -> None:
         reader = getattr(self, "_reader", None)
@@ -402,6 +497,7 @@ class StreamNode(Node):
         """Reader state changes and errors (reader thread); throttled so an absent camera is not spammed."""
         if state is StreamState.STREAMING:
             self._log_throttle.forget("reconnect")
+            self._stage.discontinuity()  # (re)connected: an IDR first
         line = reader_event_line(state, message, self._video.current, self._reader.config.auth_retry_s)
         if line is not None:
             self._log(line)
@@ -409,9 +505,18 @@ class StreamNode(Node):
     def _publish_diagnostics(self) -> None:
         stats = self._reader.stats()
         rate = self._reader.meter.rate(time.monotonic())
-        level, message, values = diagnostic_status(
-            stats, rate, self._video.state(), self._client.auth_counters.as_dict()
-        )
+        extra = self._client.auth_counters.as_dict()
+        if self._video.h264:
+            h = self._stage.stats
+            extra |= {
+                "h264 encoding": self._stage.active,
+                "h264 bitrate target [kbit/s]": self._video.h264_settings().bitrate_kbps,
+                "h264 access units": h.frames,
+                "h264 IDRs": h.idrs,
+                "h264 IDRs on demand": h.idr_requests,
+                "h264 dropped inputs": h.bad_inputs,
+            }
+        level, message, values = diagnostic_status(stats, rate, self._video.state(), extra)
         name = f"{self.get_fully_qualified_name()}: MJPEG stream"
         self._diag_pub.publish(diagnostic(self, name, level, message, values, hardware_id=self._client.config.base_url))
 

@@ -27,6 +27,7 @@ from axis_ptz_ros2.sim.http.server import HttpListener
 from axis_ptz_ros2.sim.persona import Persona, persona, preset_params
 from axis_ptz_ros2.sim.ptz import PtzState, Speeds
 from axis_ptz_ros2.sim.renderer import PtzRenderer
+from axis_ptz_ros2.sim.rtsp.server import DEFAULT_SESSION_TIMEOUT_S, RtspListener
 from axis_ptz_ros2.sim.scene import SimWorld, load_world
 from axis_ptz_ros2.sim.tls import SelfSignedCertificate
 
@@ -67,7 +68,8 @@ class SimulatedCamera:
     ``auth`` is one of ``none`` (anonymous, the thesis' set-up), ``basic``, ``digest``, ``basic_digest``;
     None = the persona's default (214: none; q6075: digest). ``https`` None = the persona's default (214: off;
     q6075: on, with a self-signed certificate generated at start-up whose path is :attr:`ca_file`).
-    The password is never logged or shown in reprs.
+    ``rtsp_port``: where a persona that streams H.264 (q6075) serves RTSP (0: any free port, None: no RTSP);
+    see :attr:`rtsp`. The password is never logged or shown in reprs.
     """
 
     def __init__(
@@ -86,6 +88,8 @@ class SimulatedCamera:
         challenge_style: str = "current",
         model: str | Persona | None = None,
         https: bool | None = None,
+        rtsp_port: int | None = 0,
+        rtsp_session_timeout_s: float = DEFAULT_SESSION_TIMEOUT_S,
     ) -> None:
         self.persona = persona(model)
         auth = self.persona.default_auth if auth is None else auth
@@ -130,6 +134,11 @@ class SimulatedCamera:
         self.requests = RequestLog()
         self._http = HttpListener(self, host, port)
         self._listeners: list[Listener] = [self._http]
+        #: RTSP H.264 (sim/rtsp) on personas that list h264 in Properties.Image.Format; rtsp_port None: off
+        self.rtsp: RtspListener | None = None
+        if rtsp_port is not None and "h264" in self.params.get("Properties.Image.Format", "").split(","):
+            self.rtsp = RtspListener(self, host, rtsp_port, rtsp_session_timeout_s)
+            self._listeners.append(self.rtsp)
         self._running = False
         self._stopping = threading.Event()
         self._rebooting = threading.Event()

@@ -28,6 +28,13 @@ def _is_loopback(host: str) -> bool:
         return False
 
 
+def _rtsp_port(asked: int | None, http_port: int) -> int | None:
+    """The RTSP port to bind: as asked (-1: none), else 8554, or a free one when HTTP picks a free one too."""
+    if asked is None:
+        return 0 if http_port == 0 else 8554
+    return None if asked < 0 else asked
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The CLI definition."""
     p = argparse.ArgumentParser(
@@ -45,6 +52,13 @@ def build_parser() -> argparse.ArgumentParser:
     https.add_argument("--no-https", dest="https", action="store_false", help="serve plain HTTP")
     p.add_argument("--host", default="127.0.0.1", help="bind address (loopback only unless --allow-remote)")
     p.add_argument("--port", type=int, default=8080, help="TCP port (0 = pick a free one)")
+    p.add_argument(
+        "--rtsp-port",
+        type=int,
+        default=None,
+        help="RTSP port of a model that streams H.264 (q6075: rtsp://host:PORT/axis-media/media.amp; a real camera "
+        "uses 554, which needs root; 0 = pick a free one, -1 = no RTSP; default 8554, or a free one with --port 0)",
+    )
     p.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
     p.add_argument("--auth", choices=AUTH_MODES, default=None, help="HTTP authentication policy (default: the model's)")
     p.add_argument("--user", default="root", help="user name for basic/digest auth")
@@ -108,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         challenge_style=args.challenge_style,
         model=model,
         https=args.https,
+        rtsp_port=_rtsp_port(args.rtsp_port, args.port),
     )
     done = threading.Event()
     # Both stop signals explicitly: a process started in the background by a shell inherits SIGINT ignored,
@@ -116,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(sig, lambda *_: done.set())
     cam.start()
     tls = f"; CA certificate {cam.ca_file}" if cam.ca_file else ""
+    if cam.rtsp is not None:
+        tls += f"; RTSP H.264 at {cam.rtsp.url('')}"
     print(f"Simulated {model.product} at {cam.base_url}/ (auth={cam.auth}{tls}); Ctrl-C to stop", flush=True)
     try:
         while not done.wait(0.5):

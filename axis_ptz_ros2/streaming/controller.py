@@ -16,8 +16,12 @@ Policy that lives here:
 * a consumer's report is judged only when it says something about the link (:meth:`VideoController.feedback`);
 * the budget is re-judged at most every :data:`BUDGET_PERIOD_S` on the frame path.
 
-A codec stage that follows the link (an encoder's or the camera's bitrate) reads the budget in force from
-:meth:`VideoController.state` rather than keeping its own copy.
+The codec (``codec``: ``mjpeg`` | ``h264``) is policy here too. In ``h264`` mode the camera is asked for its best
+quality (compression 0) at the requested size and rate, the MJPEG budget ladder stands still, and the budget in
+force drives the encoder's bitrate instead (:meth:`VideoController.h264_settings`: the requested
+``h264_bitrate_kbps``, lowered to the budget when there is one; without any feedback the request applies, so a
+viewer that reports nothing still gets the full picture). Consumers' reports are then judged against the H.264
+bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from dataclasses import dataclass
 
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE, H264Settings
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
 from axis_ptz_ros2.vapix.errors import InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
@@ -45,9 +50,11 @@ BUDGET_PERIOD_S = 0.25
 AUTO_PLACEHOLDER = Resolution(704, 576)
 #: the fields of :class:`VideoSettings` that make up the request and the budget (not the link adaptation)
 VIDEO_FIELDS = frozenset(
-    {"fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps"}
+    {"fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps", "codec"}
 )
 LINK_FIELDS = frozenset({"adapt_to_link", "link_release"})
+#: the encoder's own fields (they do not change what the camera is asked for)
+H264_FIELDS = frozenset({"h264_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,6 +70,10 @@ class VideoSettings:
     budget_min_fps: int = 15
     adapt_to_link: bool = True
     link_release: float = 30.0  # s
+    codec: str = "mjpeg"  # mjpeg | h264 (see the module docstring)
+    h264_bitrate_kbps: int = 1000  # kbit/s: the encoder's bitrate (the link's budget lowers it)
+    h264_keyframe_interval: int = 30  # frames between periodic IDRs (at most one second's worth applies)
+    h264_preset: str = "superfast"  # libx264 preset
 
     def budget_config(self) -> BudgetConfig:
         """The budget ladder's shape."""
@@ -151,6 +162,7 @@ class VideoController:
         if reason:
             raise ValueError(reason)
         self._settings = settings
+        self._h264_meter = BitrateMeter(meter.window_s)  # the H.264 bytes sent, in h264 mode
         self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
         self._budget = BandwidthController(
             self._request(settings),
@@ -180,6 +192,24 @@ class VideoController:
         """Whether the camera's own resolution list has been learned."""
         return self._resolutions is not None
 
+    @property
+    def h264(self) -> bool:
+        """Whether the codec asked for is H.264."""
+        return self._settings.codec == "h264"
+
+    def h264_settings(self) -> H264Settings:
+        """What the H.264 encoder is to do now: the requested bitrate, lowered to the budget in force (the
+        hand-set one and the link's) when there is one."""
+        s = self._settings
+        with self._lock:
+            budget = self._budget_kbps()
+        kbps = int(s.h264_bitrate_kbps)
+        if budget > 0:
+            kbps = max(BITRATE_RANGE_KBPS[0], min(kbps, int(budget)))
+        return H264Settings(
+            kbps, int(s.h264_keyframe_interval), str(s.h264_preset), self._current.fps, int(s.h264_bitrate_kbps)
+        )
+
     def state(self) -> VideoState:
         """A consistent snapshot of what is in effect."""
         with self._lock:
@@ -201,6 +231,10 @@ class VideoController:
     def check(self, settings: VideoSettings, changed: Collection[str]) -> str | None:
         """The reason ``settings`` cannot be asked for (None = fine), when ``changed`` touches the request:
         fps and compression ranges, the resolution against the camera's own list once known."""
+        if H264_FIELDS.intersection(changed) or "codec" in changed:
+            reason = _check_h264(settings)
+            if reason:
+                return reason
         if not VIDEO_FIELDS.intersection(changed):
             return None
         try:
@@ -218,8 +252,10 @@ class VideoController:
         names = set(changed)
         video = bool(VIDEO_FIELDS & names)
         with self._lock:
+            old_codec = self._settings.codec
             self._settings = settings
-            if LINK_FIELDS & names:
+            if LINK_FIELDS & names or settings.codec != old_codec:
+                # a new codec: what was learned of the link was in another unit (JPEG bytes vs H.264 bytes)
                 self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
                 self._budget.set_budget(self._effective_budget(), now)
             if video:
@@ -276,20 +312,28 @@ class VideoController:
         self._announce()
         return step
 
+    def on_h264_frame(self, now: float, nbytes: int) -> None:
+        """An H.264 access unit of ``nbytes`` was sent (h264 mode: what consumers' reports are judged against)."""
+        self._h264_meter.add(now, nbytes)
+
     def feedback(self, report: FeedbackReport, subscribed: Callable[[str], bool]) -> LinkJudgement | None:
         """A consumer's report (``subscribed(consumer)``: whether its image subscription has been discovered).
         Returns the judgement, or None when adaptation is off or the report says nothing about the link yet."""
         if not self._settings.adapt_to_link:
             return None
         now = self._clock()
-        sent = self._meter.rate(now)
-        judged = self._judgeable(report, now, sent, subscribed)
+        meter = self._h264_meter if self.h264 else self._meter
+        sent = meter.rate(now)
+        judged = self._judgeable(report, now, sent, subscribed, meter)
         with self._lock:
             if judged is None:  # not evidence about the link, but the link is alive
                 self._link.heard(now)
                 return None
             level = self._budget.level
-            step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
+            if self.h264:  # room to grow back to the requested bitrate, not past it
+                step_up = float(self._settings.h264_bitrate_kbps)
+            else:
+                step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
             decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up)
             self._decision = decision
             self._budget.set_budget(self._effective_budget(), now)
@@ -319,16 +363,21 @@ class VideoController:
             res = Resolution.parse(text)
         else:
             res = _largest(self._resolutions) if self._resolutions else AUTO_PLACEHOLDER
-        return VideoParams(res, int(settings.fps), int(settings.compression), camera=self._camera)
+        compression = 0 if settings.codec == "h264" else int(settings.compression)  # the encoder's best input
+        return VideoParams(res, int(settings.fps), compression, camera=self._camera)
 
     def _effective_budget(self) -> float:
+        """The budget for the MJPEG ladder (0 = none; in h264 mode the encoder takes it); call with the lock held."""
+        return 0.0 if self._settings.codec == "h264" else self._budget_kbps()
+
+    def _budget_kbps(self) -> float:
         """The tighter of the hand-set budget and the link's (0 = none); call with the lock held."""
         link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
         budgets = [b for b in (float(self._settings.max_bitrate_kbps), link) if b > 0]
         return min(budgets) if budgets else 0.0
 
     def _judgeable(
-        self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool]
+        self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool], meter: BitrateMeter
     ) -> FeedbackReport | None:
         """The report to judge, or None when it says nothing about the link yet."""
         if r.frames == 0 and not subscribed(r.consumer):
@@ -348,7 +397,7 @@ class VideoController:
         changed = self._budget.changed_at
         if changed is not None and now - changed < r.window_s + FEEDBACK_SETTLE_S:
             return None  # the report's window still holds the switch (the reconnect's gap, the old settings)
-        if r.frames == 0 and sent.span_s < 0.75 * self._meter.window_s:
+        if r.frames == 0 and sent.span_s < 0.75 * meter.window_s:
             return None  # nothing received, but the stream has only just (re)started: not a swamped link
         return r
 
@@ -358,3 +407,18 @@ class VideoController:
             return
         with self._notify_lock:
             self._on_change()
+
+
+def _check_h264(settings: VideoSettings) -> str | None:
+    """The reason the codec settings cannot be used (None = fine)."""
+    if settings.codec not in CODECS:
+        return f"codec={settings.codec!r} is not one of {', '.join(CODECS)}"
+    if settings.h264_preset not in H264_PRESETS:
+        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(H264_PRESETS)}"
+    low, high = BITRATE_RANGE_KBPS
+    if not low <= int(settings.h264_bitrate_kbps) <= high:
+        return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"
+    low, high = KEYFRAME_RANGE
+    if not low <= int(settings.h264_keyframe_interval) <= high:
+        return f"h264_keyframe_interval={settings.h264_keyframe_interval} is outside {low}…{high} frames"
+    return None

@@ -9,12 +9,11 @@
   SDP (``extradata``) prepended to every IDR that lacks them.
 - :class:`RtspControl` sends what FFmpeg cannot: ``SET_PARAMETER`` with ``Renew-Stream: yes`` (an IDR now) and
   ``Adjustable-Stream-Configuration`` (live fps/bitrate where ``adjustablelivestream=1``), signed with the same
-  Digest negotiation as the HTTP side (:class:`~axis_ptz_ros2.vapix.auth.NegotiatingAuth`).
+  Digest negotiation as the HTTP side, over the absolute URL (:class:`~axis_ptz_ros2.vapix.rtsp_auth.RtspDigestAuth`).
 
-Open question for the node (not solved here): ``SET_PARAMETER`` acts on an RTSP *session*, and the session that
-plays the stream is FFmpeg's, whose ``Session`` id PyAV does not expose. :class:`RtspControl` takes the id as an
-argument; getting it means either an RTSP client of our own for the playing session, or a camera that applies
-``Renew-Stream`` across sessions (unverified on real Axis firmware).
+``SET_PARAMETER`` acts on an RTSP *session*, and the session that plays the stream is FFmpeg's, whose ``Session``
+id PyAV does not expose: :class:`RtspControl` takes the id as an argument. To control the stream it plays, use
+:class:`~axis_ptz_ros2.vapix.rtsp_client.RtspClient` (our own client, which owns the playing session).
 
 Credentials: the reader needs them in the URL (FFmpeg's only way); that URL never reaches a log line, a repr or
 an exception message (:func:`~axis_ptz_ros2.vapix.errors.redact`).
@@ -36,7 +35,7 @@ import httpx
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
-from axis_ptz_ros2.vapix.auth import AuthMode, NegotiatingAuth
+from axis_ptz_ros2.vapix.auth import AuthMode
 from axis_ptz_ros2.vapix.errors import (
     AuthError,
     AxisPtzError,
@@ -46,6 +45,7 @@ from axis_ptz_ros2.vapix.errors import (
     ResponseParseError,
     redact,
 )
+from axis_ptz_ros2.vapix.rtsp_auth import RtspDigestAuth
 
 MEDIA_PATH: Final = "/axis-media/media.amp"
 USER_AGENT: Final = "axis_ptz_ros2/0.1.0"
@@ -330,7 +330,7 @@ class RtspControl:
         stream: MediaStreamRequest | None = None,
     ) -> None:
         self._host, self._port, self._timeout_s = host, port, timeout_s
-        self._auth = NegotiatingAuth(username, password, auth)
+        self._auth = RtspDigestAuth(username, password, auth)
         self._password = password
         self._target = f"{MEDIA_PATH}?{urllib.parse.urlencode((stream or MediaStreamRequest()).query())}"
         self._cseq = 0
@@ -373,6 +373,7 @@ class RtspControl:
     def request(self, method: str, *, extra: dict[str, str], body: bytes = b"") -> RtspResponse:
         """One request, Digest-negotiated like the HTTP side; a non-2xx final status raises."""
         http_req = httpx.Request(method, f"http://{self._host}:{self._port}{self._target}")
+        self._auth.rtsp_uri = f"rtsp://{self._host}:{self._port}{self._target}"
         flow = self._auth.auth_flow(http_req)
         req = next(flow)
         while True:

@@ -1,0 +1,373 @@
+"""The H.264 stage of the stream node: one encoded stream for every H.264 subscriber. ROS-free.
+
+Where the access units come from is a seam: :meth:`H264Stage.on_jpeg` feeds the JPEGs the reader delivers
+through one shared :class:`~axis_ptz_ros2.media.transcoder.MjpegTranscoder` (cameras that only stream MJPEG, the
+214); :meth:`H264Stage.on_access_unit` takes access units from any other source (an RTSP pass-through reader,
+:mod:`axis_ptz_ros2.vapix.rtsp`) and gives them the same treatment. Either way, what is handed to ``publish``:
+
+* one Annex B access unit per call, SPS/PPS in front of every IDR (prepended from the last ones seen when a
+  source does not repeat them in-band, as real Axis cameras do not);
+* ``pts``: a unique, strictly increasing counter of the stage (it survives encoder re-opens and source changes);
+* the frame's capture time (the stamp of the JPEG or access unit it came from), also in the access unit's
+  capture-stamp SEI (:func:`~axis_ptz_ros2.media.annexb.insert_capture_stamp`). For a JPEG that carries the
+  simulated camera's own send time (its ``axsim … t=<ns>`` comment) the SEI holds that time, so a subscriber
+  measures a frame's age from the camera; otherwise the arrival time.
+
+Policy that lives here:
+
+* lazy: while :meth:`H264Stage.set_active` is off nothing is decoded or encoded, and the transcoder (its
+  encoder) is dropped; the next activation starts with an IDR;
+* bitrate, keyframe interval, preset and fps are read from ``settings()`` (the video controller) on every frame;
+  the bitrate changes live, a new preset or fps re-opens the encoder (an IDR follows);
+* the periodic keyframe interval is at most one second of frames (``fps``), so a viewer that joined or lost
+  sync without asking gets a start point within a second;
+* an IDR on demand (:meth:`H264Stage.request_idr`: a new subscriber, a consumer that reports loss, a reconnect)
+  at most every :data:`IDR_MIN_INTERVAL_S` (a lossy link that reports loss on every frame must not be sent
+  nothing but IDRs); a request inside that interval is kept for when it ends;
+* a JPEG that does not decode is counted and dropped (the encoder is left as it was: nothing stale is sent).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Final, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.decoder import H264Decoder
+from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, PRESETS
+from axis_ptz_ros2.media.errors import BitstreamError, MediaError
+from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.streaming.jpeg import jpeg_comments
+
+CODECS: Final = ("mjpeg", "h264")
+H264_PRESETS: Final = PRESETS
+#: s: on-demand IDRs at most this often (the periodic ones come every second anyway)
+IDR_MIN_INTERVAL_S: Final = 0.5
+#: kbit/s: the encoder's bitrate range (the parameter's)
+BITRATE_RANGE_KBPS: Final = (100, 20_000)
+KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
+#: ``encoding`` of every FFMPEGPacket: codec; the pixel format it was encoded from; what a decoder hands
+#: cv_bridge; the ROS image encoding (what ffmpeg_image_transport's decoder parses)
+FFMPEG_ENCODING: Final = "h264;yuv420p;bgr8;bgr8"
+
+U8Array = npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True, slots=True)
+class H264Settings:
+    """What the encoder is to do now (from the video controller)."""
+
+    bitrate_kbps: int = 1000  # the target now (the budget may hold it under the ceiling)
+    keyframe_interval: int = 30  # frames; capped at fps (one second)
+    preset: str = "superfast"
+    fps: int = 15
+    ceiling_kbps: int = 0  # the highest target to expect (the request): the encoder opens with it as VBV maxrate
+
+    def transcoder_config(self) -> TranscoderConfig:
+        """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
+        it changes the bitrate live (x264 cannot raise VBV maxrate on an open encoder: that would re-open it,
+        with an IDR, on every step up)."""
+        fps = max(1, int(self.fps))
+        return TranscoderConfig(
+            fps=fps,
+            bitrate_bps=max(int(self.bitrate_kbps), int(self.ceiling_kbps)) * 1000,
+            keyframe_interval=self.effective_keyframe_interval,
+            preset=self.preset,
+        )
+
+    @property
+    def effective_keyframe_interval(self) -> int:
+        """The periodic IDR interval in frames: the parameter, at most one second of frames."""
+        return max(1, min(int(self.keyframe_interval), max(1, int(self.fps))))
+
+
+@dataclass(frozen=True, slots=True)
+class StagedFrame:
+    """An access unit ready to publish: the bytes, IDR or not, the stage's pts, size, capture stamp [ns]."""
+
+    data: bytes
+    keyframe: bool
+    pts: int
+    width: int
+    height: int
+    stamp_ns: int
+
+
+@dataclass(slots=True)
+class StageStats:
+    """Counters since the stage was made (diagnostics)."""
+
+    frames: int = 0  # access units published
+    idrs: int = 0
+    idr_requests: int = 0  # on-demand requests honoured
+    bad_inputs: int = 0  # JPEGs that did not decode, malformed access units
+    encoder_opens: int = 0  # transcoders (encoders) made
+    skipped_inactive: int = 0  # frames not encoded because nobody subscribes
+
+
+class Transcoder(Protocol):
+    """What the stage needs of a transcoder (:class:`MjpegTranscoder` is one)."""
+
+    def transcode(self, jpeg: bytes, capture_ns: int | None = None) -> EncodedFrame:
+        """One JPEG in, one access unit out (raises MediaError for a JPEG that does not decode)."""
+        ...
+
+    def set_bitrate(self, bps: int) -> None:
+        """Live bitrate."""
+        ...
+
+    def set_keyframe_interval(self, frames: int) -> None:
+        """Live periodic IDR interval."""
+        ...
+
+    def request_idr(self) -> None:
+        """The next frame out is an IDR."""
+        ...
+
+
+def camera_stamp_ns(jpeg: bytes) -> int | None:
+    """The camera's own time of a JPEG when it carries one (the simulated camera's ``axsim … t=<ns>`` comment)."""
+    for text in jpeg_comments(jpeg):
+        if not text.startswith(b"axsim"):
+            continue
+        for tok in text.split():
+            if tok.startswith(b"t="):
+                try:
+                    return int(tok[2:])
+                except ValueError:
+                    return None
+    return None
+
+
+class H264Stage:
+    """One shared H.264 stream (see the module docstring); thread-safe (frames arrive on the reader thread,
+    activity and IDR requests from ROS callbacks)."""
+
+    def __init__(
+        self,
+        settings: Callable[[], H264Settings],
+        publish: Callable[[StagedFrame], None],
+        *,
+        transcoder_factory: Callable[[TranscoderConfig], Transcoder] = MjpegTranscoder,
+        on_problem: Callable[[str], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """``settings()`` is read on every frame; ``publish`` is called on the feeding thread."""
+        self._settings = settings
+        self._publish = publish
+        self._factory = transcoder_factory
+        self._on_problem = on_problem
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._active = False
+        self._transcoder: Transcoder | None = None
+        self._opened_with: H264Settings | None = None
+        self._applied_kbps = 0  # the bitrate the encoder targets now
+        self._idr_pending = False
+        self._last_idr_request = -1e18
+        self._pts = 0
+        self._params = annexb.ParameterSetTracker()
+        self.stats = StageStats()
+
+    # -- control (any thread) --------------------------------------------------------------------------------
+    @property
+    def active(self) -> bool:
+        """Whether frames are being encoded (someone subscribes to the H.264 topics)."""
+        return self._active
+
+    @property
+    def encoder_open(self) -> bool:
+        """Whether a transcoder (an encoder) exists right now."""
+        return self._transcoder is not None
+
+    def set_active(self, active: bool) -> None:
+        """Start (the first frame is an IDR) or stop encoding; stopping drops the encoder."""
+        with self._lock:
+            if active == self._active:
+                return
+            self._active = active
+            if not active:
+                self._transcoder = None
+                self._opened_with = None
+            self._idr_pending = True
+
+    def request_idr(self) -> bool:
+        """Ask for an IDR (a new subscriber, a consumer that lost sync); False when one was granted less than
+        :data:`IDR_MIN_INTERVAL_S` ago (the request is then kept and honoured when the interval ends)."""
+        with self._lock:
+            self._idr_pending = True
+            return self._clock() - self._last_idr_request >= IDR_MIN_INTERVAL_S
+
+    @property
+    def idr_wanted(self) -> bool:
+        """An IDR has been asked for and not yet given (for a source that makes its own: RTSP)."""
+        return self._idr_pending and self._clock() - self._last_idr_request >= IDR_MIN_INTERVAL_S
+
+    def idr_sent(self) -> None:
+        """A source that makes its own IDRs has asked for one (the rate limit counts from now)."""
+        with self._lock:
+            self._idr_pending = False
+            self._last_idr_request = self._clock()
+            self.stats.idr_requests += 1
+
+    def discontinuity(self) -> None:
+        """The source restarted (the reader reconnected): the next frame is an IDR, at once."""
+        with self._lock:
+            self._idr_pending = True
+            self._last_idr_request = -1e18
+
+    # -- frames (the reader thread) ----------------------------------------------------------------------------
+    def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> StagedFrame | None:
+        """Transcode one JPEG of the camera and publish it; None while inactive or when it does not decode."""
+        with self._lock:
+            if not self._active:
+                self.stats.skipped_inactive += 1
+                return None
+            transcoder = self._prepare(self._settings())
+            stamp = camera_stamp_ns(jpeg) or arrival_ns
+            try:
+                frame = transcoder.transcode(jpeg, stamp)
+                want = self._opened_with
+                if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
+                    transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
+                    self._applied_kbps = want.bitrate_kbps
+            except MediaError as err:
+                self.stats.bad_inputs += 1
+                problem = str(err)
+            else:
+                problem = ""
+        if problem:
+            self._problem(f"H.264: frame dropped: {problem}")
+            return None
+        return self._emit(frame, arrival_ns)
+
+    def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame | None:
+        """Seam for sources that deliver H.264 (RTSP pass-through): publish one access unit as it came, with
+        SPS/PPS put in front of an IDR that lacks them. None while inactive or when it is malformed.
+
+        Such a source makes its own IDRs: whoever drives it reads :attr:`idr_wanted` (and calls
+        :meth:`idr_sent` once it has asked the camera, e.g. RTSP ``SET_PARAMETER`` ``Renew-Stream: yes``)."""
+        with self._lock:
+            if not self._active:
+                self.stats.skipped_inactive += 1
+                return None
+            try:
+                data = self._params.process(frame.data)
+            except BitstreamError as err:
+                self.stats.bad_inputs += 1
+                problem = str(err)
+            else:
+                problem = ""
+        if problem:
+            self._problem(f"H.264: access unit dropped: {problem}")
+            return None
+        return self._emit(replace(frame, data=data), stamp_ns)
+
+    # -- internals ---------------------------------------------------------------------------------------------
+    def _prepare(self, want: H264Settings) -> Transcoder:
+        """The transcoder for ``want`` (made, re-made, or adjusted live); call with the lock held."""
+        have = self._opened_with
+        t = self._transcoder
+        if t is None or have is None or (have.preset, have.fps) != (want.preset, want.fps):
+            config = want.transcoder_config()
+            t = self._factory(config)
+            self._transcoder = t
+            self._applied_kbps = config.bitrate_bps // 1000  # opened at the ceiling; lowered after the first frame
+            self.stats.encoder_opens += 1
+            self._idr_pending = False  # a new encoder starts with an IDR
+            self._last_idr_request = self._clock()
+        else:
+            if have.effective_keyframe_interval != want.effective_keyframe_interval:
+                t.set_keyframe_interval(want.effective_keyframe_interval)
+        self._opened_with = want
+        now = self._clock()
+        if self._idr_pending and now - self._last_idr_request >= IDR_MIN_INTERVAL_S:
+            t.request_idr()
+            self._idr_pending = False
+            self._last_idr_request = now
+            self.stats.idr_requests += 1
+        return t
+
+    def _emit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame:
+        with self._lock:
+            pts = self._pts
+            self._pts += 1
+            self.stats.frames += 1
+            self.stats.idrs += int(frame.keyframe)
+        out = StagedFrame(frame.data, frame.keyframe, pts, frame.width, frame.height, stamp_ns)
+        self._publish(out)
+        return out
+
+    def _problem(self, text: str) -> None:
+        if self._on_problem is not None:
+            self._on_problem(text)
+
+
+@dataclass(slots=True)
+class ReceiverStats:
+    """What a receiver saw since it was made."""
+
+    access_units: int = 0
+    pictures: int = 0
+    lost: int = 0  # access units missing between two received ones (pts gaps)
+    unusable: int = 0  # received but not shown: corrupt, or waiting for an IDR after a loss or on joining
+
+
+class AccessUnitReceiver:
+    """The subscriber's side (republisher, link monitor): access units with the stage's pts in, pictures out.
+
+    A gap in ``pts`` (a message lost or overwritten on the way) makes the decoder wait for the next IDR: the
+    pictures predicted from the missing one would be wrong, and none is shown. Every access unit received but
+    not shown counts as unusable; :meth:`take_unusable` hands the count since the last call (what the link
+    monitor reports as ``decode_errors``, which makes the stream node send an IDR).
+    """
+
+    def __init__(self) -> None:
+        """A fresh decoder that waits for an IDR."""
+        self._decoder = H264Decoder()
+        self._last_pts: int | None = None
+        self._pending_unusable = 0
+        self.stats = ReceiverStats()
+
+    @property
+    def decoder_errors(self) -> int:
+        """Access units FFmpeg (or the bitstream checks) refused."""
+        return self._decoder.stats.decode_errors
+
+    def feed(self, data: bytes, pts: int | None = None) -> DecodedImage | None:
+        """One access unit; the picture (BGR) or None when it cannot be shown."""
+        self.stats.access_units += 1
+        if pts is not None:
+            if self._last_pts is not None and pts != self._last_pts + 1:
+                self.stats.lost += max(pts - self._last_pts - 1, 0)
+                self._decoder.mark_discontinuity()  # also a restarted stream (pts back to a lower value)
+            self._last_pts = pts
+        picture = self._decoder.decode(data)
+        if picture is None:
+            self.stats.unusable += 1
+            self._pending_unusable += 1
+            return None
+        self.stats.pictures += 1
+        return DecodedImage(picture.image, picture.keyframe, picture.capture_ns)
+
+    def take_unusable(self) -> int:
+        """Unusable access units since the last call."""
+        n = self._pending_unusable
+        self._pending_unusable = 0
+        return n
+
+
+@dataclass(frozen=True, slots=True)
+class DecodedImage:
+    """A decoded picture: BGR (height, width, 3) uint8, IDR or not, capture stamp from the SEI [ns]."""
+
+    image: U8Array
+    keyframe: bool
+    capture_ns: int | None

@@ -1,0 +1,329 @@
+"""The H.264 stage (ROS-free) on the simulated camera's own JPEGs with real libx264, and the controller's codec
+policy: lazy, pts, SPS/PPS with every IDR, IDR on demand (rate-limited), keyframes within a second, bitrate from
+the budget, resolution changes, bad JPEGs, the pass-through seam, and the receiver's loss handling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.annexb import NalType
+from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.sim.frames import stamp
+from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
+from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
+from axis_ptz_ros2.streaming.feedback import FeedbackReport
+from axis_ptz_ros2.streaming.h264 import (
+    IDR_MIN_INTERVAL_S,
+    AccessUnitReceiver,
+    H264Settings,
+    H264Stage,
+    StagedFrame,
+    camera_stamp_ns,
+)
+from axis_ptz_ros2.streaming.meter import BitrateMeter
+
+pytestmark = pytest.mark.unit
+
+
+@pytest.fixture(scope="module")
+def renderer() -> PtzRenderer:
+    world = load_world()
+    return PtzRenderer(world, shared_scene(world))
+
+
+@pytest.fixture(scope="module")
+def jpegs(renderer: PtzRenderer) -> list[bytes]:
+    """24 frames of a slow pan, compression 0, stamped like the simulated camera stamps them."""
+    return [stamp(encode_jpeg(renderer.render(-30.0 + 0.3 * i, -3.0, 1.0, 704, 576), 0), i) for i in range(24)]
+
+
+@pytest.fixture(scope="module")
+def small(renderer: PtzRenderer) -> list[bytes]:
+    return [encode_jpeg(renderer.render(10.0 + 0.3 * i, -3.0, 1.0, 352, 288), 0) for i in range(6)]
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Harness:
+    """A stage with settings the test changes, a fake clock, and what it published."""
+
+    def __init__(self, settings: H264Settings | None = None) -> None:
+        self.settings = settings or H264Settings(bitrate_kbps=1000, keyframe_interval=30, fps=10)
+        self.clock = Clock()
+        self.out: list[StagedFrame] = []
+        self.made: list[TranscoderConfig] = []
+        self.transcoders: list[MjpegTranscoder] = []
+        self.problems: list[str] = []
+
+        def factory(cfg: TranscoderConfig) -> MjpegTranscoder:
+            self.made.append(cfg)
+            self.transcoders.append(MjpegTranscoder(cfg))
+            return self.transcoders[-1]
+
+        self.stage = H264Stage(
+            lambda: self.settings,
+            self.out.append,
+            transcoder_factory=factory,
+            on_problem=self.problems.append,
+            clock=self.clock,
+        )
+
+    def feed(self, jpegs: list[bytes], start_ns: int = 1_000_000_000) -> list[StagedFrame | None]:
+        res = []
+        for i, j in enumerate(jpegs):
+            self.clock.t += 0.1
+            res.append(self.stage.on_jpeg(j, start_ns + i * 100_000_000))
+        return res
+
+
+def test_inactive_stage_never_opens_an_encoder(jpegs: list[bytes]) -> None:
+    h = Harness()
+    assert h.feed(jpegs[:5]) == [None] * 5
+    assert h.made == []
+    assert h.out == []
+    assert not h.stage.encoder_open
+    assert h.stage.stats.skipped_inactive == 5
+
+
+def test_frames_pts_headers_and_stamps(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    out = [f for f in h.feed(jpegs) if f is not None]
+    assert len(out) == len(jpegs) == len(h.out)
+    assert [f.pts for f in out] == list(range(len(out)))
+    assert out[0].keyframe
+    for f in out:
+        types = annexb.nal_types(f.data)
+        assert f.keyframe == (NalType.IDR in types)
+        if f.keyframe:  # SPS/PPS in front of every IDR
+            assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
+        assert (f.width, f.height) == (704, 576)
+    # header stamp: the arrival time; SEI: the camera's own time from its JPEG comment
+    assert out[3].stamp_ns == 1_000_000_000 + 3 * 100_000_000
+    assert annexb.extract_capture_stamp(out[3].data) == camera_stamp_ns(jpegs[3])
+    assert camera_stamp_ns(jpegs[3]) is not None
+
+
+def test_keyframe_interval_is_at_most_one_second(jpegs: list[bytes]) -> None:
+    h = Harness(H264Settings(keyframe_interval=600, fps=5))  # 600 frames asked, 5 fps: an IDR every 5 frames
+    h.stage.set_active(True)
+    out = [f for f in h.feed(jpegs) if f is not None]
+    idrs = [f.pts for f in out if f.keyframe]
+    assert idrs[:4] == [0, 5, 10, 15]
+
+
+def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    h.feed(jpegs[:10])  # clock advances 1.0 s
+    assert h.stage.request_idr()
+    f = h.feed(jpegs[10:11])[0]
+    assert f is not None
+    assert f.keyframe
+    assert not h.stage.request_idr()  # inside the interval: refused now ...
+    fs = h.feed(jpegs[11 : 11 + int(IDR_MIN_INTERVAL_S / 0.1) + 1])
+    keys = [x.keyframe for x in fs if x is not None]
+    assert keys[0] is False
+    assert keys[-1] is True
+    assert h.stage.stats.idr_requests == 2
+
+
+def test_deactivation_drops_the_encoder_and_reactivation_starts_with_an_idr(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    h.feed(jpegs[:4])
+    h.stage.set_active(False)
+    assert not h.stage.encoder_open
+    assert h.feed(jpegs[4:6]) == [None, None]
+    h.stage.set_active(True)
+    f = h.feed(jpegs[6:7])[0]
+    assert f is not None
+    assert f.keyframe
+    assert f.pts == 4
+    assert len(h.made) == 2
+
+
+def test_bitrate_live_preset_and_fps_reopen(jpegs: list[bytes]) -> None:
+    h = Harness(H264Settings(bitrate_kbps=2000, fps=10))
+    h.stage.set_active(True)
+    big = [f for f in h.feed(jpegs[:12]) if f is not None]
+    h.settings = H264Settings(bitrate_kbps=150, fps=10)
+    small_ = [f for f in h.feed(jpegs[12:24]) if f is not None]
+    assert len(h.made) == 1  # bitrate down: live, no new encoder
+    p_big = np.median([len(f.data) for f in big[2:] if not f.keyframe])
+    p_small = np.median([len(f.data) for f in small_[2:] if not f.keyframe])
+    assert p_small < 0.5 * p_big
+    h.settings = H264Settings(bitrate_kbps=150, fps=10, preset="ultrafast")
+    f = h.feed(jpegs[:1])[0]
+    assert f is not None
+    assert f.keyframe
+    assert len(h.made) == 2
+    assert h.made[-1].preset == "ultrafast"
+    h.settings = H264Settings(bitrate_kbps=150, fps=20, preset="ultrafast")
+    f = h.feed(jpegs[1:2])[0]
+    assert f is not None
+    assert f.keyframe
+    assert h.made[-1].fps == 20
+
+
+def test_encoder_opens_at_the_ceiling_so_the_budget_moves_the_bitrate_live(jpegs: list[bytes]) -> None:
+    """The budget holds the target under the request and lets it grow back: no re-open, no IDR, for either."""
+    h = Harness(H264Settings(bitrate_kbps=300, fps=30, ceiling_kbps=1500))
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])
+    assert h.made[0].bitrate_bps == 1_500_000  # VBV maxrate = the request ...
+    t = h.transcoders[0]
+    assert t.config.bitrate_bps == 300_000  # ... the target the budget's, from the second frame on
+    for kbps in (600, 1200, 1500, 400):
+        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, ceiling_kbps=1500)
+        out = h.feed(jpegs[3:5])
+        assert not any(f is not None and f.keyframe for f in out)
+        assert t.config.bitrate_bps == kbps * 1000
+    assert len(h.made) == 1
+    assert t._encoder is not None
+    assert t._encoder.reopens == 0
+
+
+def test_resolution_change_gives_an_idr_of_the_new_size(jpegs: list[bytes], small: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])
+    f = h.feed(small[:1])[0]
+    assert f is not None
+    assert f.keyframe
+    assert (f.width, f.height) == (352, 288)
+    sps = annexb.find_sps(f.data)
+    assert sps is not None
+    assert (sps.width, sps.height) == (352, 288)
+
+
+def test_bad_jpeg_is_dropped_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    res = h.feed([jpegs[0], b"\xff\xd8 not a jpeg", jpegs[1]])
+    assert res[1] is None
+    assert res[0] is not None
+    assert res[2] is not None
+    assert res[2].pts == res[0].pts + 1  # nothing published for the bad one, no gap in pts
+    assert h.stage.stats.bad_inputs == 1
+    assert h.problems
+
+
+def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
+    """An access-unit source (an RTSP reader) whose IDRs lack SPS/PPS after the first: the stage adds them."""
+    t = MjpegTranscoder(TranscoderConfig(fps=10, keyframe_interval=4))
+    frames = [t.transcode(j) for j in jpegs[:9]]
+    stripped = []
+    for i, f in enumerate(frames):
+        nals = annexb.split_nal_units(f.data)
+        if f.keyframe and i > 0:
+            nals = [n for n in nals if n[0] & 0x1F not in (NalType.SPS, NalType.PPS)]
+        stripped.append(EncodedFrame(annexb.join_nal_units(nals), f.keyframe, f.pts, f.width, f.height))
+    h = Harness()
+    h.stage.set_active(True)
+    out = [h.stage.on_access_unit(f, 5) for f in stripped]
+    assert all(o is not None for o in out)
+    for o in out:
+        assert o is not None
+        if o.keyframe:
+            assert NalType.SPS in annexb.nal_types(o.data)
+    # such a source makes its own IDRs: the stage says when one is wanted, rate-limited like the transcoder's
+    h.clock.t += 1.0
+    assert h.stage.request_idr()
+    assert h.stage.idr_wanted
+    h.stage.idr_sent()
+    assert not h.stage.idr_wanted
+    h.stage.request_idr()
+    assert not h.stage.idr_wanted  # inside the interval
+    h.clock.t += IDR_MIN_INTERVAL_S
+    assert h.stage.idr_wanted
+    # a bare IDR before any parameter set is refused, not published
+    h2 = Harness()
+    h2.stage.set_active(True)
+    assert h2.stage.on_access_unit(stripped[4], 5) is None
+    assert h2.stage.stats.bad_inputs == 1
+
+
+def test_receiver_waits_for_an_idr_after_a_loss(jpegs: list[bytes]) -> None:
+    h = Harness(H264Settings(keyframe_interval=8, fps=30))
+    h.stage.set_active(True)
+    out = [f for f in h.feed(jpegs[:20]) if f is not None]
+    r = AccessUnitReceiver()
+    shown = []
+    for f in out:
+        if f.pts == 3:
+            continue  # lost on the way
+        pic = r.feed(f.data, f.pts)
+        shown.append(f.pts if pic is not None else None)
+        if pic is not None:
+            assert pic.image.shape == (576, 704, 3)
+    # 0..2 shown, 4..7 unusable (predicted from the lost 3), 8 (IDR) onward shown again
+    assert shown[:3] == [0, 1, 2]
+    assert shown[3:7] == [None] * 4
+    assert shown[7] == 8
+    assert r.stats.lost == 1
+    assert r.take_unusable() == 4
+    assert r.take_unusable() == 0
+
+
+# ---- the controller's codec policy ---------------------------------------------------------------------------
+def controller(**kw: object) -> tuple[VideoController, Clock]:
+    clock = Clock()
+    return VideoController(VideoSettings(**kw), BitrateMeter(2.0), clock=clock), clock  # type: ignore[arg-type]
+
+
+def test_h264_mode_asks_the_camera_for_compression_0_and_keeps_the_ladder_still() -> None:
+    c, _ = controller(codec="h264", compression=50, fps=30, max_bitrate_kbps=300)
+    assert c.current.compression == 0
+    assert c.current.fps == 30
+    s = c.h264_settings()
+    assert s.bitrate_kbps == 300
+    assert s.fps == 30
+    m, _ = controller(codec="mjpeg", compression=50, fps=30)
+    assert m.current.compression == 50
+    assert m.h264_settings().bitrate_kbps == 1000  # without any budget: the request (the safe default)
+
+
+def test_codec_values_are_checked_with_the_list() -> None:
+    c, _ = controller()
+    assert c.check(VideoSettings(codec="h265"), {"codec"}) == "codec='h265' is not one of mjpeg, h264"
+    assert "h264_preset" in (c.check(VideoSettings(h264_preset="placebo"), {"h264_preset"}) or "")
+    assert "h264_bitrate_kbps" in (c.check(VideoSettings(h264_bitrate_kbps=10), {"h264_bitrate_kbps"}) or "")
+    assert c.check(VideoSettings(codec="h264"), {"codec"}) is None
+    with pytest.raises(ValueError, match="codec"):
+        VideoController(VideoSettings(codec="vp9"), BitrateMeter(2.0))
+
+
+def test_switching_codec_changes_the_request() -> None:
+    c, _ = controller(compression=40)
+    c.apply(VideoSettings(compression=40, codec="h264"), {"codec"})
+    assert c.current.compression == 0
+    c.apply(VideoSettings(compression=40, codec="mjpeg"), {"codec"})
+    assert c.current.compression == 40
+
+
+def test_link_budget_lowers_the_h264_bitrate_judged_against_h264_bytes() -> None:
+    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1500)
+    # 4 s of 30 fps at ~1500 kbit/s sent as H.264 (6250 B/frame)
+    for _i in range(120):
+        clock.t += 1 / 30
+        c.on_h264_frame(clock.t, 6250)
+    # the consumer receives a third of the frames: congested, the budget drops under what it received
+    report = FeedbackReport("/op", 20, 10.0, 500.0, 0.02, 0.01, 0.1, 2.0)
+    j = c.feedback(report, lambda _name: True)
+    assert j is not None
+    assert j.decision.state == "congested"
+    s = c.h264_settings()
+    assert 100 <= s.bitrate_kbps <= 500
+    assert c.current.compression == 0
+    assert c.state().level == 0
