@@ -7,8 +7,8 @@ calibration YAML, atomic writes, the refusals). This module adds the parameters,
 * At start-up the calibration at ``camera_info_url`` (if the file exists) becomes the camera's K and D at the
   zoom it was taken at; a malformed file or a refused URL is logged with the reason and the camera model's own
   calibration stays (as camera_info_manager: the node runs uncalibrated rather than not at all).
-* ``set_camera_info`` (relative to the node's namespace, next to ``camera_info``, where camera_calibration's
-  calibrator calls it) stores the new calibration at the URL and applies it at once; ``success`` /
+* ``~/set_camera_info`` (the node's private name, as Jazzy's camera_info_manager registers it; Humble's was
+  ``set_camera_info`` beside the topics) stores the new calibration at the URL and applies it at once; ``success`` /
   ``status_message`` tell what happened. Refused (previous calibration kept): wrong matrix sizes, values the
   calibration model refuses, a size other than the stream's, an unusable URL, an unwritable file.
 """
@@ -70,7 +70,7 @@ class CameraInfoService:
             except CameraInfoError as err:
                 log.error(f"calibration not loaded: {err}; using the camera model's")
         node.create_service(
-            SetCameraInfo, "set_camera_info", self._on_set, callback_group=MutuallyExclusiveCallbackGroup()
+            SetCameraInfo, "~/set_camera_info", self._on_set, callback_group=MutuallyExclusiveCallbackGroup()
         )
 
     def apply(self, model: CameraModel) -> CameraModel:

@@ -65,7 +65,7 @@ def start(ros: RosHarness, camera: SimulatedCamera, url: str) -> tuple[Infos, ob
     infos = Infos()
     probe.create_subscription(CameraInfo, "camera_info", infos, STREAM_QOS)
     ros.wait_for(lambda: infos.last() is not None, timeout=10)
-    return infos, probe, probe.create_client(SetCameraInfo, "set_camera_info")
+    return infos, probe, probe.create_client(SetCameraInfo, "/axis_stream/set_camera_info")
 
 
 def calibration(width: int = 704, height: int = 576, fx: float = 1100.0) -> CameraInfo:
