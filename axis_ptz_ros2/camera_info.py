@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.geometry import Intrinsics
-from axis_ptz_ros2.strict_yaml import YamlError, load_strict
+from axis_ptz_ros2.strict_yaml import load_strict
 from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 FloatArray = npt.NDArray[np.float64]
@@ -278,11 +278,7 @@ def camera_info_from_dict(d: Any, source: str = "<camera_info>") -> CameraInfoDa
 
 def load_camera_info(path: str | Path) -> CameraInfoData:
     """Load a ROS camera calibration YAML (duplicate keys and syntax errors raise :class:`CameraInfoError`)."""
-    try:
-        data = load_strict(path)
-    except YamlError as err:
-        raise CameraInfoError(str(err)) from err
-    return camera_info_from_dict(data, str(path))
+    return camera_info_from_dict(load_strict(path, CameraInfoError), str(path))
 
 
 def dump_camera_info(ci: CameraInfoData) -> str:

@@ -40,7 +40,7 @@ from axis_ptz_ros2.geometry import (
     VapixConvention,
     ZoomModel,
 )
-from axis_ptz_ros2.strict_yaml import YamlError, load_strict
+from axis_ptz_ros2.strict_yaml import load_strict
 
 CAMERA_MODEL_FORMAT = "axis_ptz_ros2/camera_model/v1"
 MOUNT_FORMAT = "axis_ptz_ros2/mount/v1"
@@ -229,11 +229,7 @@ def load_camera_model(path: str | Path | None = None) -> CameraModel:
     unknown fields and bad values, with the file (and line, for YAML errors) in the message.
     """
     p = Path(path) if path else default_config_path("axis214.yaml")
-    try:
-        data = load_strict(p)
-    except YamlError as err:
-        raise CameraModelError(str(err)) from err
-    return camera_model_from_dict(data or {}, str(p), p.parent)
+    return camera_model_from_dict(load_strict(p, CameraModelError) or {}, str(p), p.parent)
 
 
 @dataclass(frozen=True, slots=True)
@@ -355,11 +351,7 @@ def mount_from_dict(d: dict[str, Any], source: str = "<mount>") -> MountConfig:
 def load_mount(path: str | Path | None = None) -> MountConfig:
     """Load ``config/mount.yaml`` (default) or another mount file."""
     p = Path(path) if path else default_config_path("mount.yaml")
-    try:
-        data = load_strict(p)
-    except YamlError as err:
-        raise ConfigError(str(err)) from err
-    return mount_from_dict(data or {}, str(p))
+    return mount_from_dict(load_strict(p, ConfigError) or {}, str(p))
 
 
 def save_mount(mount: MountConfig, path: str | Path) -> None:
@@ -440,8 +432,4 @@ def robot_from_dict(d: dict[str, Any], source: str = "<robot>") -> RobotConfig:
 def load_robot(path: str | Path | None = None) -> RobotConfig:
     """Load ``config/robot.yaml`` (default) or another robot file."""
     p = Path(path) if path else default_config_path("robot.yaml")
-    try:
-        data = load_strict(p)
-    except YamlError as err:
-        raise ConfigError(str(err)) from err
-    return robot_from_dict(data or {}, str(p))
+    return robot_from_dict(load_strict(p, ConfigError) or {}, str(p))

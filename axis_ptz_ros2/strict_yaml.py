@@ -8,6 +8,7 @@ report bad input without a traceback.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -61,13 +62,25 @@ def loads_strict(text: str, source: str = "<string>") -> Any:
         raise YamlError(f"{source}: not valid YAML: {err}") from err
 
 
-def load_strict(path: str | Path) -> Any:
-    """Read and parse a YAML file strictly (see :func:`loads_strict`); unreadable files raise YamlError."""
+def read_text(path: str | Path, error: Callable[[str], Exception] = YamlError) -> str:
+    """The UTF-8 text of a file; an unreadable or non-UTF-8 file raises ``error(message naming the file)``."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        return p.read_text(encoding="utf-8")
     except OSError as err:
-        raise YamlError(f"{p}: cannot read: {err.strerror or err}") from err
+        raise error(f"{p}: cannot read: {err.strerror or err}") from err
     except UnicodeDecodeError as err:
-        raise YamlError(f"{p}: not a UTF-8 text file ({err.reason})") from err
-    return loads_strict(text, str(p))
+        raise error(f"{p}: not a UTF-8 text file ({err.reason})") from err
+
+
+def load_strict(path: str | Path, error: Callable[[str], Exception] = YamlError) -> Any:
+    """Read and parse a YAML file strictly (see :func:`loads_strict`); an unreadable file or bad YAML raises
+    ``error`` (a :class:`YamlError` unless the caller names its own error type) with the YamlError's message."""
+    p = Path(path)
+    text = read_text(p, error)
+    try:
+        return loads_strict(text, str(p))
+    except YamlError as err:
+        if error is YamlError:
+            raise
+        raise error(str(err)) from err

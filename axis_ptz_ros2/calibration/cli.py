@@ -37,6 +37,7 @@ import os
 import signal
 import sys
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -121,13 +122,19 @@ def _writable_target(path: Path, what: str) -> str | None:
     return None
 
 
+def _refuse_unwritable(*targets: tuple[Path | None, str]) -> bool:
+    """Print the error for the first ``(path or None, what)`` that cannot be written; True if one cannot."""
+    for target, what in targets:
+        problem = None if target is None else _writable_target(target, what)
+        if problem:
+            print(f"error: {problem}", file=sys.stderr)
+            return True
+    return False
+
+
 def _cmd_solve(args: argparse.Namespace) -> int:
-    for target, what in ((args.out, "--out"), (args.report, "--report")):
-        if target is not None:
-            problem = _writable_target(target, what)
-            if problem:
-                print(f"error: {problem}", file=sys.stderr)
-                return 1
+    if _refuse_unwritable((args.out, "--out"), (args.report, "--report")):
+        return 1
     if args.max_sigma_cm is not None and not args.max_sigma_cm > 0:
         print("error: --max-sigma-cm must be positive", file=sys.stderr)
         return 1
@@ -210,12 +217,8 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     if args.camera_info_out is not None and args.distortion == "none":
         print("error: --camera-info-out needs --distortion (the nominal model has no camera_info)", file=sys.stderr)
         return 1
-    for target, what in ((args.out, "output"), (args.camera_info_out, "--camera-info-out")):
-        if target is not None:
-            problem = _writable_target(target, what)
-            if problem:
-                print(f"error: {problem}", file=sys.stderr)
-                return 1
+    if _refuse_unwritable((args.out, "output"), (args.camera_info_out, "--camera-info-out")):
+        return 1
     ref = None
     if args.camera_model_ref is not None:
         ref = Path(args.camera_model_ref).expanduser()
@@ -227,26 +230,14 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         return 1
     if args.distortion != "none":
         cm = cm.with_camera_info(real_like_camera_info(args.distortion))
-    if args.fixed:
-        scene = make_fixed_scene(
-            args.seed,
-            cm,
-            n_views=args.views,
-            points_per_view=args.points,
-            pixel_noise_px=args.pixel_noise,
-            point_noise_m=args.point_noise,
-            outlier_fraction=args.outliers,
-        )
-    else:
-        scene = make_scene(
-            args.seed,
-            n_views=args.views,
-            points_per_view=args.points,
-            pixel_noise_px=args.pixel_noise,
-            point_noise_m=args.point_noise,
-            outlier_fraction=args.outliers,
-            camera_model=cm,
-        )
+    make = partial(make_fixed_scene, args.seed, cm) if args.fixed else partial(make_scene, args.seed, camera_model=cm)
+    scene = make(
+        n_views=args.views,
+        points_per_view=args.points,
+        pixel_noise_px=args.pixel_noise,
+        point_noise_m=args.point_noise,
+        outlier_fraction=args.outliers,
+    )
     x, y, z, r, p, yw = scene.truth.xyz_rpy()
     what = "T_reference_optical" if args.fixed else "T_base_ptz"
     comment = (

@@ -36,7 +36,7 @@ from typing import Any
 
 import yaml
 
-from axis_ptz_ros2.strict_yaml import YamlError, loads_strict
+from axis_ptz_ros2.strict_yaml import YamlError, loads_strict, read_text
 
 CORRESPONDENCES_FORMAT = "axis_ptz_ros2/correspondences/v1"
 
@@ -315,11 +315,7 @@ def parse_correspondences(text: str, source: str = "<string>") -> Correspondence
 def load_correspondences(path: str | Path) -> CorrespondenceSet:
     """Load and validate a correspondence file (raises :class:`CorrespondenceError`)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise CorrespondenceError(f"{p}: cannot read: {err.strerror}") from err
-    cs = parse_correspondences(text, str(p))
+    cs = parse_correspondences(read_text(p, CorrespondenceError), str(p))
     return CorrespondenceSet(cs.views, cs.camera_model, cs.comment, p.resolve())
 
 

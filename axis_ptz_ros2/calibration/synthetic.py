@@ -13,6 +13,7 @@ point is visible in its view; points below ``ground_z`` are redrawn closer.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +26,7 @@ from axis_ptz_ros2.geometry import PtzKinematics, Transform, rot_z
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+Made = tuple[View, BoolArray, FloatArray]  #: what :func:`make_view` returns
 
 THESIS_MOUNT = Transform.from_xyz_rpy(-0.214, -0.044, 0.455, 0.0, 0.0, 0.0)
 
@@ -145,6 +147,21 @@ def make_view(
     return View(name, pan, tilt, float(zoom), width, height, pts), out, X_true
 
 
+def _assemble(
+    made: Sequence[Made], truth: Transform, cm: CameraModel, pan_offset: float, tilt_offset: float
+) -> SyntheticScene:
+    """A scene of the views :func:`make_view` made (with their outlier flags and true points)."""
+    return SyntheticScene(
+        tuple(m[0] for m in made),
+        truth,
+        cm,
+        pan_offset,
+        tilt_offset,
+        tuple(m[1] for m in made),
+        tuple(m[2] for m in made),
+    )
+
+
 def make_scene(
     seed: int | np.random.Generator,
     *,
@@ -171,33 +188,32 @@ def make_scene(
     span = math.radians(pan_span_deg)
     base = np.linspace(-span / 2, span / 2, n_views) if n_views > 1 else np.zeros(1)
     jitter = span / max(n_views, 1) / 4.0
-    views, outs, trues = [], [], []
+    made: list[Made] = []
     for k in range(n_views):
         pan = float(base[k] + rng.uniform(-jitter, jitter))
         tilt = math.radians(float(rng.uniform(*tilt_range_deg)))
         zoom = float(rng.uniform(*zoom_range))
-        v, o, X = make_view(
-            rng,
-            cm,
-            T,
-            f"view{k}",
-            pan,
-            tilt,
-            zoom,
-            points_per_view,
-            width=width,
-            height=height,
-            pixel_noise_px=pixel_noise_px,
-            point_noise_m=point_noise_m,
-            outlier_fraction=outlier_fraction,
-            depth_range=depth_range,
-            pan_offset=pan_offset,
-            tilt_offset=tilt_offset,
+        made.append(
+            make_view(
+                rng,
+                cm,
+                T,
+                f"view{k}",
+                pan,
+                tilt,
+                zoom,
+                points_per_view,
+                width=width,
+                height=height,
+                pixel_noise_px=pixel_noise_px,
+                point_noise_m=point_noise_m,
+                outlier_fraction=outlier_fraction,
+                depth_range=depth_range,
+                pan_offset=pan_offset,
+                tilt_offset=tilt_offset,
+            )
         )
-        views.append(v)
-        outs.append(o)
-        trues.append(X)
-    return SyntheticScene(tuple(views), T, cm, pan_offset, tilt_offset, tuple(outs), tuple(trues))
+    return _assemble(made, T, cm, pan_offset, tilt_offset)
 
 
 def real_like_camera_info(
@@ -250,30 +266,29 @@ def make_fixed_scene(
     w = width or (ci.width if ci is not None else 704)
     h = height or (ci.height if ci is not None else 576)
     T = fixed_truth(rng)
-    views, outs, trues = [], [], []
+    made: list[Made] = []
     for k in range(n_views):
-        v, o, X = make_view(
-            rng,
-            camera_model,
-            T,
-            f"capture{k}",
-            0.0,
-            0.0,
-            1.0,
-            points_per_view,
-            width=w,
-            height=h,
-            pixel_noise_px=pixel_noise_px,
-            point_noise_m=point_noise_m,
-            outlier_fraction=outlier_fraction,
-            depth_range=depth_range,
-            ground_z=-10.0,
-            fixed=True,
+        made.append(
+            make_view(
+                rng,
+                camera_model,
+                T,
+                f"capture{k}",
+                0.0,
+                0.0,
+                1.0,
+                points_per_view,
+                width=w,
+                height=h,
+                pixel_noise_px=pixel_noise_px,
+                point_noise_m=point_noise_m,
+                outlier_fraction=outlier_fraction,
+                depth_range=depth_range,
+                ground_z=-10.0,
+                fixed=True,
+            )
         )
-        views.append(v)
-        outs.append(o)
-        trues.append(X)
-    return SyntheticScene(tuple(views), T, camera_model, 0.0, 0.0, tuple(outs), tuple(trues))
+    return _assemble(made, T, camera_model, 0.0, 0.0)
 
 
 def thesis_like_scene(
@@ -288,7 +303,7 @@ def thesis_like_scene(
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     cm = camera_model or CameraModel()
     T = random_mount(rng)
-    v, o, X = make_view(
+    made = make_view(
         rng,
         cm,
         T,
@@ -302,7 +317,7 @@ def thesis_like_scene(
         depth_range=(2.5, 4.0),
         planar_relief_m=relief_m,
     )
-    return SyntheticScene((v,), T, cm, 0.0, 0.0, (o,), (X,))
+    return _assemble([made], T, cm, 0.0, 0.0)
 
 
 def prediction_errors(

@@ -399,6 +399,17 @@ def _sei_varint(value: int) -> bytes:
     return b"\xff" * (value // 255) + bytes([value % 255])
 
 
+def _read_sei_varint(rbsp: bytes, pos: int, what: str) -> tuple[int, int]:
+    """Read a payload type or size (0xFF bytes of 255 each, then a last byte) at ``pos``: (value, next pos)."""
+    value, n = 0, len(rbsp)
+    while pos < n and rbsp[pos] == 0xFF:
+        value += 255
+        pos += 1
+    if pos >= n:
+        raise BitstreamError(f"SEI payload {what} runs past the NAL unit")
+    return value + rbsp[pos], pos + 1
+
+
 def capture_stamp_sei(stamp_ns: int) -> bytes:
     """Our SEI NAL unit (header included, emulation prevention applied) carrying ``stamp_ns``."""
     if not 0 <= stamp_ns < 1 << 64:
@@ -423,22 +434,8 @@ def sei_messages(nal: bytes) -> list[tuple[int, bytes]]:
     out: list[tuple[int, bytes]] = []
     pos, n = 0, len(rbsp)
     while pos < n and rbsp[pos:] != b"\x80":  # more_rbsp_data(): anything before rbsp_trailing_bits
-        ptype = 0
-        while pos < n and rbsp[pos] == 0xFF:
-            ptype += 255
-            pos += 1
-        if pos >= n:
-            raise BitstreamError("SEI payload type runs past the NAL unit")
-        ptype += rbsp[pos]
-        pos += 1
-        size = 0
-        while pos < n and rbsp[pos] == 0xFF:
-            size += 255
-            pos += 1
-        if pos >= n:
-            raise BitstreamError("SEI payload size runs past the NAL unit")
-        size += rbsp[pos]
-        pos += 1
+        ptype, pos = _read_sei_varint(rbsp, pos, "type")
+        size, pos = _read_sei_varint(rbsp, pos, "size")
         if pos + size > n:
             raise BitstreamError(f"SEI payload of {size} bytes runs past the NAL unit")
         out.append((ptype, rbsp[pos : pos + size]))

@@ -207,8 +207,30 @@ def snapshot(config: type[_C], specs: Iterable[ParamSpec], values: Mapping[str, 
     return config(**{s.field or s.name: values[s.name] for s in specs if s.config is config})
 
 
+#: Parameter names someone may try for camera credentials. None is declared: a parameter is readable by anyone on
+#: the ROS graph (``ros2 param get``) and a ``-p password:=…`` stays visible in the process list.
+CREDENTIAL_PARAMETER_NAMES = frozenset({"password", "passwd", "pass", "camera_password", "username", "user"})
+
+
+def warn_credential_parameters(node: Node) -> list[str]:
+    """Warn loudly (once per node) about credentials given as parameters, which are never read; the value is not
+    logged. Returns the offending names."""
+    given = sorted(n for n in getattr(node, "_parameter_overrides", {}) if n.lower() in CREDENTIAL_PARAMETER_NAMES)
+    if given:
+        node.get_logger().error(
+            f"parameter(s) {', '.join(given)} ignored: credentials are never read from parameters (anyone on the "
+            "ROS graph can read a parameter, and the command line shows it in the process list). Give the camera "
+            "user and password in a file only you can read (password_file / AXIS_PASSWORD_FILE, 'user:password') "
+            "or in AXIS_USERNAME / AXIS_PASSWORD"
+        )
+    return given
+
+
 def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
-    """Declare every spec on ``node`` and return the values in effect (overrides applied)."""
+    """Declare every spec on ``node`` and return the values in effect (overrides applied); credentials given as
+    parameters are refused loudly (:func:`warn_credential_parameters`)."""
+    if not any(s.name in CREDENTIAL_PARAMETER_NAMES for s in specs):
+        warn_credential_parameters(node)
     values: dict[str, Any] = {}
     for s in specs:
         p = node.declare_parameter(s.name, s.default, s.descriptor())
@@ -301,13 +323,24 @@ def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraC
 # ---------------------------------------------------------------------------------------------------------
 # Credentials: from the environment or a file, never from a readable parameter, never logged
 # ---------------------------------------------------------------------------------------------------------
+_OPEN_PASSWORD_FILES_WARNED: set[str] = set()
+
+
 def load_credentials(password_file: str = "") -> tuple[str | None, str | None]:
     """Camera credentials: ``AXIS_USERNAME``/``AXIS_PASSWORD`` environment variables, or ``password_file``
     (a file with ``user:password`` on its first line, or ``AXIS_PASSWORD_FILE``). Returns ``(None, None)``
     for anonymous access. Nothing here is logged or stored in a parameter."""
     path = password_file or os.environ.get("AXIS_PASSWORD_FILE", "")
     if path:
-        text = Path(path).expanduser().read_text(encoding="utf-8").splitlines()
+        file = Path(path).expanduser()
+        mode = file.stat().st_mode & 0o777
+        if mode & 0o077 and str(file) not in _OPEN_PASSWORD_FILES_WARNED:
+            _OPEN_PASSWORD_FILES_WARNED.add(str(file))
+            rclpy.logging.get_logger("axis_ptz_ros2").error(
+                f"the credentials file {file} can be read by others (mode {mode:o}): anyone with an account on "
+                f"this machine can read the camera's password; chmod 600 {file}"
+            )
+        text = file.read_text(encoding="utf-8").splitlines()
         first = text[0].strip() if text else ""
         if ":" not in first:
             raise ValueError("credentials file must contain 'user:password' on its first line")

@@ -31,7 +31,8 @@ from axis_ptz_ros2.nodes.common import (
     transform_msg,
 )
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
-from axis_ptz_ros2.sim.scene import Scene, load_world, shared_scene
+from axis_ptz_ros2.sim.scene import Scene, shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("rate", 1.0, "scan rate", "Hz", read_only=True, float_range=(0.05, 20.0)),

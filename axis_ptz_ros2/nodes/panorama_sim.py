@@ -34,7 +34,8 @@ from axis_ptz_ros2.nodes.common import (
     transform_msg,
 )
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("width", 2048, "panorama width; height = width/2", "px", read_only=True, int_range=(64, 8192)),

@@ -12,8 +12,11 @@ PTZ video and the panorama, and turns the operator's mouse and keys into the PTZ
   ``max_bitrate_kbps`` parameter (bandwidth budget).
 
 Video is passed through (JPEG bytes of the CompressedImage, never re-encoded); each image topic is subscribed
-only while an HTTP client watches it. Service calls are asynchronous with a timeout, so neither the HTTP
-threads nor the executor ever block for good.
+only while an HTTP client watches it. The PTZ video also goes out as H.264 (``h264_topic``, FFMPEGPacket access
+units, relayed by :mod:`axis_ptz_ros2.web.h264relay`) for pages that decode it with WebCodecs; the page falls
+back to MJPEG when no H.264 is published or the browser cannot decode it, and reports what it decodes
+(``/api/decoder``): its decode errors go out on ``video/feedback`` (the stream node answers with an IDR).
+Service calls are asynchronous with a timeout, so neither the HTTP threads nor the executor ever block for good.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 from geometry_msgs.msg import PointStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -52,6 +56,7 @@ from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
 from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.auth import AuthThrottle, load_token
+from axis_ptz_ros2.web.h264relay import H264Slot
 from axis_ptz_ros2.web.panorama import cloud_msg_in_base, look_target
 from axis_ptz_ros2.web.server import CommandResult, ConsoleServer, FrameSlot, serve
 from axis_ptz_ros2.web.view import ConsoleModel, keymap_json, move_text
@@ -105,6 +110,9 @@ PARAMS: tuple[ParamSpec, ...] = (
         "auth_window", 60.0, "sliding window of the wrong-token throttle", "s", True, None, (1.0, 86400.0)
     ),  # fmt: skip
     ParamSpec("ptz_topic", "image_raw/compressed", "PTZ camera JPEG topic", read_only=True),
+    ParamSpec(
+        "h264_topic", "image_raw/ffmpeg", "PTZ camera H.264 topic (FFMPEGPacket; '' = MJPEG only)", read_only=True
+    ),  # fmt: skip
     ParamSpec("panorama_topic", "panorama/image_raw/compressed", "panorama JPEG topic", read_only=True),
     ParamSpec(
         "overlay_topic",
@@ -149,6 +157,8 @@ class WebConsole(Node):
             self._topics["overlay"] = self.p["overlay_topic"]
         self._slots = {n: FrameSlot(n, self._on_watchers) for n in self._topics}
         self._image_subs: dict[str, Any] = {}
+        self._h264 = H264Slot("ptz", self._on_watchers, lambda: self._feedback.add_errors(1))
+        self._h264_sub: Any = None
         self._img_group = MutuallyExclusiveCallbackGroup()
         self._reconcile_gc = self.create_guard_condition(self._reconcile, self._img_group)
 
@@ -179,6 +189,7 @@ class WebConsole(Node):
             "key": self._cmd_key,
             "video": self._cmd_video,
             "home": lambda _body: self._answer(self._calls.call(self._home, Trigger.Request()), "going home"),
+            "decoder": self._cmd_decoder,
         }
         self.server = self._serve()
 
@@ -215,6 +226,7 @@ class WebConsole(Node):
         if server is not None:
             for s in self._slots.values():
                 s.close()
+            self._h264.close()
             server.stop()
         super().destroy_node()
 
@@ -242,12 +254,29 @@ class WebConsole(Node):
                     # whenever the last viewer leaves
                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                 )
-                if name == "ptz":
-                    self._feedback.watch()
             elif have and not want:
                 self.destroy_subscription(self._image_subs.pop(name))
-                if name == "ptz":
-                    self._feedback.stop()
+        want = self._h264.watchers > 0 and bool(self.p["h264_topic"])
+        if want and self._h264_sub is None:
+            self._h264_sub = self.create_subscription(
+                FFMPEGPacket, self.p["h264_topic"], self._on_h264, STREAM_QOS, callback_group=self._img_group,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            )  # fmt: skip
+        elif self._h264_sub is not None and not want:
+            self.destroy_subscription(self._h264_sub)
+            self._h264_sub = None
+        if "ptz" in self._image_subs or self._h264_sub is not None:
+            self._feedback.watch()
+        else:
+            self._feedback.stop()
+
+    def _on_h264(self, msg: FFMPEGPacket) -> None:
+        data = msg.data.tobytes() if hasattr(msg.data, "tobytes") else bytes(msg.data)
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self._feedback.add(msg, len(data))
+        self.model.ptz_frame(len(data), stamp)
+        if not self._h264.publish(data, bool(msg.flags & 1), stamp):
+            self.get_logger().debug(f"H.264 access unit refused: {self._h264.last_refusal}")
 
     def _frame_callback(self, name: str) -> Callable[[CompressedImage], None]:
         slot = self._slots[name]
@@ -262,7 +291,9 @@ class WebConsole(Node):
         return cb
 
     def subscribed(self, name: str) -> bool:
-        """True while the image topic of stream ``name`` is subscribed (for tests)."""
+        """True while the image topic of stream ``name`` is subscribed (``ptz.h264``: the H.264 topic; for tests)."""
+        if name == "ptz.h264":
+            return self._h264_sub is not None
         return name in self._image_subs
 
     # ------------------------------------------------------------------------------------------------
@@ -283,12 +314,23 @@ class WebConsole(Node):
         """ConsoleBackend: the frame slot of a stream."""
         return self._slots.get(name)
 
+    def h264_slot(self, name: str) -> H264Slot | None:
+        """ConsoleBackend: the H.264 relay (PTZ only, and only with an ``h264_topic``)."""
+        return self._h264 if name == "ptz" and self.p["h264_topic"] else None
+
     def state(self) -> dict[str, Any]:
         """ConsoleBackend: everything the page shows."""
         overlay = self.count_publishers(self.resolve_topic_name(self._topics["overlay"])) if "overlay" in \
             self._topics else 0  # fmt: skip
         extra = {
             "stream": {"watchers": {n: sl.watchers for n, sl in self._slots.items()}},
+            "h264": {
+                "available": bool(self.p["h264_topic"])
+                and self.count_publishers(self.resolve_topic_name(self.p["h264_topic"])) > 0,
+                "subscribed": self._h264_sub is not None,
+                "watchers": self._h264.watchers,
+                **self._h264.counters(),
+            },
             "panorama": {
                 "available": self.count_publishers(self.resolve_topic_name(self._topics["panorama"])) > 0,
                 "overlay": overlay > 0,
@@ -303,7 +345,7 @@ class WebConsole(Node):
             },
             "http": self.server.counters(),
         }
-        return self.model.state(self.subscribed("ptz"), extra)
+        return self.model.state(self.subscribed("ptz") or self.subscribed("ptz.h264"), extra)
 
     def keymap(self) -> dict[str, Any]:
         """ConsoleBackend: the keyboard teleop's key map for the page (quit keys left out)."""
@@ -358,6 +400,12 @@ class WebConsole(Node):
         out.extra["depth_source"] = target.depth_source
         out.extra["range_m"] = target.range_m
         return out
+
+    def _cmd_decoder(self, body: dict[str, Any]) -> CommandResult:
+        r = api.decoder_request(body)
+        self.model.decoder(r.mode, r.decoded, r.errors, r.codec, r.note)
+        self._feedback.add_errors(r.errors)  # the stream node answers decode errors with an IDR
+        return CommandResult(True, "")
 
     def _cmd_key(self, body: dict[str, Any]) -> CommandResult:
         label, commands, step = self.model.key(api.key_request(body))

@@ -16,7 +16,7 @@ from axis_ptz_ros2.sim.digest import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIM
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import PERSONAS, persona
 from axis_ptz_ros2.sim.ptz import Speeds
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 
 
 def _is_loopback(host: str) -> bool:

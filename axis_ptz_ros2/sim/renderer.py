@@ -28,7 +28,8 @@ import numpy.typing as npt
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
 from axis_ptz_ros2.sim.camera_model import CameraModel, encode
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
-from axis_ptz_ros2.sim.scene import Scene, SimWorld, Target, shared_scene
+from axis_ptz_ros2.sim.scene import Scene, Target, shared_scene
+from axis_ptz_ros2.sim.world import SimWorld
 
 U8Array = npt.NDArray[np.uint8]
 _GRID = 8  # map sub-sampling step (px)

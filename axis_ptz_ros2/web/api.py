@@ -22,6 +22,10 @@ MAX_BITRATE_KBPS = 1_000_000
 MAX_ZOOM_DELTA = 9999.0
 #: longest ``key`` / ``resolution`` string accepted
 MAX_TEXT = 32
+#: longest free-text note the page sends (the decoder's fallback reason)
+MAX_NOTE = 200
+#: largest counter the page reports (2**53: exact in a JavaScript number)
+MAX_COUNT = 2**53
 
 
 class BadRequest(ValueError):  # noqa: N818 - reads as the HTTP status
@@ -64,11 +68,13 @@ ROUTES: tuple[Route, ...] = (
     Route("GET", "/api/keymap", "api", "the keyboard teleop key map"),
     *(Route("GET", f"/video/{s}.mjpg", "api", f"{s} video (MJPEG)") for s in STREAM_NAMES),
     *(Route("GET", f"/video/{s}.jpg", "api", f"{s} snapshot (?fresh = wait for a new frame)") for s in STREAM_NAMES),
+    Route("GET", "/video/ptz.h264", "api", "PTZ video as H.264 access units for WebCodecs (web/h264relay.py)"),
     Route("POST", "/api/center", "api", "centre the PTZ view on a pixel"),
     Route("POST", "/api/look_panorama", "api", "look at a panorama pixel"),
     Route("POST", "/api/key", "api", "one keyboard teleop key"),
     Route("POST", "/api/video", "api", "video parameters and bandwidth budget"),
     Route("POST", "/api/home", "api", "go to the home position"),
+    Route("POST", "/api/decoder", "api", "what the page's video decoder did (WebCodecs: frames, errors, codec)"),
 )
 
 _SIZE = (Field("width", "int", 1, UINT32_MAX), Field("height", "int", 1, UINT32_MAX))
@@ -90,6 +96,13 @@ COMMANDS: dict[str, tuple[Field, ...]] = {
         Field("max_bitrate_kbps", "int", 0, MAX_BITRATE_KBPS, -1, keep=-1),
     ),
     "home": (),
+    "decoder": (
+        Field("mode", "str", 0, MAX_TEXT, ""),
+        Field("decoded", "int", 0, MAX_COUNT, 0),
+        Field("errors", "int", 0, MAX_COUNT, 0),
+        Field("codec", "str", 0, MAX_TEXT, ""),
+        Field("note", "str", 0, MAX_NOTE, ""),
+    ),
 }
 
 
@@ -229,3 +242,21 @@ def video_request(body: dict[str, Any]) -> VideoRequest:
 def _short(v: object) -> str:
     text = repr(v)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+@dataclass(frozen=True, slots=True)
+class DecoderReport:
+    """The page's video decoder report: mode (``h264`` / ``mjpeg``), cumulative decoded frames and decode errors
+    of this page, the codec string, and why it fell back (if it did)."""
+
+    mode: str
+    decoded: int
+    errors: int
+    codec: str
+    note: str
+
+
+def decoder_request(body: dict[str, Any]) -> DecoderReport:
+    """The ``decoder`` command's fields, checked."""
+    v = parse("decoder", body)
+    return DecoderReport(str(v["mode"]), int(v["decoded"]), int(v["errors"]), str(v["codec"]), str(v["note"]))

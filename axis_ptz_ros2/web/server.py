@@ -43,6 +43,8 @@ from axis_ptz_ros2.web.api import STREAM_NAMES, BadRequest
 from axis_ptz_ros2.web.api import integer as integer  # re-exported for callers of this module
 from axis_ptz_ros2.web.api import number as number
 from axis_ptz_ros2.web.auth import AuthThrottle, token_matches
+from axis_ptz_ros2.web.h264relay import CONTENT_TYPE as H264_CONTENT_TYPE
+from axis_ptz_ros2.web.h264relay import H264Slot, encode_record
 from axis_ptz_ros2.web.tls import TlsIdentity, load_identity
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
@@ -158,6 +160,9 @@ class ConsoleBackend(Protocol):
 
     def slot(self, name: str) -> FrameSlot | None:
         """The frame slot of stream ``name`` (``ptz``, ``panorama``, ``overlay``), or None if not served."""
+
+    def h264_slot(self, name: str) -> H264Slot | None:
+        """The H.264 relay of stream ``name`` (only ``ptz``), or None if not served."""
 
     def state(self) -> dict[str, Any]:
         """Everything the page shows (JSON-serialisable)."""
@@ -657,6 +662,8 @@ class ConsoleHandler(BaseHTTPRequestHandler):
             self._json(HTTPStatus.OK, self.server.backend.keymap())
         elif path.startswith("/video/") and path.endswith(".mjpg"):
             self._mjpeg(path[len("/video/") : -len(".mjpg")])
+        elif path.startswith("/video/") and path.endswith(".h264"):
+            self._h264(path[len("/video/") : -len(".h264")])
         elif path.startswith("/video/") and path.endswith(".jpg"):
             q = parse_qs(urlsplit(self.path).query)
             self._snapshot(path[len("/video/") : -len(".jpg")], fresh="fresh" in q)
@@ -730,6 +737,38 @@ class ConsoleHandler(BaseHTTPRequestHandler):
                     self.wfile.write(b"\r\n")
                     self.wfile.flush()
             except (OSError, ValueError):  # client went away (BrokenPipe, reset, timeout, closed file)
+                return
+
+    def _h264(self, name: str) -> None:
+        """The H.264 access units of a stream as length-prefixed records (:mod:`.h264relay`) until either side
+        goes."""
+        get = getattr(self.server.backend, "h264_slot", None)
+        slot = get(name) if get is not None and name in STREAMS else None
+        if slot is None:
+            self._error(HTTPStatus.NOT_FOUND, f"no H.264 stream {name!r}")
+            return
+        with suppress(OSError):
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 256 * 1024)
+        self.send_response(HTTPStatus.OK)
+        self.send_header("Content-Type", H264_CONTENT_TYPE)
+        self.send_header("Cache-Control", "no-store")
+        self.send_header("Connection", "close")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.end_headers()
+        self.wfile.flush()
+        self.close_connection = True
+        stop = self.server.stop_event
+        with slot.watch() as client:
+            try:
+                while not stop.is_set():
+                    got = slot.next(client, 0.5)
+                    if got is None:
+                        if self._client_gone():
+                            return
+                        continue
+                    self.wfile.write(encode_record(got[0], catch_up=got[1]))
+                    self.wfile.flush()
+            except (OSError, ValueError):  # client went away
                 return
 
     def _client_gone(self) -> bool:

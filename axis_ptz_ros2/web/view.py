@@ -130,6 +130,7 @@ class ConsoleModel:
         self._teleop = keymap.TeleopState()
         self._resolutions: tuple[str, ...] = keymap.DEFAULT_RESOLUTIONS
         self.meter = BitrateMeter()
+        self._decoder: dict[str, Any] = {"mode": "", "decoded": 0, "errors": 0, "codec": "", "note": "", "reports": 0}
 
     # -- inputs --------------------------------------------------------------------------------------
     def ptz_frame(self, nbytes: int, stamp_s: float) -> None:
@@ -170,6 +171,16 @@ class ConsoleModel:
         with self._lock:
             self._errors.append({"time": self._wall(), "message": message})
 
+    def decoder(self, mode: str, decoded: int, errors: int, codec: str, note: str) -> None:
+        """A page's decoder report: ``decoded`` / ``errors`` are its counts since its previous report (summed here
+        over every page), the rest is the newest page's mode, codec and fallback reason."""
+        with self._lock:
+            d = self._decoder
+            d["decoded"] += decoded
+            d["errors"] += errors
+            d["reports"] += 1
+            d.update(mode=mode, codec=codec, note=note, age_t=self._clock())
+
     def click(self, info: dict[str, Any]) -> None:
         """The last panorama click and where it pointed."""
         with self._lock:
@@ -198,6 +209,8 @@ class ConsoleModel:
             click = dict(self._last_click) if self._last_click else None
             resolutions = list(self._resolutions)
             step = self._teleop.step
+            dec = dict(self._decoder)
+        dec["age_s"] = now - dec.pop("age_t") if "age_t" in dec else None
         video = video_json(v) if v is not None else None
         rate = self.meter.rate(now)
         stream = {
@@ -216,6 +229,7 @@ class ConsoleModel:
             "last_click": click,
             "step": step,
             "errors": errors,
+            "decoder": dec,
             "time": self._wall(),
         }
         for k, val in extra.items():

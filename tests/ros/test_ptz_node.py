@@ -45,7 +45,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
-from axis_ptz_ros2.sim.scene import PtzLimits, TargetSpec, load_world  # noqa: E402
+from axis_ptz_ros2.sim.world import PtzLimits, TargetSpec, load_world  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 

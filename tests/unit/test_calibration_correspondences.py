@@ -153,6 +153,9 @@ def test_view_constructor_validates():
 def test_missing_file_is_a_correspondence_error(tmp_path):
     with pytest.raises(CorrespondenceError, match="cannot read"):
         load_correspondences(tmp_path / "nope.yaml")
+    (tmp_path / "latin1.yaml").write_bytes(b"format: axis_ptz_correspondences/1\ncomment: caf\xe9\n")
+    with pytest.raises(CorrespondenceError, match="latin1.yaml: not a UTF-8 text file"):
+        load_correspondences(tmp_path / "latin1.yaml")
 
 
 def test_shipped_example_loads():

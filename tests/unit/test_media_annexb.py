@@ -21,7 +21,8 @@ from axis_ptz_ros2.media.decoder import H264Decoder
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 pytestmark = pytest.mark.unit
 
@@ -215,6 +216,15 @@ def test_truncated_sei_is_refused() -> None:
     sei = annexb.capture_stamp_sei(42)
     with pytest.raises(BitstreamError, match="runs past"):
         annexb.extract_capture_stamp(annexb.START_CODE + sei[:12])
+
+
+def test_sei_type_and_size_of_255_and_more() -> None:
+    payload = bytes(range(256)) * 2 + bytes(88)  # 600 bytes
+    rbsp = b"\xff" + bytes([45]) + b"\xff\xff" + bytes([90]) + payload + b"\x80"  # type 255+45, size 2*255+90
+    assert annexb.sei_messages(bytes([NalType.SEI]) + annexb.rbsp_to_ebsp(rbsp)) == [(300, payload)]
+    for cut, what in ((b"\xff\xff", "type"), (b"\x05\xff\xff", "size")):
+        with pytest.raises(BitstreamError, match=f"SEI payload {what} runs past"):
+            annexb.sei_messages(bytes([NalType.SEI]) + cut)
 
 
 # ---- malformed input: a result or BitstreamError, never anything else ---------------------------------------

@@ -40,10 +40,13 @@ async function post(path, body) {
 // The rectangle the picture occupies inside an <img> box: the whole box when the box has the picture's
 // aspect (the layout keeps it so), else the centred, letterboxed part (object-fit: contain), so a click maps
 // to the right pixel whatever the image's aspect (704x576 PAL, 1920x1080 HD, ...) and the window's shape.
+function naturalSize(el) {
+  return el.tagName === "CANVAS" ? [el.width, el.height] : [el.naturalWidth, el.naturalHeight];
+}
+
 function pictureRect(img) {
   const r = img.getBoundingClientRect();
-  const w = img.naturalWidth;
-  const h = img.naturalHeight;
+  const [w, h] = naturalSize(img);
   if (!w || !h || r.width <= 0 || r.height <= 0) return null;
   const scale = Math.min(r.width / w, r.height / h);
   const pw = w * scale;
@@ -63,9 +66,7 @@ function naturalPixel(img, ev) {
 
 // The stage is sized to the live image's own aspect (from its natural size, never assumed).
 function updateAspect() {
-  const img = $("ptz");
-  const w = img.naturalWidth;
-  const h = img.naturalHeight;
+  const [w, h] = naturalSize(h264.showing ? $("ptz-canvas") : $("ptz"));
   if (!w || !h) return;
   const aspect = String(w / h);
   const root = document.documentElement.style; // the stage and the side panel's width both follow it
@@ -78,6 +79,7 @@ function updateAspect() {
 function keepAlive(img, urlFn) {
   img.addEventListener("error", () => {
     setTimeout(() => {
+      if (img.id === "ptz" && h264.showing) return; // the H.264 canvas shows the PTZ video now
       img.src = `${urlFn()}?t=${Date.now()}`;
     }, 1000);
   });
@@ -91,6 +93,216 @@ function updatePanoramaSource() {
   const want = panoramaUrl();
   const img = $("pano");
   if (new URL(img.src, location.href).pathname !== want) img.src = want;
+}
+
+// ------------------------------------------------------------------------------------------------------
+// PTZ video as H.264, decoded here with WebCodecs and drawn on a canvas (web/h264relay.py has the wire
+// format: per access unit u32 length, u8 flags (1 key, 2 catch-up), u8 codec length, f64 capture stamp,
+// codec string, Annex B bytes). Falls back to the MJPEG <img> when the console has no H.264, the browser has
+// no WebCodecs or cannot decode the stream's codec; after a decode error the decoder is recreated and waits
+// for the next key frame (the console passes the error on as link feedback: the stream node sends an IDR).
+// ------------------------------------------------------------------------------------------------------
+const h264 = {
+  running: false, // a /video/ptz.h264 request is open
+  showing: false, // the canvas (not the MJPEG <img>) shows the PTZ video
+  decoder: null,
+  codec: "",
+  waitKey: true,
+  decoded: 0, // frames decoded by this page (shown on the canvas or catch-up)
+  errors: 0, // decode errors and frames skipped while waiting for a key frame after one
+  sent: { decoded: 0, errors: 0 },
+  note: "",
+  retryAt: 0,
+  lastStamp: 0,
+};
+const H264_ALLOWED = new URLSearchParams(location.search).get("video") !== "mjpeg";
+
+function showMjpeg(note) {
+  h264.note = note;
+  if (!h264.showing && $("ptz").getAttribute("src")) return;
+  h264.showing = false;
+  $("ptz-canvas").hidden = true;
+  const img = $("ptz");
+  img.hidden = false;
+  img.src = `/video/ptz.mjpg?t=${Date.now()}`;
+}
+
+function showCanvas() {
+  if (h264.showing) return;
+  h264.showing = true;
+  h264.note = "";
+  $("ptz-canvas").hidden = false;
+  const img = $("ptz");
+  img.hidden = true;
+  img.removeAttribute("src"); // ends the MJPEG request: the console unsubscribes from the JPEG topic
+  updateAspect();
+}
+
+function closeDecoder() {
+  if (h264.decoder && h264.decoder.state !== "closed") {
+    try {
+      h264.decoder.close();
+    } catch (_err) {
+      /* already closed */
+    }
+  }
+  h264.decoder = null;
+}
+
+function newDecoder(codec) {
+  closeDecoder();
+  const canvas = $("ptz-canvas");
+  const ctx = canvas.getContext("2d");
+  const dec = new VideoDecoder({
+    output: (frame) => {
+      h264.decoded += 1;
+      const draw = frame.timestamp >= 0; // catch-up frames carry a negative timestamp: decoded, not drawn
+      if (draw) {
+        if (canvas.width !== frame.displayWidth || canvas.height !== frame.displayHeight) {
+          canvas.width = frame.displayWidth;
+          canvas.height = frame.displayHeight;
+        }
+        ctx.drawImage(frame, 0, 0, canvas.width, canvas.height);
+        canvas.dataset.frames = String(h264.decoded);
+        showCanvas();
+      }
+      frame.close();
+    },
+    error: (err) => {
+      h264.errors += 1;
+      h264.note = `decode error: ${err.message || err}`;
+      h264.waitKey = true; // the decoder is closed now: a new one starts at the next key frame
+      h264.decoder = null;
+    },
+  });
+  dec.configure({ codec, optimizeForLatency: true });
+  h264.decoder = dec;
+  h264.codec = codec;
+}
+
+async function codecSupported(codec) {
+  try {
+    const r = await VideoDecoder.isConfigSupported({ codec, optimizeForLatency: true });
+    return Boolean(r.supported);
+  } catch (_err) {
+    return false;
+  }
+}
+
+async function onAccessUnit(flags, stamp, codec, data) {
+  const key = (flags & 1) !== 0;
+  const catchUp = (flags & 2) !== 0;
+  if (h264.waitKey || !h264.decoder || codec !== h264.codec) {
+    if (!key) {
+      if (h264.codec) h264.errors += 1; // lost: waiting for the next key frame
+      return true;
+    }
+    if (codec !== h264.codec && !(await codecSupported(codec))) {
+      h264.note = `this browser cannot decode ${codec}`;
+      return false;
+    }
+    newDecoder(codec);
+    h264.waitKey = false;
+  }
+  h264.lastStamp = stamp;
+  try {
+    h264.decoder.decode(
+      new EncodedVideoChunk({
+        type: key ? "key" : "delta",
+        timestamp: catchUp ? -1 : Math.round(stamp * 1e6),
+        data,
+      })
+    );
+  } catch (err) {
+    h264.errors += 1;
+    h264.note = `decode refused: ${err.message || err}`;
+    h264.waitKey = true;
+    closeDecoder();
+  }
+  return true;
+}
+
+async function runH264() {
+  h264.running = true;
+  h264.waitKey = true;
+  h264.codec = "";
+  let ok = true;
+  try {
+    const res = await fetch("/video/ptz.h264", { credentials: "same-origin", cache: "no-store" });
+    if (!res.ok || !res.body) throw new Error(`HTTP ${res.status}`);
+    const reader = res.body.getReader();
+    let buf = new Uint8Array(0);
+    while (ok) {
+      const { value, done } = await reader.read();
+      if (done) throw new Error("stream ended");
+      const joined = new Uint8Array(buf.length + value.length);
+      joined.set(buf);
+      joined.set(value, buf.length);
+      buf = joined;
+      let off = 0;
+      while (ok && buf.length - off >= 14) {
+        const view = new DataView(buf.buffer, buf.byteOffset + off);
+        const len = view.getUint32(0);
+        if (buf.length - off < 4 + len) break;
+        const flags = view.getUint8(4);
+        const clen = view.getUint8(5);
+        const stamp = view.getFloat64(6);
+        const codec = new TextDecoder().decode(buf.subarray(off + 14, off + 14 + clen));
+        const data = buf.slice(off + 14 + clen, off + 4 + len);
+        off += 4 + len;
+        ok = await onAccessUnit(flags, stamp, codec, data);
+      }
+      buf = buf.slice(off);
+    }
+    reader.cancel();
+  } catch (err) {
+    if (!h264.note) h264.note = `H.264 stream: ${err.message || err}`;
+  }
+  closeDecoder();
+  h264.running = false;
+  h264.retryAt = Date.now() + (ok ? 2000 : 30000);
+  showMjpeg(h264.note);
+}
+
+function maybeStartH264(s) {
+  if (h264.running || Date.now() < h264.retryAt) return;
+  if (!H264_ALLOWED) {
+    h264.note = "MJPEG asked for (?video=mjpeg)";
+    return;
+  }
+  if (typeof VideoDecoder === "undefined" || typeof EncodedVideoChunk === "undefined") {
+    h264.note = "no WebCodecs in this browser: MJPEG";
+    return;
+  }
+  if (!s.h264 || !s.h264.available) {
+    h264.note = "no H.264 published: MJPEG";
+    return;
+  }
+  runH264();
+}
+
+async function reportDecoder() {
+  const body = {
+    mode: h264.showing ? "h264" : "mjpeg",
+    decoded: h264.decoded - h264.sent.decoded,
+    errors: h264.errors - h264.sent.errors,
+    codec: h264.codec,
+    note: h264.note.slice(0, 200),
+  };
+  const sent = { decoded: h264.decoded, errors: h264.errors, mode: body.mode, note: body.note };
+  const old = h264.sent;
+  if (!body.decoded && !body.errors && old.mode === body.mode && old.note === body.note) return;
+  try {
+    const res = await fetch("/api/decoder", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify(body),
+      credentials: "same-origin",
+    });
+    if (res.ok) h264.sent = sent;
+  } catch (_err) {
+    /* the state poll shows the console as disconnected */
+  }
 }
 
 // ------------------------------------------------------------------------------------------------------
@@ -254,6 +466,10 @@ function render(s) {
   $("r-fps").textContent = fmt(Number.isFinite(fps) ? fps : null, 1, " fps");
   $("r-kbps").textContent = fmt(Number.isFinite(kbps) ? kbps : null, 0, " kbit/s");
   $("r-latency").textContent = fmt(st.latency_ms, 0, " ms");
+  $("r-decoder").textContent = h264.showing
+    ? `H.264 ${h264.codec} · ${h264.decoded} frames, ${h264.errors} errors`
+    : `MJPEG${h264.note ? ` (${h264.note})` : ""}`;
+  maybeStartH264(s);
   const v = s.video;
   if (v) {
     $("r-video").textContent = `${v.resolution} @ ${v.fps} fps, compression ${v.compression}`;
@@ -289,6 +505,7 @@ async function poll() {
     }
     if (!res.ok) throw new Error(`HTTP ${res.status}`);
     render(await res.json());
+    reportDecoder();
     link.textContent = "connected";
     link.className = "badge ok";
   } catch (err) {
@@ -302,7 +519,10 @@ async function poll() {
 function main() {
   const ptz = $("ptz");
   const pano = $("pano");
+  const canvas = $("ptz-canvas");
   ptz.addEventListener("click", onPtzClick);
+  canvas.addEventListener("click", onPtzClick);
+  canvas.addEventListener("contextmenu", (ev) => ev.ctrlKey && ev.preventDefault());
   ptz.addEventListener("load", updateAspect);
   ptz.addEventListener("contextmenu", (ev) => ev.ctrlKey && ev.preventDefault());
   pano.addEventListener("dblclick", onPanoramaDblClick);
