@@ -140,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        for sig in (signal.SIGTERM, signal.SIGINT):  # a second signal (launch's, after the terminal's) changes
+            signal.signal(sig, signal.SIG_IGN)  # nothing; SIG_IGN also survives the interpreter's finalisation
         cam.stop()
         # Let the request threads (daemons) leave before the interpreter finalises: one still inside OpenCV
         # at exit aborted the process ("terminate called without an active exception", exit -6).
