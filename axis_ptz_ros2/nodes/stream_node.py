@@ -237,9 +237,7 @@ class StreamNode(Node):
 
         # publishers (the hot path reuses one message of each kind: only the reader thread publishes them)
         events = PublisherEventCallbacks(matched=lambda _info: self._update_activity())
-        self._image_pub = publisher(
-            self, CompressedImage, "image_raw/compressed", STREAM_QOS, event_callbacks=events
-        )
+        self._image_pub = publisher(self, CompressedImage, "image_raw/compressed", STREAM_QOS, event_callbacks=events)
         self._info_pub = publisher(self, CameraInfo, "camera_info", STREAM_QOS, event_callbacks=events)
         self._params_pub = publisher(self, VideoParamsMsg, "video/params", LATCHED_QOS)
         self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)

@@ -66,9 +66,7 @@ class StaticTfBroadcaster:
         self._pub.publish(TFMessage(transforms=list(self._by_child.values())))
 
 
-def make_tf_broadcasters(
-    node: Node, enabled: bool = True
-) -> tuple[TfBroadcaster | None, StaticTfBroadcaster | None]:
+def make_tf_broadcasters(node: Node, enabled: bool = True) -> tuple[TfBroadcaster | None, StaticTfBroadcaster | None]:
     """(``/tf`` broadcaster, ``/tf_static`` broadcaster) of ``node``; (None, None) when not ``enabled``."""
     if not enabled:
         return None, None
