@@ -35,6 +35,7 @@ from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
+from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
@@ -338,3 +339,33 @@ def _size_of(access_unit: bytes, fallback: tuple[int, int]) -> tuple[int, int]:
     except BitstreamError:
         return fallback
     return (sps.width, sps.height) if sps is not None else fallback
+
+
+def passthrough_source(
+    client: VapixClient,
+    rtsp_port: int,
+    params: Callable[[], VideoParams],
+    h264: Callable[[], H264Settings],
+    sink: AccessUnitSink,
+    timing: ReaderConfig,
+    *,
+    on_supported: Callable[[bool], None],
+    on_event: Callable[[str], None],
+) -> RtspH264Source:
+    """The stream node's pass-through source: the camera of ``client`` (its host, credentials, auth mode) on
+    ``rtsp_port``, asked for what ``params()`` and ``h264()`` say, with the MJPEG reader's timing."""
+    return RtspH264Source(
+        rtsp_connector(client.config, rtsp_port),
+        lambda: media_request(params(), h264()),
+        sink,
+        supports_h264=lambda: camera_streams_h264(client),
+        on_supported=on_supported,
+        on_event=on_event,
+        config=RtspSourceConfig(
+            timing.backoff_initial_s,
+            timing.backoff_max_s,
+            timing.auth_retry_s,
+            timing.read_timeout_s,
+            timing.stall_timeout_s,
+        ),
+    )
