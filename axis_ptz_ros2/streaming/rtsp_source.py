@@ -94,6 +94,7 @@ class RtspSourceConfig:
     auth_retry_s: float = 10.0
     read_timeout_s: float = 5.0
     stall_timeout_s: float = 1.0  #: no access unit for this long (at least 3 frame periods): the session is dead
+    auth_grace_s: float = 120.0  #: a refused login this soon after access units flowed: retry on the back-off
 
     def read_timeout(self, fps: int) -> float:
         """How long to wait for an access unit at ``fps`` (as the MJPEG reader: a stall is seen inside the read)."""
@@ -207,6 +208,7 @@ class RtspH264Source:
         self._active = False
         self._session: RtspSession | None = None
         self._thread: threading.Thread | None = None
+        self._last_au: float | None = None
         self.supported: bool | None = None  #: None until the camera has said whether it streams H.264
         self.stats = RtspSourceStats()
 
@@ -279,11 +281,15 @@ class RtspH264Source:
             except AuthError as err:
                 self.stats.reconnects += 1
                 self._event(str(err))
-                self._wake.wait(self._config.auth_retry_s)
+                if self._last_au is not None and self._clock() - self._last_au < self._config.auth_grace_s:
+                    # frames flowed with these credentials moments ago: a camera still booting (as the MJPEG reader)
+                    self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
+                else:
+                    self._wake.wait(self._config.auth_retry_s)
                 continue
-            except AxisPtzError as err:
+            except (AxisPtzError, OSError) as err:  # (a refused or unanswered connect is a bare OSError)
                 self.stats.reconnects += 1
-                self._event(str(err))
+                self._event(f"RTSP H.264: cannot play: {_reason(err)}")
                 self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
                 continue
             self._play(session, request)
@@ -310,6 +316,7 @@ class RtspH264Source:
                     self._sink.idr_sent()
                     self.stats.renews += 1
                 au = session.read(read_timeout)
+                self._last_au = self._clock()
                 if au.keyframe:
                     width, height = _size_of(au.data, (width, height))
                     self._backoff.reset()
@@ -318,10 +325,8 @@ class RtspH264Source:
                 self.stats.access_units += 1
                 if self._sink.on_access_unit(frame, stamp) is None:
                     self.stats.refused += 1
-        except AxisPtzError as err:
-            error = str(err)
         except Exception as err:  # noqa: BLE001 - the thread must survive anything (a publish during shutdown …)
-            error = f"{type(err).__name__}: {err}"
+            error = _reason(err)
         finally:
             with self._lock:
                 self._session = None
@@ -330,6 +335,15 @@ class RtspH264Source:
             self.stats.reconnects += 1
             self._event(f"RTSP H.264 stream lost: {error}")
             self._wake.wait(self._backoff.next())
+
+
+def _reason(err: BaseException) -> str:
+    """An error for a log line: our typed errors say what happened (never with credentials); others by kind."""
+    if isinstance(err, AxisPtzError):
+        return str(err)
+    if isinstance(err, OSError):
+        return f"{type(err).__name__} ({err.strerror or 'timed out'})"
+    return type(err).__name__
 
 
 def _size_of(access_unit: bytes, fallback: tuple[int, int]) -> tuple[int, int]:
@@ -367,5 +381,6 @@ def passthrough_source(
             timing.auth_retry_s,
             timing.read_timeout_s,
             timing.stall_timeout_s,
+            timing.auth_grace_s,
         ),
     )
