@@ -527,7 +527,7 @@ class StreamNode(Node):
     def _publish_diagnostics(self) -> None:
         stats = self._reader.stats()
         rate = self._reader.meter.rate(time.monotonic())
-        extra = self._client.auth_counters.as_dict()
+        extra: dict[str, object] = {**self._client.auth_counters.as_dict()}
         if self._video.h264:
             h = self._stage.stats
             extra |= {

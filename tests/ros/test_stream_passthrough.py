@@ -17,6 +17,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
@@ -90,6 +91,11 @@ def make_node(ros: RosHarness, camera: SimulatedCamera, cred: str, **params: obj
     return ros.add(StreamNode(context=ros.context, parameter_overrides=overrides))
 
 
+def _diag_values(diags: list[DiagnosticArray], suffix: str) -> dict[str, str]:
+    statuses = [s for d in list(diags) for s in d.status if s.name.endswith(suffix)]
+    return {kv.key: kv.value for kv in statuses[-1].values} if statuses else {}
+
+
 def decodes_one_picture_each(packets: list[Packet]) -> int:
     """Decode from the first IDR on: every message must give exactly one picture of SIZE; returns how many."""
     ctx = av.CodecContext.create("h264", "r")
@@ -110,6 +116,8 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
     node = make_node(ros, camera, cred)
     probe = ros.probe()
     rec, _ = subscribe(probe, foxglove=True)
+    diags: list[DiagnosticArray] = []
+    probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
     ros.wait_for(lambda: rec.count() >= 40, timeout=15)
     packets = rec.since(0.0)
     # (best effort: the first messages can go out before the probe's side of the match; an IDR within a second)
@@ -144,6 +152,12 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
     assert (req.width, req.height, req.fps) == (*SIZE, 15)
     assert req.keyframe_interval == 15  # h264_keyframe_interval 30, capped at one second
     assert req.bitrate_kbps == 1000  # h264_bitrate_kbps (no budget)
+    # /diagnostics says where the H.264 comes from
+    values = ros.wait_for(
+        lambda: _diag_values(diags, "MJPEG stream").get("h264 source") and _diag_values(diags, "MJPEG stream")
+    )
+    assert values["h264 source"] == "camera (RTSP)"
+    assert int(values["rtsp access units"]) > 0
 
 
 def test_a_late_joiner_gets_an_idr_within_a_second(
