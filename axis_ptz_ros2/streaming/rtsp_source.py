@@ -12,9 +12,11 @@ which puts SPS/PPS in front of every IDR and publishes on both H.264 topics.
   one that does not (the 214) is reported through ``on_supported(False)`` and never asked for RTSP: the node
   transcodes its MJPEG instead.
 * The request (:class:`~axis_ptz_ros2.vapix.rtsp.MediaStreamRequest`: size, fps, fixed GOP of at most one second,
-  baseline, ``mbr`` at the bitrate in force) is read from ``request()`` on every access unit; a change reconnects
-  (a bitrate change only when it moves by more than :data:`BITRATE_SLACK`, at most every
-  :data:`BITRATE_HOLD_S`: a link budget that moves a little must not cut the stream over and over).
+  baseline, ``mbr`` at the bitrate in force, ``adjustablelivestream=1`` until the camera refuses it) is read from
+  ``request()`` on every access unit. A bitrate change is applied to the playing stream with
+  ``Adjustable-Stream-Configuration``; where the camera cannot (no ``adjustablelivestream``), it reconnects when
+  the bitrate moves by more than :data:`BITRATE_SLACK`, at most every :data:`BITRATE_HOLD_S` (a link budget that
+  moves a little must not cut the stream over and over). Any other change reconnects.
 * An IDR wanted by the sink (a new subscriber, a consumer's loss report) → ``Renew-Stream``, then ``idr_sent()``.
 * Errors reconnect with :class:`~axis_ptz_ros2.streaming.meter.Backoff` counted from the start of the failed
   attempt; a read timeout (a stalled or rebooting camera) ends the session; a new session starts with an IDR (it
@@ -27,7 +29,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Final, Protocol
 
 from axis_ptz_ros2.media import annexb
@@ -39,7 +41,7 @@ from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
-from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
 from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient
 
 #: a bitrate change smaller than this fraction of the one playing does not reconnect
@@ -84,6 +86,10 @@ class RtspSession(Protocol):
         """``Renew-Stream: yes``."""
         ...
 
+    def adjust_stream(self, *, fps: int | None = None, max_bitrate_kbps: int | None = None) -> object:
+        """``Adjustable-Stream-Configuration`` (raises :class:`RtspStatusError` when the camera refuses it)."""
+        ...
+
 
 @dataclass(frozen=True, slots=True)
 class RtspSourceConfig:
@@ -109,6 +115,7 @@ class RtspSourceStats:
     connects: int = 0
     reconnects: int = 0
     renews: int = 0
+    adjustments: int = 0  #: bitrate changes applied to the playing stream (Adjustable-Stream-Configuration)
     refused: int = 0  #: access units the sink could not take (malformed)
     last_error: str = ""
 
@@ -159,17 +166,16 @@ def request_size(request: MediaStreamRequest) -> tuple[int, int]:
     return int(w), int(h)
 
 
+def same_but_rate(a: MediaStreamRequest, b: MediaStreamRequest) -> bool:
+    """Whether two requests differ at most in their bitrate."""
+    return replace(a, max_bitrate_kbps=b.max_bitrate_kbps) == b
+
+
 def needs_reconnect(playing: MediaStreamRequest, wanted: MediaStreamRequest, since_s: float) -> bool:
     """Whether ``wanted`` differs enough from the request ``playing`` (for ``since_s``) to reconnect."""
     if playing == wanted:
         return False
-    same_but_rate = (playing.resolution, playing.fps, playing.keyframe_interval, playing.adjustable) == (
-        wanted.resolution,
-        wanted.fps,
-        wanted.keyframe_interval,
-        wanted.adjustable,
-    )
-    if not same_but_rate:
+    if not same_but_rate(playing, wanted):
         return True
     moved = abs(wanted.max_bitrate_kbps - playing.max_bitrate_kbps) / max(1, playing.max_bitrate_kbps)
     return moved > BITRATE_SLACK and since_s >= BITRATE_HOLD_S
@@ -209,6 +215,7 @@ class RtspH264Source:
         self._session: RtspSession | None = None
         self._thread: threading.Thread | None = None
         self._last_au: float | None = None
+        self._adjustable = True  #: ask for adjustablelivestream=1 until the camera refuses it
         self.supported: bool | None = None  #: None until the camera has said whether it streams H.264
         self.stats = RtspSourceStats()
 
@@ -275,7 +282,7 @@ class RtspH264Source:
                 self._on_supported(supported)
                 continue
             try:
-                request = self._request()
+                request = replace(self._request(), adjustable=self._adjustable)
                 session = self._connect(request, self._config.read_timeout(request.fps))
                 session.open()
             except AuthError as err:
@@ -286,6 +293,15 @@ class RtspH264Source:
                     self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
                 else:
                     self._wake.wait(self._config.auth_retry_s)
+                continue
+            except RtspStatusError as err:
+                if request.adjustable and err.status_code in (400, 415, 451):
+                    self._adjustable = False  # firmware without adjustablelivestream: bitrate changes reconnect
+                    self._event(f"RTSP H.264: {err} with adjustablelivestream=1; asking without it")
+                    continue
+                self.stats.reconnects += 1
+                self._event(f"RTSP H.264: cannot play: {_reason(err)}")
+                self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
                 continue
             except (AxisPtzError, OSError) as err:  # (a refused or unanswered connect is a bare OSError)
                 self.stats.reconnects += 1
@@ -308,8 +324,17 @@ class RtspH264Source:
         error = ""
         try:
             while not self._stop.is_set() and self._active:
-                wanted = self._request()
-                if needs_reconnect(request, wanted, self._clock() - opened):
+                wanted = replace(self._request(), adjustable=request.adjustable)
+                if wanted != request and request.adjustable and same_but_rate(request, wanted):
+                    try:
+                        session.adjust_stream(max_bitrate_kbps=wanted.max_bitrate_kbps)
+                    except RtspStatusError as err:
+                        self._adjustable = False
+                        self._event(f"RTSP H.264: bitrate not adjustable live ({err}): reconnecting for it")
+                        break
+                    request = wanted
+                    self.stats.adjustments += 1
+                elif needs_reconnect(request, wanted, self._clock() - opened):
                     break
                 if self._sink.idr_wanted:
                     session.renew_stream()

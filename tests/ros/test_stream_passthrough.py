@@ -26,7 +26,7 @@ from axis_ptz_ros2.media.annexb import NalType  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.rtsp.session import RtspSession  # noqa: E402
-from tests.ros.test_stream_h264 import FAST, H264Recorder, Packet, subscribe  # noqa: E402
+from tests.ros.test_stream_h264 import FAST, H264Recorder, Packet, set_params, subscribe  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -152,6 +152,7 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
     assert (req.width, req.height, req.fps) == (*SIZE, 15)
     assert req.keyframe_interval == 15  # h264_keyframe_interval 30, capped at one second
     assert req.bitrate_kbps == 1000  # h264_bitrate_kbps (no budget)
+    assert req.adjustable  # adjustablelivestream=1: the bitrate can change without a new session
     # /diagnostics says where the H.264 comes from
     values = ros.wait_for(
         lambda: _diag_values(diags, "MJPEG stream").get("h264 source") and _diag_values(diags, "MJPEG stream")
@@ -178,6 +179,23 @@ def test_a_late_joiner_gets_an_idr_within_a_second(
     assert key.t_rx - t0 <= 1.0, f"first IDR {key.t_rx - t0:.2f} s after joining"
     assert len(renews) > before, "the node asked the camera for an IDR (Renew-Stream)"
     print(f"late joiner: IDR after {key.t_rx - t0:.2f} s, Renew-Stream sent")  # noqa: T201
+
+
+def test_a_bitrate_change_reaches_the_playing_stream_without_a_new_session(
+    ros: RosHarness, camera: SimulatedCamera, cred: str
+) -> None:
+    node = make_node(ros, camera, cred)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 10, timeout=15)
+    assert camera.rtsp is not None
+    (session,) = camera.rtsp.sessions
+    assert all(r.successful for r in set_params(ros, probe, h264_bitrate_kbps=600))
+    ros.wait_for(lambda: session._bitrate_bps == 600_000, timeout=5)  # noqa: SLF001
+    n = rec.count()
+    ros.wait_for(lambda: rec.count() >= n + 10, timeout=5)
+    assert camera.rtsp.sessions == [session]
+    assert node._rtsp.stats.adjustments == 1  # noqa: SLF001
 
 
 def test_frames_resume_after_a_reboot_without_an_old_frame(ros: RosHarness, camera: SimulatedCamera, cred: str) -> None:

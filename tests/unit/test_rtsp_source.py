@@ -22,7 +22,7 @@ from axis_ptz_ros2.streaming.rtsp_source import (
 )
 from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
-from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
 from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
 
 
@@ -58,6 +58,7 @@ class Session:
         self.t0_ns = t0_ns
         self.renews = 0
         self.sent = 0
+        self.adjusted: list[int | None] = []
         self.closed = threading.Event()
 
     def open(self) -> None:
@@ -79,6 +80,10 @@ class Session:
 
     def renew_stream(self) -> object:
         self.renews += 1
+        return None
+
+    def adjust_stream(self, *, fps: int | None = None, max_bitrate_kbps: int | None = None) -> object:
+        self.adjusted.append(max_bitrate_kbps)
         return None
 
 
@@ -153,3 +158,64 @@ def test_a_camera_without_h264_is_never_asked_for_rtsp() -> None:
     assert told == [False]
     assert src.supported is False
     assert not connects
+
+
+def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_is_asked_without() -> None:
+    units = _stream(40)
+    asked: list[MediaStreamRequest] = []
+    sessions: list[Session] = []
+
+    class Refusing(Session):
+        def open(self) -> None:
+            raise RtspStatusError("RTSP DESCRIBE: 400 Bad Request", status_code=400)
+
+    def connect(req: MediaStreamRequest, _t: float) -> Session:
+        asked.append(req)
+        s = Refusing([], CameraTimeout("x"), 0) if len(asked) == 1 else Session(units, CameraTimeout("stall"), 0)
+        sessions.append(s)
+        return s
+
+    def adjustable_connect(req: MediaStreamRequest, _t: float) -> Session:
+        asked.append(req)
+        s = Session(units, CameraTimeout("stall"), 0)
+        sessions.append(s)
+        return s
+
+    out: list[StagedFrame] = []
+    bitrate = [1000]
+    for opener in (adjustable_connect, connect):
+        asked.clear()
+        sessions.clear()
+        out.clear()
+        bitrate[0] = 1000
+        stage = H264Stage(lambda: H264Settings(), out.append)
+        stage.set_active(True)
+        src = RtspH264Source(
+            opener,
+            lambda: MediaStreamRequest(resolution="64x48", fps=15, max_bitrate_kbps=bitrate[0]),
+            stage,
+            supports_h264=lambda: True,
+            on_supported=lambda _ok: None,
+            config=RtspSourceConfig(0.01, 0.05, 1.0, 0.5, 0.3),
+        )
+        src.start()
+        try:
+            src.set_active(True)
+            deadline = time.monotonic() + 5
+            while len(out) < 5 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            bitrate[0] = 1100  # a small move: live where adjustable, ignored (no reconnect) where not
+            while len(out) < 15 and time.monotonic() < deadline:
+                time.sleep(0.01)
+        finally:
+            src.stop()
+        playing = sessions[-1]
+        if opener is adjustable_connect:
+            assert [r.adjustable for r in asked] == [True]
+            assert playing.adjusted == [1100]
+            assert src.stats.adjustments == 1
+        else:
+            assert [r.adjustable for r in asked] == [True, False]  # refused with it: asked again without
+            assert playing.adjusted == []
+            assert src.stats.adjustments == 0
+        assert len(out) >= 15
