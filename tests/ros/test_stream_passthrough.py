@@ -186,7 +186,7 @@ def test_a_bitrate_change_reaches_the_playing_stream_without_a_new_session(
 ) -> None:
     node = make_node(ros, camera, cred)
     probe = ros.probe()
-    rec, _ = subscribe(probe)
+    rec, subs = subscribe(probe)
     ros.wait_for(lambda: rec.count() >= 10, timeout=15)
     assert camera.rtsp is not None
     (session,) = camera.rtsp.sessions
@@ -196,6 +196,10 @@ def test_a_bitrate_change_reaches_the_playing_stream_without_a_new_session(
     ros.wait_for(lambda: rec.count() >= n + 10, timeout=5)
     assert camera.rtsp.sessions == [session]
     assert node._rtsp.stats.adjustments == 1  # noqa: SLF001
+    # lazy: the last H.264 subscriber gone, the session is torn down
+    for sub in subs:
+        probe.destroy_subscription(sub)
+    ros.wait_for(lambda: not camera.rtsp.sessions, timeout=5)
 
 
 def test_frames_resume_after_a_reboot_without_an_old_frame(ros: RosHarness, camera: SimulatedCamera, cred: str) -> None:
