@@ -301,9 +301,7 @@ class Intrinsics:
         """Unnormalised optical-frame rays ``(x, y, 1)`` through pixel coordinates (u right, v down)."""
         uu = np.asarray(u, dtype=np.float64)
         vv = np.asarray(v, dtype=np.float64)
-        return np.stack(
-            [(uu - self.cx) / self.fx, (vv - self.cy) / self.fy, np.ones(np.broadcast(uu, vv).shape)], -1
-        )
+        return np.stack([(uu - self.cx) / self.fx, (vv - self.cy) / self.fy, np.ones(np.broadcast(uu, vv).shape)], -1)
 
     def project(self, points_opt: npt.ArrayLike) -> FloatArray:
         """Project optical-frame points (N, 3) to pixels (N, 2); points behind the camera give NaN."""
@@ -376,9 +374,7 @@ class ZoomModel:
             if any(b <= a for a, b in zip(zs, zs[1:], strict=False)) or any(
                 b < a for a, b in zip(ms, ms[1:], strict=False)
             ):
-                raise ValueError(
-                    "zoom table must be strictly increasing in units and monotone in magnification"
-                )
+                raise ValueError("zoom table must be strictly increasing in units and monotone in magnification")
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> ZoomModel:
@@ -464,9 +460,7 @@ AXIS_214_ZOOM = ZoomModel()
 # --------------------------------------------------------------------------------------------------------
 # Pointing
 # --------------------------------------------------------------------------------------------------------
-def pixel_direction_in_ptz_base(
-    pan: float, tilt: float, u: float, v: float, intrinsics: Intrinsics
-) -> FloatArray:
+def pixel_direction_in_ptz_base(pan: float, tilt: float, u: float, v: float, intrinsics: Intrinsics) -> FloatArray:
     """Unit direction (in ``ptz_base`` orientation) of the ray through pixel (u, v) at REP-103 pan/tilt."""
     xn = (u - intrinsics.cx) / intrinsics.fx
     yn = (v - intrinsics.cy) / intrinsics.fy
@@ -474,9 +468,7 @@ def pixel_direction_in_ptz_base(
     return np.asarray(d / np.linalg.norm(d), dtype=np.float64)
 
 
-def center_on_pixel(
-    pan: float, tilt: float, u: float, v: float, intrinsics: Intrinsics
-) -> tuple[float, float]:
+def center_on_pixel(pan: float, tilt: float, u: float, v: float, intrinsics: Intrinsics) -> tuple[float, float]:
     """Exact REP-103 (pan, tilt) that brings pixel (u, v) to the image centre, valid at any tilt.
 
     (``pan + atan(xn)`` is wrong whenever tilt ≠ 0; geometry-and-calibration.md §4.)

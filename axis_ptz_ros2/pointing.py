@@ -42,9 +42,7 @@ class RayPoint:
     source: DepthSource
 
 
-def panorama_ray(
-    x: float, y: float, width: int, height: int, T_base_pano: Transform
-) -> tuple[FloatArray, FloatArray]:
+def panorama_ray(x: float, y: float, width: int, height: int, T_base_pano: Transform) -> tuple[FloatArray, FloatArray]:
     """Origin and unit direction in base_link of the ray through panorama pixel (x, y)."""
     d_pano = equirect_to_direction(x, y, width, height)
     d = T_base_pano.R @ np.asarray(d_pano, dtype=np.float64)
@@ -108,9 +106,7 @@ def point_along_ray(
     return RayPoint(np.asarray(origin + r * direction, dtype=np.float64), float(r), src)
 
 
-def project_to_panorama(
-    points_base: npt.ArrayLike, T_base_pano: Transform, width: int, height: int
-) -> FloatArray:
+def project_to_panorama(points_base: npt.ArrayLike, T_base_pano: Transform, width: int, height: int) -> FloatArray:
     """Panorama pixel coordinates (N, 2) of base_link points (N, 3) as seen from the panorama centre."""
     P = np.atleast_2d(np.asarray(points_base, dtype=np.float64))
     d = T_base_pano.inverse().apply(P)

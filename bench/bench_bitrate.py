@@ -36,7 +36,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.camera_model import THESIS_FPS, THESIS_TABLES, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
 from axis_ptz_ros2.sim.renderer import PtzRenderer
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from tests.support.sim import parts, read_stream
 
 COMPRESSIONS = (0, 30, 100)

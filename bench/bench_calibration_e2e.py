@@ -62,7 +62,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
-from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from axis_ptz_ros2.sim.world import load_world  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim_picker import SimBoardPicker  # noqa: E402
 

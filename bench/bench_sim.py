@@ -98,7 +98,7 @@ def main() -> int:
         proc.wait(timeout=10)
     # In-process render cost at changing poses (motion), excluding JPEG encoding.
     from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-    from axis_ptz_ros2.sim.scene import load_world
+    from axis_ptz_ros2.sim.world import load_world
 
     r = PtzRenderer(load_world())
     times, enc = [], []

@@ -41,7 +41,7 @@ SIZE = "1920x1080"
 
 def start_sim(*extra: str) -> tuple[Proc, int, str]:
     proc = Proc([str(BIN / "axis_camera_sim"), "--model", "q6075", "--port", "0", *extra], "sim(q6075)")
-    m = proc.wait_line(r"at (https?)://127\.0\.0\.1:(\d+)/ \(auth=\w+(?:; CA certificate ([^)]+))?\)")
+    m = proc.wait_line(r"at (https?)://127\.0\.0\.1:(\d+)/ \(auth=\w+(?:; CA certificate ([^;)]+))?[;)]")
     return proc, int(m.group(2)), m.group(3) or ""
 
 

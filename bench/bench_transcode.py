@@ -25,7 +25,8 @@ from report import inputs, row  # bench/report.py (bench/ is on sys.path when ru
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
 from axis_ptz_ros2.media.transcoder import JPEG_DECODERS, MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 FPS = 30
 W, H = 704, 576

@@ -47,7 +47,7 @@ EXECUTABLES = {
     "axis_visualizer": "axis_ptz_ros2.nodes.visualizer",
     "axis_web_console": "axis_ptz_ros2.nodes.web_console",
 }
-SIM_URL = re.compile(r"at (https?://127\.0\.0\.1:(\d+))/ \(auth=(\w+)(?:; CA certificate ([^)]+))?\)")
+SIM_URL = re.compile(r"at (https?://127\.0\.0\.1:(\d+))/ \(auth=(\w+)(?:; CA certificate ([^;)]+))?[;)]")
 
 
 class DemoError(RuntimeError):

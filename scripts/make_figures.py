@@ -35,7 +35,7 @@ from axis_ptz_ros2.geometry import AXIS_214_ZOOM
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.camera_model import THESIS_TABLES, thesis_kbit_s
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # tests.support

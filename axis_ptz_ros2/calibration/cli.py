@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from functools import partial
@@ -261,6 +262,13 @@ def _relpath(target: Path, start: Path) -> str:
         return str(target.resolve())
 
 
+def _interrupt_once(signum: int, frame: object) -> None:
+    """SIGINT: stop the capture once; a second signal (under launch, terminal and launch both send one) must not
+    cut the clean-up short, and SIG_IGN also outlives the interpreter's finalisation (no exit by signal)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
 def _cmd_capture(args: argparse.Namespace) -> int:
     # Imported here: the capture module is ROS-free at import time, but keep the solve path light.
     from axis_ptz_ros2.calibration import capture as cap
@@ -301,6 +309,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
             except EOFError:
                 return False
 
+    signal.signal(signal.SIGINT, _interrupt_once)
     try:
         with cap.RosCapture(
             args.namespace,
@@ -328,6 +337,9 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     except (cap.CaptureError, CorrespondenceError) as err:
         print(f"capture failed: {err}", file=sys.stderr)
         return 3
+    except KeyboardInterrupt:  # Ctrl-C is how a user ends a capture: every view taken is already in the file
+        print(f"\ncapture stopped (Ctrl-C); the views captured so far are in {args.out}", file=sys.stderr)
+        return 0
     print(f"\nwrote {len(report.views)} views to {args.out} (images and laser snapshots in {cap.views_dir(args.out)})")
     if picker is not None:
         noise = report.picking_noise()

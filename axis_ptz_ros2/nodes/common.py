@@ -9,6 +9,7 @@ import dataclasses
 import faulthandler
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -26,15 +27,18 @@ from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.context import Context
-from rclpy.exceptions import InvalidHandle
+from rclpy.exceptions import InvalidHandle, InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo
 
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
+from axis_ptz_ros2.streaming.jpeg import jpeg_components
 from axis_ptz_ros2.vapix import CameraConfig
 
 _C = TypeVar("_C")
@@ -56,6 +60,89 @@ LATCHED_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+
+
+#: The QoS policies every publisher lets a user override with ``qos_overrides.<topic>.publisher.<policy>``
+#: parameters (rclpy's ``with_default_policies()`` are history, depth, reliability; durability as well, so that
+#: a latched topic can be made volatile or a volatile one latched).
+QOS_OVERRIDE_POLICIES: tuple[QoSPolicyKind, ...] = (
+    QoSPolicyKind.HISTORY,
+    QoSPolicyKind.DEPTH,
+    QoSPolicyKind.RELIABILITY,
+    QoSPolicyKind.DURABILITY,
+)
+#: How rclpy's errors name the policy: "policy `depth`" or the parameter's name.
+_POLICY_RE = re.compile(r"policy `(\w+)`|qos_overrides\.[^\s']+\.publisher\.(\w+)")
+
+
+def _check_qos_override(qos: QoSProfile) -> SetParametersResult:
+    """rclpy checks the policy names; a keep-last depth of 0 is also refused (it would keep nothing)."""
+    if qos.history == HistoryPolicy.KEEP_LAST and qos.depth < 1:
+        return SetParametersResult(
+            successful=False, reason=f"policy `depth`: {qos.depth} (keep_last needs a depth of at least 1)"
+        )
+    return SetParametersResult(successful=True)
+
+
+def _copy_qos(q: QoSProfile) -> QoSProfile:
+    """A copy of ``q`` (``copy.deepcopy`` cannot copy its durations)."""
+    return QoSProfile(
+        history=q.history,
+        depth=q.depth,
+        reliability=q.reliability,
+        durability=q.durability,
+        lifespan=q.lifespan,
+        deadline=q.deadline,
+        liveliness=q.liveliness,
+        liveliness_lease_duration=q.liveliness_lease_duration,
+        avoid_ros_namespace_conventions=q.avoid_ros_namespace_conventions,
+    )
+
+
+def publisher(node: Node, msg_type: Any, topic: str, qos: QoSProfile | int, **kwargs: Any) -> Publisher:
+    """``node.create_publisher`` with the standard QoS overrides (every publisher of the project goes here).
+
+    The parameters ``qos_overrides.<resolved topic>.publisher.{history,depth,reliability,durability}`` (read-only,
+    declared by rclpy's :class:`QoSOverridingOptions`, default: ``qos``) replace the policies at start-up, e.g.
+    ``--ros-args -p qos_overrides./camera_info.publisher.reliability:=best_effort``. An invalid value raises
+    :class:`ValueError` naming the parameter (:func:`run_nodes` prints it and exits 2).
+    """
+    options = QoSOverridingOptions(QOS_OVERRIDE_POLICIES, callback=_check_qos_override)
+    # rclpy writes the overrides into the profile it is given: a copy, so the shared profiles stay as they are
+    profile = _copy_qos(qos) if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
+    try:
+        return node.create_publisher(msg_type, topic, profile, qos_overriding_options=options, **kwargs)
+    except (
+        InvalidQosOverridesError,
+        InvalidParameterTypeException,
+        InvalidParameterValueException,
+        RuntimeError,
+        OverflowError,
+        TypeError,
+        ValueError,
+    ) as err:
+        prefix = f"qos_overrides.{node.resolve_topic_name(topic)}.publisher."
+        m = _POLICY_RE.search(str(err))
+        name = prefix + (m.group(1) or m.group(2) if m else "{history,depth,reliability,durability}")
+        raise ValueError(f"invalid QoS override {name}: {err}") from None
+
+
+#: ``sensor_msgs/CompressedImage.format`` of a colour JPEG, as ``compressed_image_transport`` writes it for a
+#: bgr8 image; its decoder reads the part before ';' as the encoding of the decoded image and "compressed bgr" as
+#: the order of the channels that OpenCV's ``imdecode`` returns (a colour JPEG always decodes to BGR).
+JPEG_FORMAT_BGR8 = "bgr8; jpeg compressed bgr8"
+#: The same for a one-component (greyscale) JPEG: it decodes to one channel, so the encoding must say mono8.
+JPEG_FORMAT_MONO8 = "mono8; jpeg compressed mono8"
+
+
+def jpeg_format(channels: int) -> str:
+    """The ``CompressedImage.format`` of a JPEG with ``channels`` components (1 = mono8, else bgr8)."""
+    return JPEG_FORMAT_MONO8 if channels == 1 else JPEG_FORMAT_BGR8
+
+
+def jpeg_format_of(data: bytes | bytearray | memoryview) -> str:
+    """The ``CompressedImage.format`` of these JPEG bytes (from the SOF header: greyscale or colour)."""
+    return jpeg_format(jpeg_components(data) or 3)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -120,8 +207,30 @@ def snapshot(config: type[_C], specs: Iterable[ParamSpec], values: Mapping[str, 
     return config(**{s.field or s.name: values[s.name] for s in specs if s.config is config})
 
 
+#: Parameter names someone may try for camera credentials. None is declared: a parameter is readable by anyone on
+#: the ROS graph (``ros2 param get``) and a ``-p password:=…`` stays visible in the process list.
+CREDENTIAL_PARAMETER_NAMES = frozenset({"password", "passwd", "pass", "camera_password", "username", "user"})
+
+
+def warn_credential_parameters(node: Node) -> list[str]:
+    """Warn loudly (once per node) about credentials given as parameters, which are never read; the value is not
+    logged. Returns the offending names."""
+    given = sorted(n for n in getattr(node, "_parameter_overrides", {}) if n.lower() in CREDENTIAL_PARAMETER_NAMES)
+    if given:
+        node.get_logger().error(
+            f"parameter(s) {', '.join(given)} ignored: credentials are never read from parameters (anyone on the "
+            "ROS graph can read a parameter, and the command line shows it in the process list). Give the camera "
+            "user and password in a file only you can read (password_file / AXIS_PASSWORD_FILE, 'user:password') "
+            "or in AXIS_USERNAME / AXIS_PASSWORD"
+        )
+    return given
+
+
 def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
-    """Declare every spec on ``node`` and return the values in effect (overrides applied)."""
+    """Declare every spec on ``node`` and return the values in effect (overrides applied); credentials given as
+    parameters are refused loudly (:func:`warn_credential_parameters`)."""
+    if not any(s.name in CREDENTIAL_PARAMETER_NAMES for s in specs):
+        warn_credential_parameters(node)
     values: dict[str, Any] = {}
     for s in specs:
         p = node.declare_parameter(s.name, s.default, s.descriptor())
@@ -214,13 +323,24 @@ def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraC
 # ---------------------------------------------------------------------------------------------------------
 # Credentials: from the environment or a file, never from a readable parameter, never logged
 # ---------------------------------------------------------------------------------------------------------
+_OPEN_PASSWORD_FILES_WARNED: set[str] = set()
+
+
 def load_credentials(password_file: str = "") -> tuple[str | None, str | None]:
     """Camera credentials: ``AXIS_USERNAME``/``AXIS_PASSWORD`` environment variables, or ``password_file``
     (a file with ``user:password`` on its first line, or ``AXIS_PASSWORD_FILE``). Returns ``(None, None)``
     for anonymous access. Nothing here is logged or stored in a parameter."""
     path = password_file or os.environ.get("AXIS_PASSWORD_FILE", "")
     if path:
-        text = Path(path).expanduser().read_text(encoding="utf-8").splitlines()
+        file = Path(path).expanduser()
+        mode = file.stat().st_mode & 0o777
+        if mode & 0o077 and str(file) not in _OPEN_PASSWORD_FILES_WARNED:
+            _OPEN_PASSWORD_FILES_WARNED.add(str(file))
+            rclpy.logging.get_logger("axis_ptz_ros2").error(
+                f"the credentials file {file} can be read by others (mode {mode:o}): anyone with an account on "
+                f"this machine can read the camera's password; chmod 600 {file}"
+            )
+        text = file.read_text(encoding="utf-8").splitlines()
         first = text[0].strip() if text else ""
         if ":" not in first:
             raise ValueError("credentials file must contain 'user:password' on its first line")
@@ -288,24 +408,6 @@ def diagnostic(
         st.values.append(KeyValue(key=str(k), value=str(v)))
     arr.status = [st]
     return arr
-
-
-try:  # real Jazzy installs have tf2_ros; the PyPI wheels here do not (plain TransformStamped topic instead)
-    from tf2_ros import StaticTransformBroadcaster as _StaticTfB
-    from tf2_ros import TransformBroadcaster as _TfB
-
-    HAVE_TF2 = True
-except ImportError:  # pragma: no cover - depends on the installation
-    _TfB = None
-    _StaticTfB = None
-    HAVE_TF2 = False
-
-
-def make_tf_broadcasters(node: Node) -> tuple[Any | None, Any | None]:
-    """(TransformBroadcaster, StaticTransformBroadcaster) when tf2_ros is importable, else (None, None)."""
-    if not HAVE_TF2:
-        return None, None
-    return _TfB(node), _StaticTfB(node)  # type: ignore[misc]
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -496,6 +598,11 @@ class _Signals:
             signal.signal(sig, signal.SIG_IGN)
 
     def restore(self) -> None:
+        """After clean-up. Once a stop signal came the process is ending: the signals stay ignored, because the
+        interpreter resets Python-level handlers to SIG_DFL while it finalises, and the second SIGINT of a
+        Ctrl-C under ``ros2 launch`` (terminal and launch both signal) then killed it (exit -2)."""
+        if self.stop.is_set():
+            return
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
 

@@ -31,7 +31,7 @@ from std_srvs.srv import Trigger
 
 from axis_ptz_interfaces.msg import PtzVelocity
 from axis_ptz_interfaces.srv import Preset
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.teleop.joy import Command, GotoPreset, Home, JoyMap, JoyTeleop, Stop, Velocity
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -94,7 +94,7 @@ class JoyTeleopNode(Node):
         self._warned = 0
         self.add_on_set_parameters_callback(self._check_params)
         self.add_post_set_parameters_callback(self._apply_params)
-        self._vel_pub = self.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
+        self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         self._home = self.create_client(Trigger, "ptz/home")
         self._preset = self.create_client(Preset, "ptz/preset")
         self.create_subscription(Joy, "joy", self._on_joy, 10)

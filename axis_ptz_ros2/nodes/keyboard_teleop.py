@@ -28,12 +28,13 @@ from typing import Any, TextIO
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import SetVideoParams
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.teleop import keymap as km
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -65,8 +66,8 @@ class KeyboardTeleop(Node):
         self._status_dirty = True
         self._drawn = ""
         self._pending: list[tuple[float, str, Future]] = []
-        self._rel_pub = self.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
-        self._vel_pub = self.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
+        self._rel_pub = publisher(self, PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
+        self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         self._home = self.create_client(Trigger, "ptz/home")
         self._video_srv = self.create_client(SetVideoParams, "video/set_params")
         self.create_subscription(PtzState, "ptz/state", self._on_state, STREAM_QOS)
@@ -225,13 +226,15 @@ def _exit_on_signal(signum: int, _frame: FrameType | None) -> None:
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``axis_keyboard_teleop``."""
     argv = list(args) if args is not None else sys.argv
-    rclpy.init(args=argv)
+    # rclpy's own SIGINT handler would shut the context down inside the signal, before the stop below can go out
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     fd = sys.stdin.fileno()
     out = sys.stdout
     node: KeyboardTeleop | None = None
     executor = SingleThreadedExecutor()
     term: _Terminal | None = None
-    old_handlers = {s: signal.signal(s, _exit_on_signal) for s in (signal.SIGTERM, signal.SIGHUP)}
+    for s in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, _exit_on_signal)
     code = 0
     try:
         node = KeyboardTeleop(out)
@@ -261,6 +264,8 @@ def main(args: list[str] | None = None) -> int:
         print(f"\r\nerror: {err}", file=sys.stderr)
         code = 2
     finally:
+        for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # a second signal must not cut the stop short
+            signal.signal(s, signal.SIG_IGN)
         if term is not None:
             term.restore()
         if node is not None:
@@ -276,8 +281,6 @@ def main(args: list[str] | None = None) -> int:
                 node.destroy_node()
         executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
-        for s, h in old_handlers.items():
-            signal.signal(s, h)
     return code
 
 

@@ -26,11 +26,13 @@ from axis_ptz_ros2.nodes.common import (
     LATCHED_QOS,
     ParamSpec,
     declare_params,
-    make_tf_broadcasters,
+    publisher,
     run_nodes,
     transform_msg,
 )
-from axis_ptz_ros2.sim.scene import Scene, load_world, shared_scene
+from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
+from axis_ptz_ros2.sim.scene import Scene, shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("rate", 1.0, "scan rate", "Hz", read_only=True, float_range=(0.05, 20.0)),
@@ -126,12 +128,12 @@ class LaserSim(Node):
         self._min_range = float(p["min_range"])
         self._rng = np.random.default_rng(int(p["seed"]))
         self.get_logger().info(f"{dirs.shape[0]} rays, {self._ranges.size} returns per scan")
-        self._pub = self.create_publisher(PointCloud2, "laser/points", LATCHED_QOS)
-        self._tf_pub = self.create_publisher(TransformStamped, "laser/transform", LATCHED_QOS)
+        self._pub = publisher(self, PointCloud2, "laser/points", LATCHED_QOS)
+        self._tf_pub = publisher(self, TransformStamped, "laser/transform", LATCHED_QOS)
         tf_msg = transform_msg(self.T_base_laser, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
         self._tf_pub.publish(tf_msg)
         _, static_tf = make_tf_broadcasters(self)
-        if static_tf is not None:  # pragma: no cover - only with tf2_ros installed
+        if static_tf is not None:
             static_tf.sendTransform(tf_msg)
         self._scan()
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)

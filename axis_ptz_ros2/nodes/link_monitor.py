@@ -26,7 +26,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
-from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
@@ -68,7 +68,7 @@ class FeedbackPublisher:
         self._node = node
         self._topic = node.resolve_topic_name(image_topic)
         self._meter = ReceiveMeter(node.get_fully_qualified_name(), window_s)
-        self._pub = node.create_publisher(LinkFeedback, feedback_topic, FEEDBACK_QOS)
+        self._pub = publisher(node, LinkFeedback, feedback_topic, FEEDBACK_QOS)
         self._timer = node.create_timer(period_s, self._report, callback_group=callback_group)
         self._since: float | None = None
         self._errors: deque[tuple[float, int]] = deque()

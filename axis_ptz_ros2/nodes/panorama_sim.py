@@ -23,16 +23,19 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import (
+    JPEG_FORMAT_BGR8,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
     declare_params,
-    make_tf_broadcasters,
+    publisher,
     run_nodes,
     stamp_from_ns,
     transform_msg,
 )
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("width", 2048, "panorama width; height = width/2", "px", read_only=True, int_range=(64, 8192)),
@@ -62,12 +65,12 @@ class PanoramaSim(Node):
             f"from {world.T_base_pano.t.round(3).tolist()}"
         )
         self._count = 0
-        self._pub = self.create_publisher(CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
-        self._tf_pub = self.create_publisher(TransformStamped, "panorama/transform", LATCHED_QOS)
+        self._pub = publisher(self, CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
+        self._tf_pub = publisher(self, TransformStamped, "panorama/transform", LATCHED_QOS)
         tf_msg = transform_msg(self.T_base_pano, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
         self._tf_pub.publish(tf_msg)
         _, static_tf = make_tf_broadcasters(self)
-        if static_tf is not None:  # pragma: no cover - only with tf2_ros installed
+        if static_tf is not None:
             static_tf.sendTransform(tf_msg)
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._tick)
 
@@ -98,7 +101,7 @@ class PanoramaSim(Node):
         msg = CompressedImage()
         msg.header.stamp = stamp_from_ns(ns)
         msg.header.frame_id = self._frame_id
-        msg.format = "bgr8; jpeg compressed bgr8"
+        msg.format = JPEG_FORMAT_BGR8
         msg.data = buf.tobytes()
         self._pub.publish(msg)
         self._count += 1

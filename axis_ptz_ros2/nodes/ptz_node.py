@@ -46,12 +46,13 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     diagnostic,
     field_spec,
-    make_tf_broadcasters,
+    publisher,
     run_nodes,
     snapshot,
     stamp_from_ns,
     transform_msg,
 )
+from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
 from axis_ptz_ros2.ptz.commander import Commander, Order, Progress, Tolerances, wait_accepted
@@ -88,7 +89,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("optical_frame", "axis_ptz_optical_frame", "optical frame of the PTZ camera", read_only=True),
     ParamSpec("pan_joint", "axis_ptz_pan_joint", "JointState name of the pan joint", read_only=True),
     ParamSpec("tilt_joint", "axis_ptz_tilt_joint", "JointState name of the tilt joint", read_only=True),
-    ParamSpec("publish_tf", True, "also broadcast /tf and /tf_static when tf2_ros is importable", read_only=True),
+    ParamSpec("publish_tf", True, "the mount on /tf_static, the pan/tilt head on /tf (tf2_msgs)", read_only=True),
     ParamSpec("drive_topic", "", "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
               read_only=True),
     ParamSpec("drive_topic_type", "odometry", "message type of drive_topic: nav_msgs/Odometry or "
@@ -178,12 +179,12 @@ class PtzNode(Node):
             self._drive = DriveSafeCap(zoom, self._cmd, self.get_logger().info)
 
         # Publishers.
-        self._state_pub = self.create_publisher(PtzState, "ptz/state", STREAM_QOS)
-        self._joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS)
-        self._tf_pub = self.create_publisher(TransformStamped, "ptz/transform", STREAM_QOS)
-        self._mount_pub = self.create_publisher(TransformStamped, "ptz/mount", LATCHED_QOS)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._tf, self._tf_static = make_tf_broadcasters(self) if p["publish_tf"] else (None, None)
+        self._state_pub = publisher(self, PtzState, "ptz/state", STREAM_QOS)
+        self._joint_pub = publisher(self, JointState, "joint_states", STREAM_QOS)
+        self._tf_pub = publisher(self, TransformStamped, "ptz/transform", STREAM_QOS)
+        self._mount_pub = publisher(self, TransformStamped, "ptz/mount", LATCHED_QOS)
+        self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
+        self._tf, self._tf_static = make_tf_broadcasters(self, bool(p["publish_tf"]))
         now = stamp_from_ns(time.time_ns())
         mount_msg = transform_msg(self._mount.transform, self._base_frame, self._ptz_base_frame, now)
         self._mount_pub.publish(mount_msg)

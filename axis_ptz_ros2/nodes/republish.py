@@ -22,7 +22,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
-from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -51,7 +51,7 @@ class RepublishNode(Node):
         self.decoded = 0
         self.failed = 0
         events = PublisherEventCallbacks(matched=lambda _info: self._update())
-        self._pub = self.create_publisher(Image, "image_raw", STREAM_QOS, event_callbacks=events)
+        self._pub = publisher(self, Image, "image_raw", STREAM_QOS, event_callbacks=events)
         self._timer = self.create_timer(0.1, self._update)
         self._update()
 

@@ -47,6 +47,8 @@ from axis_ptz_interfaces.srv import SetVideoParams
 from axis_ptz_ros2.camera_info import fill_camera_info_msg
 from axis_ptz_ros2.camera_models import CameraProfile, load_generic_base
 from axis_ptz_ros2.config import default_config_path, load_camera_model
+from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
+from axis_ptz_ros2.nodes.camera_info_service import CameraInfoService
 from axis_ptz_ros2.nodes.common import (
     CONNECTION_PARAMS,
     FEEDBACK_QOS,
@@ -59,6 +61,8 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     diagnostic,
     field_spec,
+    jpeg_format_of,
+    publisher,
     run_nodes,
     snapshot,
     stamp_from_ns,
@@ -171,6 +175,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "camera's own optics)",
         read_only=True,
     ),
+    *CAMERA_INFO_PARAMS,  # camera_info_url, camera_name (read-only)
     # -- connection (read-only) --
     *CONNECTION_PARAMS,
     ParamSpec(
@@ -236,22 +241,22 @@ class StreamNode(Node):
         self._zoom_param = float(p["zoom"])
         self._zoom_ptz: float | None = None
         self._info_cache: dict[tuple[int, int, float], CameraInfo] = {}
+        res = lambda: self._video.current.resolution  # noqa: E731
+        self._calibration = CameraInfoService(  # camera_info_url + set_camera_info, as camera_info_manager
+            self, str(p["camera_info_url"]), str(p["camera_name"]), lambda: (res().width, res().height),
+            lambda: self._zoom_ptz if self._zoom_ptz is not None else self._zoom_param, self._info_cache.clear,
+        )  # fmt: skip
 
         # publishers (the hot path reuses one message of each kind: only the reader thread publishes them)
         events = PublisherEventCallbacks(matched=lambda _info: self._update_activity())
-        self._image_pub = self.create_publisher(
-            CompressedImage, "image_raw/compressed", STREAM_QOS, event_callbacks=events
-        )
-        self._info_pub = self.create_publisher(CameraInfo, "camera_info", STREAM_QOS, event_callbacks=events)
-        self._params_pub = self.create_publisher(VideoParamsMsg, "video/params", LATCHED_QOS)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._image_pub = publisher(self, CompressedImage, "image_raw/compressed", STREAM_QOS, event_callbacks=events)
+        self._info_pub = publisher(self, CameraInfo, "camera_info", STREAM_QOS, event_callbacks=events)
+        self._params_pub = publisher(self, VideoParamsMsg, "video/params", LATCHED_QOS)
+        self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
         self._image_msg = CompressedImage()
-        self._image_msg.format = "jpeg"
         self._image_msg.header.frame_id = self._frame_id
-        self._ffmpeg_pub = self.create_publisher(FFMPEGPacket, "image_raw/ffmpeg", STREAM_QOS, event_callbacks=events)
-        self._foxglove_pub = self.create_publisher(
-            CompressedVideo, "image_raw/foxglove", STREAM_QOS, event_callbacks=events
-        )
+        self._ffmpeg_pub = publisher(self, FFMPEGPacket, "image_raw/ffmpeg", STREAM_QOS, event_callbacks=events)
+        self._foxglove_pub = publisher(self, CompressedVideo, "image_raw/foxglove", STREAM_QOS, event_callbacks=events)
         self._ffmpeg_msg = FFMPEGPacket(encoding=FFMPEG_ENCODING, is_bigendian=False)
         self._ffmpeg_msg.header.frame_id = self._frame_id
         self._foxglove_msg = CompressedVideo(format="h264", frame_id=self._frame_id)
@@ -388,6 +393,7 @@ class StreamNode(Node):
         if self._image_wanted:
             msg = self._image_msg
             msg.header.stamp = stamp
+            msg.format = jpeg_format_of(jpeg)  # colour or greyscale, as compressed_image_transport says it
             # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
             # it the immutable bytes as they are (the only copy is rclpy's serialisation).
             msg._data = jpeg  # noqa: SLF001
@@ -403,7 +409,8 @@ class StreamNode(Node):
             if info is None:
                 if len(self._info_cache) > 64:
                     self._info_cache.clear()
-                calib = self._model.camera_info_at(zoom, size[0], size[1])  # measured K, D, P if configured
+                model = self._calibration.apply(self._model)  # a stored calibration (set_camera_info) first
+                calib = model.camera_info_at(zoom, size[0], size[1])  # measured K, D, P if configured
                 info = fill_camera_info_msg(camera_info_msg(calib.intrinsics(), self._frame_id, stamp), calib)
                 self._info_cache[key] = info
             info.header.stamp = stamp

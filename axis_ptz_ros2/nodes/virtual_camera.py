@@ -53,6 +53,8 @@ from axis_ptz_ros2.nodes.common import (
     camera_info_msg,
     check_params,
     declare_params,
+    jpeg_format,
+    publisher,
     run_nodes,
     stamp_from_ns,
 )
@@ -179,8 +181,8 @@ class VirtualCameraNode(Node):
         self.optical_frame = str(p["frame_prefix"]) + str(p["optical_frame"])
 
         self._group = MutuallyExclusiveCallbackGroup()  # panorama callback and render timer never overlap
-        self._image_pub = self.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
-        self._info_pub = self.create_publisher(CameraInfo, "camera_info", STREAM_QOS)
+        self._image_pub = publisher(self, CompressedImage, "image_raw/compressed", STREAM_QOS)
+        self._info_pub = publisher(self, CameraInfo, "camera_info", STREAM_QOS)
         topic = str(p["panorama_topic"])
         if p["panorama_transport"] == "compressed":
             self.panorama_topic = topic.rstrip("/") + "/compressed"
@@ -331,7 +333,7 @@ class VirtualCameraNode(Node):
         msg = CompressedImage()
         msg.header.stamp = stamp
         msg.header.frame_id = self.optical_frame
-        msg.format = "bgr8; jpeg compressed bgr8" if img.ndim == 3 else "mono8; jpeg compressed mono8"
+        msg.format = jpeg_format(3 if img.ndim == 3 else 1)
         msg.data = buf.tobytes()
         self._info_pub.publish(camera_info_msg(view.intrinsics, self.optical_frame, stamp))
         self._image_pub.publish(msg)

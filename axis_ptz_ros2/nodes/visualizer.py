@@ -32,10 +32,12 @@ from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
 from axis_ptz_ros2.nodes.common import (
+    JPEG_FORMAT_BGR8,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
     declare_params,
+    publisher,
     run_nodes,
     transform_from_msg,
 )
@@ -111,7 +113,7 @@ class Visualizer(Node):
         self._dirty = False
         self.frames_published = 0
         self.last_look_pixel: tuple[float, float] | None = None  # for diagnostics and tests
-        self._pub = self.create_publisher(CompressedImage, "axis_visualizer/compressed", STREAM_QOS)
+        self._pub = publisher(self, CompressedImage, "axis_visualizer/compressed", STREAM_QOS)
         self.create_subscription(CompressedImage, p["panorama_topic"], self._on_pano, STREAM_QOS)
         self.create_subscription(PtzState, "ptz/state", self._on_state, STREAM_QOS)
         self.create_subscription(TransformStamped, "ptz/transform", self._on_ptz_tf, STREAM_QOS)
@@ -233,7 +235,7 @@ class Visualizer(Node):
             stamps.append(self._state.header.stamp)
         msg.header.stamp = max(stamps, key=Time.from_msg)
         msg.header.frame_id = msg_in.header.frame_id
-        msg.format = "bgr8; jpeg compressed bgr8"
+        msg.format = JPEG_FORMAT_BGR8
         msg.data = buf.tobytes()
         self._pub.publish(msg)
         self.frames_published += 1

@@ -42,7 +42,15 @@ from axis_ptz_interfaces.msg import PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import CenterOnPixel, LookAt, MovePtz, SetVideoParams
 from axis_ptz_ros2.config import RobotConfig, load_robot
 from axis_ptz_ros2.nodes.bounded_calls import BoundedCalls, ServiceError
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, run_nodes
+from axis_ptz_ros2.nodes.common import (
+    COMMAND_QOS,
+    LATCHED_QOS,
+    STREAM_QOS,
+    ParamSpec,
+    declare_params,
+    publisher,
+    run_nodes,
+)
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
@@ -172,7 +180,7 @@ class WebConsole(Node):
         self._home = self.create_client(Trigger, "ptz/home", callback_group=self._cli_group)
         self._set_video = self.create_client(SetVideoParams, "video/set_params", callback_group=self._cli_group)
         self._calls = BoundedCalls(self, lambda: float(self.get_parameter("service_timeout").value), self._cli_group)
-        self._vel_pub = self.create_publisher(PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
+        self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         # what the relayed PTZ video looks like on arrival, for the stream's link adaptation (video/feedback)
         self._feedback = FeedbackPublisher(self, self.p["ptz_topic"], callback_group=self._in_group)
         self._commands: dict[str, Callable[[dict[str, Any]], CommandResult]] = {

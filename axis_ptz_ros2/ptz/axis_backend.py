@@ -29,6 +29,7 @@ from axis_ptz_ros2.vapix import (
     SetPreset,
     VapixClient,
 )
+from axis_ptz_ros2.vapix.keepalive import KeepAliveTransport
 
 LIMITS_RETRY_S = 5.0  #: while only fallback limits are known, ask the camera again this often
 
@@ -59,7 +60,12 @@ class AxisBackend:
         self._conv = model.convention
         self._cmd = command_client or VapixClient(config)
         state_cfg = config if state_timeout_s is None else replace(config, timeout_s=state_timeout_s)
-        self._state = state_client or VapixClient(state_cfg, auth_counters=self._cmd.auth_counters)
+        if state_client is None:
+            # the poll's 20 requests a second go over http.client (keepalive.py says why, with the figures)
+            verify = state_cfg.ssl_verify() if state_cfg.use_https else True
+            transport = KeepAliveTransport(verify)
+            state_client = VapixClient(state_cfg, auth_counters=self._cmd.auth_counters, transport=transport)
+        self._state = state_client
         self.auth_counters = self._cmd.auth_counters  #: Digest re-challenges etc. (for /diagnostics)
         self._lock = threading.Lock()
         self._limits: PtzLimitsRos | None = None

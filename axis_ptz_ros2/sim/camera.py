@@ -331,13 +331,7 @@ class SimulatedCamera:
 
     def teleport(self, pan: float, tilt: float, zoom: float) -> None:
         """Put the head at a pose instantly (test helper; clamped to the limits, stops all motion)."""
-        # PtzState has no public "arrive now"; until it has, this reaches into its axes under its lock.
-        st = self.state
-        st.handle([("pan", str(pan)), ("tilt", str(tilt)), ("zoom", str(int(zoom)))])
-        with st._lock:  # noqa: SLF001
-            for axis in (st._pan, st._tilt, st._zoom):  # noqa: SLF001
-                axis.pos = axis.target if axis.target is not None else axis.pos
-                axis.target = None
+        self.state.arrive_now(pan, tilt, zoom)
 
     def frame_jpeg(self, width: int, height: int, compression: int, overlay: str = "") -> bytes:
         """The current view as JPEG (cached per view, quality and overlay text)."""

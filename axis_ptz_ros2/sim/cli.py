@@ -16,7 +16,7 @@ from axis_ptz_ros2.sim.digest import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIM
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.persona import PERSONAS, persona
 from axis_ptz_ros2.sim.ptz import Speeds
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 
 
 def _is_loopback(host: str) -> bool:
@@ -140,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        for sig in (signal.SIGTERM, signal.SIGINT):  # a second signal (launch's, after the terminal's) changes
+            signal.signal(sig, signal.SIG_IGN)  # nothing; SIG_IGN also survives the interpreter's finalisation
         cam.stop()
         # Let the request threads (daemons) leave before the interpreter finalises: one still inside OpenCV
         # at exit aborted the process ("terminate called without an active exception", exit -6).

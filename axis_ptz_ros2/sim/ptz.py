@@ -1,7 +1,7 @@
-"""The simulated PTZ head: state, dynamics and the ``ptz.cgi``/``ptzconfig.cgi`` language (ROS-free).
+"""The simulated PTZ head: state and dynamics behind ``ptz.cgi``/``ptzconfig.cgi`` (ROS-free).
 
-Implements vapix.md §4 and the simulator contract of §11: commands are validated as a whole (argument range
-from the VAPIX documentation, malformed numbers and unknown arguments → ``Error:`` and *nothing* changes),
+Implements vapix.md §4 and the simulator contract of §11: a request is validated as a whole first
+(:mod:`axis_ptz_ros2.sim.ptz_args`: malformed numbers and unknown arguments → ``Error:`` and *nothing* changes),
 in-range values beyond ``PTZ.Limit`` are clamped (§4.3 simulator rule), motion is finite-speed and integrated
 lazily from a monotonic clock, and any absolute/relative command cancels continuous motion.
 
@@ -13,17 +13,16 @@ so ``elevation_rad = +radians(tilt_deg)``.
 
 from __future__ import annotations
 
-import json
 import math
-import re
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 from axis_ptz_ros2.geometry import ZoomModel, center_on_pixel
-from axis_ptz_ros2.sim.scene import PtzLimits
+from axis_ptz_ros2.sim.ptz_args import MOVES, HeadFacts, Plan, parse_ptz, parse_ptzconfig
+from axis_ptz_ros2.sim.ptz_replies import attributes_reply, format_number, info_reply, limits_reply
+from axis_ptz_ros2.sim.world import PtzLimits
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -39,69 +38,7 @@ def ros_to_vapix(pan_rad: float, tilt_rad: float) -> tuple[float, float]:
     return -math.degrees(pan_rad), math.degrees(tilt_rad)
 
 
-class PtzCommandError(ValueError):
-    """A request the camera answers with ``200 Error:\\n<message>\\n``."""
-
-
-def format_number(v: float) -> str:
-    """VAPIX position formatting: at most 4 decimals, trailing zeros (and a bare point) stripped."""
-    s = f"{v:.4f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
-INFO_TEXT = """Available commands
-:
-{camera=[n]}
-whoami=yes
-center=[x],[y]
-   imagewidth=[n]
-   imageheight=[n]
-areazoom=[x],[y],[z]
-   imagewidth=[n]
-   imageheight=[n]
-move={ home | up | down | left | right | upleft | upright | downleft | downright | stop }
-pan=[abspos]
-tilt=[abspos]
-zoom=[n]
-focus=[n]
-iris=[n]
-brightness=[offset]
-rpan=[offset]
-rtilt=[offset]
-rzoom=[offset]
-rfocus=[offset]
-riris=[offset]
-rbrightness=[offset]
-autofocus={ on | off }
-autoiris={ on | off }
-ircutfilter={ on | off | auto }
-backlight={ on | off }
-continuouspantiltmove=[x-speed],[y-speed]
-continuouszoommove=[speed]
-continuousfocusmove=[speed]
-setserverpresetname=[name]
-setserverpresetno=[n]
-removeserverpresetname=[name]
-removeserverpresetno=[n]
-gotoserverpresetname=[name]
-gotoserverpresetno=[n]
-speed=[n]
-query={ speed | position | limits | presetposcam | presetposall }
-"""
-
 MOVE_STEP_DEG = 5.0  # VAPIX v2 (214 era): "moves the device 5 degrees in the specified direction"
-_MOVES = {
-    "up": (0.0, 1.0),
-    "down": (0.0, -1.0),
-    "left": (-1.0, 0.0),
-    "right": (1.0, 0.0),
-    "upleft": (-1.0, 1.0),
-    "upright": (1.0, 1.0),
-    "downleft": (-1.0, -1.0),
-    "downright": (1.0, -1.0),
-}
-_QUERIES = ("position", "limits", "speed", "presetposcam", "presetposall", "attributes", "mode")
-_PRESET_NAME = re.compile(r'^[^"<>~:]{1,31}$')
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,28 +85,6 @@ class _Axis:
 
     def moving(self) -> bool:
         return self.velocity != 0.0 or self.target is not None
-
-
-def _float(key: str, value: str, lo: float, hi: float) -> float:
-    try:
-        v = float(value)
-    except ValueError as err:
-        raise PtzCommandError(f"{key}: invalid value: {value}") from err
-    if not math.isfinite(v) or not lo <= v <= hi:
-        raise PtzCommandError(f"{key}: value out of range: {value}")
-    return v
-
-
-def _int(key: str, value: str, lo: int, hi: int) -> int:
-    """VAPIX integers: float input is truncated ("with no guarantee of rounding")."""
-    return int(_float(key, value, lo, hi))
-
-
-def _pair(key: str, value: str, lo: float, hi: float, n: int = 2) -> list[float]:
-    parts = value.split(",")
-    if len(parts) != n:
-        raise PtzCommandError(f"{key}: expected {n} comma separated values: {value}")
-    return [_float(key, p, lo, hi) for p in parts]
 
 
 @dataclass
@@ -244,6 +159,17 @@ class PtzState:
             self._pan, self._tilt, self._zoom = _Axis(home.pan), _Axis(home.tilt), _Axis(home.zoom)
             self._t = self.clock()
 
+    def arrive_now(self, pan: float, tilt: float, zoom: float) -> None:
+        """Put the head at a VAPIX pose at once (clamped to the limits), every motion stopped."""
+        if not all(math.isfinite(v) for v in (pan, tilt, zoom)):
+            raise ValueError(f"pose must be finite: {pan}, {tilt}, {zoom}")
+        with self._lock:
+            self._update()
+            self._cancel_continuous()
+            self._pan = _Axis(self._clamp_pan(pan))
+            self._tilt = _Axis(self._clamp_tilt(tilt))
+            self._zoom = _Axis(self._clamp_zoom(zoom))
+
     def set_limits(self, limits: PtzLimits) -> None:
         """Change ``PTZ.Limit.L1`` (positions are clamped into the new box)."""
         with self._lock:
@@ -272,102 +198,16 @@ class PtzState:
     # ---- command language ---------------------------------------------------------------------------
     def handle(self, args: list[tuple[str, str]]) -> str | None:
         """Execute one ``ptz.cgi`` request. Returns the 200 text body of a query, or None for a command
-        (→ 204). Raises :class:`PtzCommandError` (→ ``200 Error:``) without changing anything."""
+        (→ 204). Raises :class:`~axis_ptz_ros2.sim.ptz_args.PtzCommandError` (→ ``200 Error:``) without changing
+        anything."""
         with self._lock:
             self._update()
-            plan = self._validate(args)
+            plan = parse_ptz(args, self._facts())
             return self._apply(plan)
 
-    def _validate(self, args: list[tuple[str, str]]) -> dict[str, Any]:
-        if not args:
-            raise PtzCommandError("no arguments")
-        plan: dict[str, Any] = {}
-        L = self.limits
-        zmax = float(L.max_zoom)
-        for raw_key, value in args:
-            key = raw_key.lower()
-            if key in plan and key not in ("camera",):
-                raise PtzCommandError(f"{key}: given more than once")
-            if key == "camera":
-                if value not in ("1",):
-                    raise PtzCommandError(f"camera: invalid value: {value}")
-                plan[key] = 1
-            elif key in ("pan", "tilt"):
-                plan[key] = _float(key, value, -180.0, 180.0)
-            elif key in ("rpan", "rtilt"):
-                plan[key] = _float(key, value, -360.0, 360.0)
-            elif key == "zoom":
-                plan[key] = float(_int(key, value, 1, int(max(zmax, 9999))))
-            elif key in ("focus", "iris", "brightness"):
-                plan[key] = _int(key, value, 1, 9999)
-            elif key == "rzoom":
-                plan[key] = float(_int(key, value, -int(max(zmax, 9999)), int(max(zmax, 9999))))
-            elif key in ("rfocus", "riris", "rbrightness"):
-                plan[key] = _int(key, value, -9999, 9999)
-            elif key in ("autofocus", "autoiris", "backlight"):
-                if value not in ("on", "off"):
-                    raise PtzCommandError(f"{key}: invalid value: {value}")
-                plan[key] = value == "on"
-            elif key == "ircutfilter":
-                if value not in ("on", "off", "auto"):
-                    raise PtzCommandError(f"{key}: invalid value: {value}")
-                plan[key] = value
-            elif key == "continuouspantiltmove":
-                plan[key] = _pair(key, value, -100.0, 100.0)
-            elif key in (
-                "continuouszoommove",
-                "continuousfocusmove",
-                "continuousirismove",
-                "continuousbrightnessmove",
-            ):
-                plan[key] = _float(key, value, -100.0, 100.0)
-            elif key == "speed":
-                plan[key] = _int(key, value, 1, 100)
-            elif key == "move":
-                if value not in _MOVES and value not in ("home", "stop"):
-                    raise PtzCommandError(f"move: unknown value: {value}")
-                plan[key] = value
-            elif key == "center":
-                plan[key] = _pair(key, value, -1e6, 1e6)
-            elif key == "areazoom":
-                x, y, z = _pair(key, value, -1e6, 1e6, 3)
-                if z < 1:
-                    raise PtzCommandError(f"areazoom: invalid zoom factor: {value}")
-                plan[key] = [x, y, z]
-            elif key in ("imagewidth", "imageheight"):
-                plan[key] = _int(key, value, 1, 100000)
-            elif key == "query":
-                if value not in _QUERIES or (value == "attributes" and not self.attributes):
-                    raise PtzCommandError(f"query: unknown value: {value}")
-                plan[key] = value
-            elif key == "format" and self.attributes:
-                if value not in ("json", "text"):
-                    raise PtzCommandError(f"format: invalid value: {value}")
-                plan[key] = value
-            elif key in ("info", "whoami"):
-                if value not in ("1", "yes"):
-                    raise PtzCommandError(f"{key}: invalid value: {value}")
-                plan[key] = True
-            elif key in ("gotoserverpresetname", "setserverpresetname", "removeserverpresetname"):
-                if not _PRESET_NAME.match(value):
-                    raise PtzCommandError(f"{key}: invalid preset name: {value}")
-                if key != "setserverpresetname" and self._preset_by_name(value) is None:
-                    raise PtzCommandError(f"{key}: no such preset: {value}")
-                plan[key] = value
-            elif key in ("gotoserverpresetno", "setserverpresetno", "removeserverpresetno"):
-                n = _int(key, value, 1, 1000)
-                if key != "setserverpresetno" and n not in self.presets:
-                    raise PtzCommandError(f"{key}: no such preset: {value}")
-                plan[key] = n
-            elif key == "imagerotation":
-                if value not in ("0", "90", "180", "270"):
-                    raise PtzCommandError(f"{key}: invalid value: {value}")
-                plan[key] = int(value)
-            else:
-                raise PtzCommandError(f"Unknown argument: {raw_key}")
-        if ("imagewidth" in plan or "imageheight" in plan) and not ("center" in plan or "areazoom" in plan):
-            raise PtzCommandError("imagewidth/imageheight only valid with center or areazoom")
-        return plan
+    def _facts(self) -> HeadFacts:
+        names = frozenset(p.name for p in self.presets.values())
+        return HeadFacts(self.limits.max_zoom, self.attributes, names, frozenset(self.presets))
 
     def _preset_by_name(self, name: str) -> Preset | None:
         return next((p for p in self.presets.values() if p.name == name), None)
@@ -386,7 +226,7 @@ class PtzState:
         if zoom is not None:
             self._zoom.target = self._clamp_zoom(zoom)
 
-    def _apply(self, plan: dict[str, Any]) -> str | None:  # noqa: C901 - a flat dispatch table
+    def _apply(self, plan: Plan) -> str | None:  # noqa: C901 - a flat dispatch table
         pan, tilt, zoom = self._pan.pos, self._tilt.pos, self._zoom.pos
         if "speed" in plan:
             self.speed = int(plan["speed"])
@@ -438,7 +278,7 @@ class PtzState:
                 p = self.presets.get(self.home, Preset(0, "Home", 0.0, 0.0, 1.0))
                 new_pan, new_tilt, new_zoom = p.pan, p.tilt, p.zoom
             else:
-                dx, dy = _MOVES[mv]
+                dx, dy = MOVES[mv]
                 step = MOVE_STEP_DEG
                 if self.move_step_fov > 0.0:  # v3: "moves the image 25 % of the image field width"
                     step = self.move_step_fov * math.degrees(self.zoom_model.hfov(zoom))
@@ -448,11 +288,7 @@ class PtzState:
                     new_tilt = tilt + dy * step
         for key in ("gotoserverpresetname", "gotoserverpresetno"):
             if key in plan:
-                pre = (
-                    self._preset_by_name(str(plan[key]))
-                    if key.endswith("name")
-                    else self.presets[int(plan[key])]
-                )
+                pre = self._preset_by_name(str(plan[key])) if key.endswith("name") else self.presets[int(plan[key])]
                 assert pre is not None
                 new_pan, new_tilt, new_zoom = pre.pan, pre.tilt, pre.zoom
         if new_pan is not None or new_tilt is not None or new_zoom is not None:
@@ -467,32 +303,26 @@ class PtzState:
             self._zoom.target = None
             L = self.limits
             self._zoom.velocity = (
-                (L.max_zoom - L.min_zoom)
-                / self.speeds.zoom_full_travel_s
-                * float(plan["continuouszoommove"])
-                / 100.0
+                (L.max_zoom - L.min_zoom) / self.speeds.zoom_full_travel_s * float(plan["continuouszoommove"]) / 100.0
             )
         if "continuousfocusmove" in plan:
             self._focus.target = None
-            self._focus.velocity = (
-                9998.0 / self.speeds.focus_full_travel_s * float(plan["continuousfocusmove"]) / 100.0
-            )
+            self._focus.velocity = 9998.0 / self.speeds.focus_full_travel_s * float(plan["continuousfocusmove"]) / 100.0
         # Presets (legacy ptz.cgi forms; ptzconfig.cgi uses the same code).
         self._apply_presets(plan, pan, tilt, zoom)
         # Replies.
         if "query" in plan:
             if plan["query"] == "attributes":
-                return self._attributes(plan.get("format") == "json")
+                as_json = plan.get("format") == "json"
+                return attributes_reply(self.limits, self.zoom_model, self.speeds.pan_deg_s, as_json)
             return self._query(str(plan["query"]))
         if "info" in plan:
-            if self.attributes:
-                return INFO_TEXT.replace("presetposall }", "presetposall | attributes }")
-            return INFO_TEXT
+            return info_reply(self.attributes)
         if "whoami" in plan:
             return self.whoami + "\n"
         return None
 
-    def _apply_presets(self, plan: dict[str, Any], pan: float, tilt: float, zoom: float) -> None:
+    def _apply_presets(self, plan: Plan, pan: float, tilt: float, zoom: float) -> None:
         if "setserverpresetname" in plan:
             name = str(plan["setserverpresetname"])
             old = self._preset_by_name(name)
@@ -514,53 +344,18 @@ class PtzState:
             self.presets.pop(int(plan["removeserverpresetno"]), None)
 
     def handle_config(self, args: list[tuple[str, str]]) -> None:
-        """``ptzconfig.cgi`` (vapix.md §4.6): preset management; raises :class:`PtzCommandError`."""
+        """``ptzconfig.cgi`` (vapix.md §4.6): preset management; raises
+        :class:`~axis_ptz_ros2.sim.ptz_args.PtzCommandError` without changing anything."""
         with self._lock:
             self._update()
-            plan: dict[str, Any] = {}
-            rest: list[tuple[str, str]] = []
-            for k, v in args:
-                kl = k.lower()
-                if kl == "home":
-                    if v != "yes":
-                        raise PtzCommandError(f"home: invalid value: {v}")
-                    plan["home"] = True
-                elif kl == "removeallserverpresets":
-                    if v != "yes":
-                        raise PtzCommandError(f"{k}: invalid value: {v}")
-                    plan["removeall"] = True
-                elif kl == "renameserverpresetno":
-                    plan["rename"] = _int(kl, v, 1, 1000)
-                elif kl == "newname":
-                    if not _PRESET_NAME.match(v):
-                        raise PtzCommandError(f"newname: invalid preset name: {v}")
-                    plan["newname"] = v
-                elif kl in (
-                    "setserverpresetname",
-                    "setserverpresetno",
-                    "removeserverpresetname",
-                    "removeserverpresetno",
-                    "camera",
-                ):
-                    rest.append((kl, v))
-                else:
-                    raise PtzCommandError(f"Unknown argument: {k}")
-            if "rename" in plan and ("newname" not in plan or int(plan["rename"]) not in self.presets):
-                raise PtzCommandError("renameserverpresetno: no such preset or missing newname")
-            if "home" in plan and not any(k.startswith("setserverpreset") for k, _ in rest):
-                raise PtzCommandError("home=yes needs setserverpresetname or setserverpresetno")
-            sub = self._validate(rest) if rest else {}
-            if "home" in plan:
-                sub["home"] = True
-            pan, tilt, zoom = self._pan.pos, self._tilt.pos, self._zoom.pos
-            self._apply_presets(sub, pan, tilt, zoom)
+            plan = parse_ptzconfig(args, self._facts())
+            self._apply_presets(plan, self._pan.pos, self._tilt.pos, self._zoom.pos)
             if "rename" in plan:
                 self.presets[int(plan["rename"])].name = str(plan["newname"])
             if "removeall" in plan:
                 self.presets.clear()
 
     def _query(self, what: str) -> str:
-        L = self.limits
         if what == "position":
             lines = [
                 f"pan={format_number(self._pan.pos)}",
@@ -573,23 +368,7 @@ class PtzState:
                 f"autoiris={'on' if self.autoiris else 'off'}",
             ]
         elif what == "limits":
-            zm = self.zoom_model
-            lines = [
-                f"MinPan={format_number(L.min_pan)}",
-                f"MaxPan={format_number(L.max_pan)}",
-                f"MinTilt={format_number(L.min_tilt)}",
-                f"MaxTilt={format_number(L.max_tilt)}",
-                f"MinZoom={L.min_zoom}",
-                f"MaxZoom={L.max_zoom}",
-                "MinIris=1",
-                "MaxIris=9999",
-                "MinFocus=1",
-                "MaxFocus=9999",
-                f"MinFieldAngle={max(1, int(round(math.degrees(zm.hfov(zm.optical_max_zoom or L.max_zoom)) * 10)))}",
-                f"MaxFieldAngle={int(round(math.degrees(zm.hfov(L.min_zoom)) * 10))}",
-                "MinBrightness=1",
-                "MaxBrightness=9999",
-            ]
+            return limits_reply(self.limits, self.zoom_model)
         elif what == "speed":
             lines = [f"speed={self.speed}"]
         elif what == "mode":
@@ -597,45 +376,6 @@ class PtzState:
         else:  # presetposcam / presetposall
             lines = ["Preset Positions for camera 1"]
             lines += [f"presetposno{n}={p.name}" for n, p in sorted(self.presets.items())]
-        return "\n".join(lines) + "\n"
-
-    def zoom_steps(self) -> list[tuple[int, float]]:
-        """``zoomSteps`` of ``query=attributes``: (zoom units, magnification) at whole magnifications of the
-        optical range, the optical end and the digital end."""
-        zm, L = self.zoom_model, self.limits
-        top = zm.magnification(L.max_zoom)
-        optical_end = zm.optical_max_zoom or L.max_zoom
-        steps = {L.min_zoom: zm.magnification(L.min_zoom), optical_end: zm.magnification(optical_end)}
-        for m in range(2, int(zm.magnification(optical_end)) + 1):
-            steps[int(round(zm.zoom_for_magnification(float(m))))] = float(m)
-        steps[L.max_zoom] = top
-        return sorted(steps.items())
-
-    def _attributes(self, as_json: bool) -> str:
-        zm = self.zoom_model
-        optical_end = zm.optical_max_zoom or self.limits.max_zoom
-        optical = zm.magnification(optical_end)
-        digital = zm.magnification(self.limits.max_zoom) / optical
-        steps = self.zoom_steps()
-        # VAPIX speed value → deg/s of this head (linear in the simulator).
-        speeds = [(v, self.speeds.pan_deg_s * v / 100.0) for v in (1, 10, 25, 50, 75, 100)]
-        if as_json:
-            cam: dict[str, Any] = {
-                "maxOpticalZoomMag": format_number(optical),
-                "zoomSteps": [{"value": str(z), "zoom": format_number(m)} for z, m in steps],
-                "speeds": [{"value": str(v), "speed": format_number(sp)} for v, sp in speeds],
-            }
-            if digital > 1.0 + 1e-9:
-                cam["maxDigitalZoomMag"] = format_number(digital)
-            return json.dumps({"Camera 1": cam}) + "\n"
-        lines = [
-            "Attributes for camera 1",
-            "speeds=" + ",".join(f"value={v} | speed={format_number(sp)}" for v, sp in speeds),
-            f"maxOpticalZoomMag={format_number(optical)}",
-        ]
-        if digital > 1.0 + 1e-9:
-            lines.append(f"maxDigitalZoomMag={format_number(digital)}")
-        lines.append("zoomSteps=" + ",".join(f"value={z} | zoom={format_number(m)}" for z, m in steps))
         return "\n".join(lines) + "\n"
 
     def presets_snapshot(self) -> list[Preset]:

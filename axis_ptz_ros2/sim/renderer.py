@@ -28,7 +28,8 @@ import numpy.typing as npt
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
 from axis_ptz_ros2.sim.camera_model import CameraModel, encode
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
-from axis_ptz_ros2.sim.scene import Scene, SimWorld, Target, shared_scene
+from axis_ptz_ros2.sim.scene import Scene, Target, shared_scene
+from axis_ptz_ros2.sim.world import SimWorld
 
 U8Array = npt.NDArray[np.uint8]
 _GRID = 8  # map sub-sampling step (px)
@@ -152,9 +153,7 @@ class PtzRenderer:
             return
         # Mip level: texels per screen pixel from the projected area (full-visibility estimate).
         tex0 = tgt.texture
-        area_px = 0.5 * abs(
-            float(np.dot(uv[:, 0], np.roll(uv[:, 1], 1)) - np.dot(uv[:, 1], np.roll(uv[:, 0], 1)))
-        )
+        area_px = 0.5 * abs(float(np.dot(uv[:, 0], np.roll(uv[:, 1], 1)) - np.dot(uv[:, 1], np.roll(uv[:, 0], 1))))
         ratio = math.sqrt(tex0.shape[0] * tex0.shape[1] / max(area_px, 1.0))
         level = max(0, int(math.floor(math.log2(ratio)))) if ratio > 1 else 0
         tex = tgt.mip(level)

@@ -1,11 +1,11 @@
-"""The simulated world: robot-frame poses (``config/sim_world.yaml``) and a procedural 3-D scene (ROS-free).
+"""The procedural 3-D scene the simulated cameras and the laser see (ROS-free).
 
 Frames: everything is expressed in ``base_link`` (REP-103, x forward, y left, z up, metres); the ground is the
-plane z = 0. The scene is a procedural background (sky gradient, a distant skyline on a cylinder of radius
-:data:`SKYLINE_RADIUS`, a textured ground plane with a distance grid and coloured marks) plus planar
-rectangular :class:`Target` s with high-resolution textures at known poses. :meth:`Scene.raycast` is the one
-vectorised ray tracer used for the background panorama of the PTZ renderer, the omnidirectional camera and
-the laser scanner.
+plane z = 0. The scene is built from a :class:`~axis_ptz_ros2.sim.world.SimWorld`: a procedural background (sky
+gradient, a distant skyline on a cylinder of radius :data:`SKYLINE_RADIUS`, a textured ground plane with a
+distance grid and coloured marks) plus planar rectangular :class:`Target` s with high-resolution textures at known
+poses. :meth:`Scene.raycast` is the one vectorised ray tracer used for the background panorama of the PTZ
+renderer, the omnidirectional camera and the laser scanner.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -21,18 +20,13 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
-import yaml
 
-from axis_ptz_ros2.config import default_config_path
-from axis_ptz_ros2.geometry import (
-    AXIS_214_ZOOM,
-    FloatArray,
-    PtzKinematics,
-    Transform,
-    ZoomModel,
-    equirect_to_direction,
-)
+from axis_ptz_ros2.geometry import FloatArray, Transform, equirect_to_direction
 from axis_ptz_ros2.sim import textures
+from axis_ptz_ros2.sim.world import PtzLimits as PtzLimits  # re-exported: persona.py imports it from here
+from axis_ptz_ros2.sim.world import SimWorld as SimWorld  # re-exported: camera.py, frames.py
+from axis_ptz_ros2.sim.world import TargetSpec
+from axis_ptz_ros2.sim.world import load_world as load_world  # re-exported: camera.py
 
 U8Array = npt.NDArray[np.uint8]
 IntArray = npt.NDArray[np.int64]
@@ -42,130 +36,6 @@ HIT_GROUND = -2  #: ``hit_index`` of a ray that hits the ground plane
 HIT_SKYLINE = -3  #: ``hit_index`` of a ray that hits the distant skyline
 SKYLINE_RADIUS = 400.0  #: metres from the base_link origin
 BACKGROUND_VERSION = 2  #: bump when the procedural background changes (invalidates the disk cache)
-
-
-
-# --------------------------------------------------------------------------------------------------------
-# World configuration
-# --------------------------------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True)
-class PtzLimits:
-    """``PTZ.Limit.L1`` of the simulated camera (VAPIX degrees and zoom units)."""
-
-    min_pan: float = -170.0
-    max_pan: float = 170.0
-    min_tilt: float = -30.0
-    max_tilt: float = 90.0
-    min_zoom: int = 1
-    max_zoom: int = 9999
-
-
-@dataclass(frozen=True, slots=True)
-class TargetSpec:
-    """Configuration of one planar target (see ``config/sim_world.yaml``)."""
-
-    name: str
-    kind: str
-    center: tuple[float, float, float]
-    size: tuple[float, float]
-    text: str = ""
-    color: tuple[int, int, int] = (0, 0, 255)  # BGR
-    normal: tuple[float, float, float] | None = None  # None: face the PTZ head, upright
-    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
-
-
-@dataclass(frozen=True)
-class SimWorld:
-    """Everything the simulator knows about the robot and its surroundings."""
-
-    T_base_ptz: Transform = field(
-        default_factory=lambda: Transform.from_xyz_rpy(
-            -0.209, -0.047, 0.462, math.radians(0.4), math.radians(-0.3), math.radians(1.1)
-        )
-    )
-    kinematics: PtzKinematics = field(default_factory=lambda: PtzKinematics(0.0687, (0.03, 0.0, 0.0)))
-    limits: PtzLimits = field(default_factory=PtzLimits)
-    zoom_model: ZoomModel = AXIS_214_ZOOM
-    T_base_pano: Transform = field(
-        default_factory=lambda: Transform.from_xyz_rpy(0.216, -0.044, 0.75, 0, 0, 0)
-    )
-    T_base_laser: Transform = field(default_factory=lambda: Transform.from_xyz_rpy(0.25, 0.0, 0.40, 0, 0, 0))
-    targets: tuple[TargetSpec, ...] = ()
-    equirect_width: int = 4096
-
-    @property
-    def pan_tilt_centre(self) -> FloatArray:
-        """The point where the pan and tilt axes meet, in ``base_link``."""
-        return self.T_base_ptz.apply(np.array([0.0, 0.0, self.kinematics.h_tilt]))
-
-    def cache_key(self) -> tuple[Any, ...]:
-        """A hashable identity of the world (for sharing a built :class:`Scene` between cameras)."""
-        return (
-            tuple(np.round(self.T_base_ptz.matrix(), 9).ravel()),
-            self.kinematics,
-            self.targets,
-            self.equirect_width,
-        )
-
-
-def _pose(d: dict[str, Any], xyz_default: list[float]) -> Transform:
-    xyz = [float(v) for v in d.get("xyz", d.get("mount_xyz", xyz_default))]
-    rpy = [math.radians(float(v)) for v in d.get("rpy_deg", d.get("mount_rpy_deg", [0.0, 0.0, 0.0]))]
-    return Transform.from_xyz_rpy(*xyz, *rpy)
-
-
-def world_from_dict(cfg: dict[str, Any]) -> SimWorld:
-    """Build a :class:`SimWorld` from a parsed ``sim_world.yaml`` mapping (missing keys take defaults)."""
-    default = SimWorld()
-    ptz = cfg.get("ptz", {})
-    lim = ptz.get("limits", {})
-    limits = PtzLimits(
-        float(lim.get("min_pan", -170.0)),
-        float(lim.get("max_pan", 170.0)),
-        float(lim.get("min_tilt", -30.0)),
-        float(lim.get("max_tilt", 90.0)),
-        int(lim.get("min_zoom", 1)),
-        int(lim.get("max_zoom", 9999)),
-    )
-    zm = ZoomModel.from_dict(ptz["zoom_model"]) if "zoom_model" in ptz else AXIS_214_ZOOM
-    targets = []
-    for t in cfg.get("targets", []):
-        targets.append(
-            TargetSpec(
-                name=str(t["name"]),
-                kind=str(t["kind"]),
-                center=(float(t["center"][0]), float(t["center"][1]), float(t["center"][2])),
-                size=(float(t["size"][0]), float(t["size"][1])),
-                text=str(t.get("text", "")),
-                color=tuple(int(c) for c in t.get("color", (0, 0, 255))),  # type: ignore[arg-type]
-                normal=tuple(float(c) for c in t["normal"]) if "normal" in t else None,  # type: ignore[arg-type]
-                up=tuple(float(c) for c in t.get("up", (0.0, 0.0, 1.0))),  # type: ignore[arg-type]
-            )
-        )
-    d_opt = ptz.get("d_opt", [0.03, 0.0, 0.0])
-    return SimWorld(
-        T_base_ptz=_pose(ptz, [-0.209, -0.047, 0.462]) if ptz else default.T_base_ptz,
-        kinematics=PtzKinematics(
-            float(ptz.get("h_tilt", 0.0687)), (float(d_opt[0]), float(d_opt[1]), float(d_opt[2]))
-        ),
-        limits=limits,
-        zoom_model=zm,
-        T_base_pano=_pose(cfg["panorama"], [0.216, -0.044, 0.75])
-        if "panorama" in cfg
-        else default.T_base_pano,
-        T_base_laser=_pose(cfg["laser"], [0.25, 0.0, 0.40]) if "laser" in cfg else default.T_base_laser,
-        targets=tuple(targets),
-        equirect_width=int(cfg.get("background", {}).get("equirect_width", 4096)),
-    )
-
-
-def load_world(path: str | Path | None = None) -> SimWorld:
-    """Load the world from a YAML file (default: the repository's ``config/sim_world.yaml``)."""
-    # default: the repository's file, or the installed share/axis_ptz_ros2/config copy (colcon)
-    p = Path(path) if path is not None else default_config_path("sim_world.yaml")
-    with p.open(encoding="utf-8") as fh:
-        cfg = yaml.safe_load(fh) or {}
-    return world_from_dict(cfg)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -342,9 +212,7 @@ class Scene:
         arc = az * SKYLINE_RADIUS
         win = (np.mod(arc, 3.0) > 1.2) & (np.mod(P[:, 2], 3.5) > 1.4) & (P[:, 2] < height - 1.5)
         lit = _hash01(np.floor(arc / 3.0).astype(np.int64), np.floor(P[:, 2] / 3.5).astype(np.int64), 7) > 0.6
-        col = np.where(
-            (win & lit)[:, None], np.array([120.0, 210.0, 235.0]), np.where(win[:, None], base * 0.6, base)
-        )
+        col = np.where((win & lit)[:, None], np.array([120.0, 210.0, 235.0]), np.where(win[:, None], base * 0.6, base))
         return np.where(hit, s, np.inf), col
 
     def ground_color(self, P: FloatArray, footprint: FloatArray) -> FloatArray:
@@ -359,9 +227,7 @@ class Scene:
         grid1 = np.maximum(
             _line_coverage(x - 0.5, 1.0, 0.015, footprint), _line_coverage(y - 0.5, 1.0, 0.015, footprint)
         )
-        grid5 = np.maximum(
-            _line_coverage(x - 2.5, 5.0, 0.05, footprint), _line_coverage(y - 2.5, 5.0, 0.05, footprint)
-        )
+        grid5 = np.maximum(_line_coverage(x - 2.5, 5.0, 0.05, footprint), _line_coverage(y - 2.5, 5.0, 0.05, footprint))
         col = col * (1 - 0.5 * grid1[:, None]) + np.array([200.0, 200.0, 200.0]) * 0.5 * grid1[:, None]
         col = col * (1 - grid5[:, None]) + np.array([235.0, 235.0, 235.0]) * grid5[:, None]
         r = np.hypot(x, y)
@@ -429,9 +295,7 @@ class Scene:
                 # Cull with the target's bounding cone seen from the (first) origin.
                 rel = tgt.center - O[0]
                 dist = float(np.linalg.norm(rel))
-                radius = math.hypot(tgt.width, tgt.height) / 2 + float(
-                    np.ptp(O, axis=0).max() if n > 1 else 0.0
-                )
+                radius = math.hypot(tgt.width, tgt.height) / 2 + float(np.ptp(O, axis=0).max() if n > 1 else 0.0)
                 cand = (
                     np.arange(n)
                     if dist <= radius
@@ -474,9 +338,7 @@ class Scene:
             els = math.pi / 2 - math.pi * (np.arange(H) + 0.5) / H
             r_start = int(np.searchsorted(-els, -(self._max_skyline_el + 2 * math.pi / width)))
             d0 = equirect_to_direction(np.zeros(r_start), np.arange(r_start, dtype=np.float64), width, H)
-            out[:r_start] = np.clip(self.sky_color(d0.reshape(-1, 3)) + 0.5, 0, 255).astype(np.uint8)[
-                :, None, :
-            ]
+            out[:r_start] = np.clip(self.sky_color(d0.reshape(-1, 3)) + 0.5, 0, 255).astype(np.uint8)[:, None, :]
         for r0 in range(r_start, H, chunk_rows):
             r1 = min(H, r0 + chunk_rows)
             xx, yy = np.meshgrid(xs, np.arange(r0, r1, dtype=np.float64))
@@ -495,17 +357,12 @@ class Scene:
         ``~/.cache/axis_ptz_ros2``) keyed by the world geometry and :data:`BACKGROUND_VERSION`.
         """
         T = Transform(np.eye(3), self.world.pan_tilt_centre)
-        key = hashlib.sha1(
-            repr((BACKGROUND_VERSION, np.round(T.t, 6).tolist(), self.world.equirect_width)).encode()
-        )
+        key = hashlib.sha1(repr((BACKGROUND_VERSION, np.round(T.t, 6).tolist(), self.world.equirect_width)).encode())
         cache_dir = Path(os.environ.get("AXIS_SIM_CACHE_DIR", Path.home() / ".cache" / "axis_ptz_ros2"))
         path = cache_dir / f"sim_background_{key.hexdigest()[:16]}.npy"
         try:
             img = np.load(path)
-            if (
-                img.shape == (self.world.equirect_width // 2, self.world.equirect_width, 3)
-                and img.dtype == np.uint8
-            ):
+            if img.shape == (self.world.equirect_width // 2, self.world.equirect_width, 3) and img.dtype == np.uint8:
                 return np.asarray(img, dtype=np.uint8)
         except (OSError, ValueError):
             pass

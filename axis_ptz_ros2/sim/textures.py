@@ -91,9 +91,7 @@ def hazard_texture(width_m: float, height_m: float, text: str) -> tuple[U8Array,
     _text(img, text, (W / 2, H * 0.51), H * 0.09, (0, 0, 0), bold=True)
     px_per_m = W / width_m
     small = 0.015 * px_per_m  # 1.5 cm letters: about 1 px at zoom 1 from 12 m, about 19 px at zoom 9999
-    for i, line in enumerate(
-        ("KEEP AWAY FROM HEAT", "UN 1203 PETROL", "CALL 112 IN CASE", "OF FIRE OR LEAK")
-    ):
+    for i, line in enumerate(("KEEP AWAY FROM HEAT", "UN 1203 PETROL", "CALL 112 IN CASE", "OF FIRE OR LEAK")):
         _text(img, line, (W / 2, H * 0.60 + i * small * 1.8), small, (0, 0, 0))
     _text(img, "3", (W / 2, H * 0.86), H * 0.06, (0, 0, 0), bold=True)
     return _premultiply(img), {"center": (0.5, 0.5), "top": (0.5, 0.0), "bottom": (0.5, 1.0)}
@@ -158,9 +156,7 @@ def calib_texture(width_m: float, height_m: float, label: str) -> tuple[U8Array,
     return img, feats
 
 
-def checker_texture(
-    width_m: float, height_m: float, cols: int = 10, rows: int = 7
-) -> tuple[U8Array, Features]:
+def checker_texture(width_m: float, height_m: float, cols: int = 10, rows: int = 7) -> tuple[U8Array, Features]:
     """A checkerboard of ``cols``×``rows`` squares; features ``corner_<i>_<j>`` are its inner corners."""
     cell = 200
     W, H = cols * cell, rows * cell

@@ -1,4 +1,5 @@
-"""Cheap JPEG header readers: the frame size from SOF without decoding, and COM segments. ROS-free."""
+"""Cheap JPEG header readers: the frame size and component count from SOF without decoding, and COM segments.
+ROS-free."""
 
 from __future__ import annotations
 
@@ -40,6 +41,14 @@ def jpeg_size(data: bytes | bytearray | memoryview) -> tuple[int, int] | None:
             height = (data[start + 1] << 8) | data[start + 2]
             width = (data[start + 3] << 8) | data[start + 4]
             return (width, height) if width and height else None
+    return None
+
+
+def jpeg_components(data: bytes | bytearray | memoryview) -> int | None:
+    """The number of colour components in the SOF segment (1: greyscale, 3: YCbCr/colour); None if none."""
+    for marker, start, end in _segments(data):
+        if marker in _SOF_MARKERS and end - start >= 6:
+            return int(data[start + 5])
     return None
 
 

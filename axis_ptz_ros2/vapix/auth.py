@@ -45,6 +45,7 @@ __all__ = [
     "NegotiatingAuth",
     "offered_schemes",
     "parse_challenges",
+    "read_challenge_body",
 ]
 
 
@@ -146,7 +147,7 @@ _HASHES: dict[str, Callable[[bytes], Any]] = {
 MAX_CHALLENGE_BODY_BYTES = 64 << 10  #: a 401 page bigger than this is not a camera's challenge page
 
 
-def _read_challenge_body(response: httpx.Response) -> None:
+def read_challenge_body(response: httpx.Response) -> None:
     """Read the body of a 401 we answer with another request, capped: httpx would otherwise read all of it
     (to reuse the connection) and an endless 401 body would grow without bound."""
     if hasattr(response, "_content"):
@@ -362,7 +363,7 @@ class NegotiatingAuth(httpx.Auth):
                 del request.headers["Authorization"]
                 if not self._sign(request, AuthScheme.DIGEST):
                     return
-                _read_challenge_body(response)
+                read_challenge_body(response)
                 retry = yield request
                 self._note_final(retry, signed=True)
                 return
@@ -383,7 +384,7 @@ class NegotiatingAuth(httpx.Auth):
         if not self._sign(request, chosen):
             return
         self._scheme = chosen
-        _read_challenge_body(response)
+        read_challenge_body(response)
         retry = yield request
         self._note_final(retry, signed=True)
 

@@ -30,7 +30,7 @@ from urllib.parse import quote
 import httpx
 
 from axis_ptz_ros2 import __version__
-from axis_ptz_ros2.vapix.auth import AuthCounters, AuthMode, NegotiatingAuth
+from axis_ptz_ros2.vapix.auth import AuthCounters, AuthMode, NegotiatingAuth, read_challenge_body
 from axis_ptz_ros2.vapix.errors import (
     AuthError,
     AxisPtzError,
@@ -72,7 +72,7 @@ MAX_ERROR_BODY_BYTES = 64 << 10  #: what we read of a non-2xx reply (the rest is
 IMAGE_CGI = "/axis-cgi/jpg/image.cgi"
 _NTSC_HEIGHTS = frozenset({480, 240, 120})
 _PAL_HEIGHTS = frozenset({576, 288, 144})
-_BODY_HEADERS = frozenset({"content-length", "content-encoding", "transfer-encoding"})
+MAX_CACHED_URLS = 64  #: parsed URLs kept for repeated requests (cleared when full)
 _HTML_ERROR = re.compile(r"(?is)Error:\s*(.*?)\s*</body>")
 _XML_ENTRY = re.compile(r"<entry\b([^>]*)>")
 _XML_ATTR = re.compile(r'(\w+)="([^"]*)"')
@@ -109,8 +109,12 @@ def _decode(body: bytes) -> str:
         return body.decode("latin-1")
 
 
-def _text(response: httpx.Response) -> str:
-    return _decode(response.content)
+def _attach_request(err: httpx.HTTPError, request: httpx.Request) -> None:
+    """Give a transport error its request (as ``httpx.Client`` does), so messages can name it."""
+    try:
+        err.request  # noqa: B018 - raises when unset
+    except RuntimeError:
+        err.request = request
 
 
 @dataclass(frozen=True, slots=True)
@@ -195,7 +199,16 @@ class VapixClient:
         self.auth_counters = auth_counters if auth_counters is not None else AuthCounters()
         self._auth = NegotiatingAuth(config.username, config.password, config.auth, counters=self.auth_counters)
         self._verify = config.ssl_verify() if config.use_https else True
-        self._http = self._new_http(self._auth, config.timeout())
+        # One connection pool for every PTZ request: the httpx.Client (kept for callers that want one) and the
+        # direct path of :meth:`_exchange` share it, so there is still one kept-alive connection.
+        self._pool: httpx.BaseTransport = (
+            transport if transport is not None else httpx.HTTPTransport(verify=self._verify, trust_env=False)
+        )
+        self._http = self._new_http(self._auth, config.timeout(), self._pool)
+        # the parts of a request that never change, built once (the position poll sends 20 requests a second)
+        self._headers = httpx.Headers(self._http.headers)
+        self._extensions: dict[str, object] = {"timeout": self._http.timeout.as_dict()}
+        self._urls: dict[str, httpx.URL] = {}
         self._lock = threading.RLock()
         self._param_path: str | None = None
         self._imagesize_path: str | None = None
@@ -205,13 +218,15 @@ class VapixClient:
         self._asked_standard = False
         self.resolution_problem = ""  #: why some listed resolution names have no size (empty: none)
 
-    def _new_http(self, auth: httpx.Auth, timeout: httpx.Timeout) -> httpx.Client:
+    def _new_http(
+        self, auth: httpx.Auth, timeout: httpx.Timeout, transport: httpx.BaseTransport | None
+    ) -> httpx.Client:
         return httpx.Client(
             base_url=self._config.base_url,
             auth=auth,
             timeout=timeout,
             verify=self._verify,
-            transport=self._transport,
+            transport=transport,
             headers={"User-Agent": USER_AGENT},
             follow_redirects=False,
             trust_env=False,
@@ -252,8 +267,57 @@ class VapixClient:
     def _secrets(self) -> tuple[str | None, ...]:
         return (self._config.password,)
 
-    def _get(self, path_query: str, max_bytes: int = MAX_REPLY_BYTES, total_s: float | None = None) -> httpx.Response:
-        """GET, map transport errors and non-2xx statuses; returns a 2xx response with its body read.
+    def _url(self, path_query: str) -> httpx.URL:
+        """The absolute URL of ``path_query``, parsed once for requests that repeat (the position poll)."""
+        url = self._urls.get(path_query)
+        if url is None:
+            url = httpx.URL(self._config.base_url + path_query)
+            if len(self._urls) >= MAX_CACHED_URLS:  # commands carry their values: bounded, not an LRU
+                self._urls.clear()
+            self._urls[path_query] = url
+        return url
+
+    def _send_one(self, request: httpx.Request) -> httpx.Response:
+        try:
+            response = self._pool.handle_request(request)
+        except httpx.HTTPError as err:
+            _attach_request(err, request)
+            raise
+        response.request = request
+        return response
+
+    def _exchange(self, path_query: str) -> httpx.Response:
+        """GET ``path_query`` through the authentication flow; returns the final response, body unread.
+
+        What ``httpx.Client.send`` does for us, without what we do not use: no cookie jar (VAPIX does not use
+        cookies; the jar's per-response bookkeeping was ~10 % of a poll), no URL merging per request, no
+        redirects (``follow_redirects=False`` before too). Timeouts go in the request extensions as the client
+        put them. A 401 answered with another request is read capped (:func:`read_challenge_body`) and closed.
+        """
+        request = httpx.Request("GET", self._url(path_query), headers=self._headers, extensions=self._extensions)
+        flow = self._auth.sync_auth_flow(request)
+        try:
+            request = next(flow)
+            while True:
+                response = self._send_one(request)
+                try:
+                    request = flow.send(response)
+                except StopIteration:
+                    return response
+                except BaseException:
+                    response.close()
+                    raise
+                try:
+                    read_challenge_body(response)
+                finally:
+                    response.close()
+        finally:
+            flow.close()
+
+    def _get(
+        self, path_query: str, max_bytes: int = MAX_REPLY_BYTES, total_s: float | None = None
+    ) -> tuple[httpx.Response, bytes]:
+        """GET, map transport errors and non-2xx statuses; returns a 2xx response (closed) and its body.
 
         The body is read with a size cap and a total-time cap (``total_s``, default ``timeout_s``): a port
         that serves a video stream or an endless page gives a clear :class:`ResponseParseError`, never memory
@@ -261,7 +325,7 @@ class VapixClient:
         """
         with self._lock:
             try:
-                response = self._http.send(self._http.build_request("GET", path_query), stream=True)
+                response = self._exchange(path_query)
                 try:
                     ok = 200 <= response.status_code < 300
                     cap = max_bytes if ok else MAX_ERROR_BODY_BYTES
@@ -270,41 +334,43 @@ class VapixClient:
                     response.close()
             except httpx.HTTPError as err:
                 raise map_httpx_error(err, self._secrets()) from err
-        headers = [(k, v) for k, v in response.headers.multi_items() if k.lower() not in _BODY_HEADERS]
-        read = httpx.Response(response.status_code, headers=headers, content=body, request=response.request)
-        self._check(read)
-        return read
+        if not 200 <= response.status_code < 300:
+            self._check(response)
+        return response, body
 
     def _read_capped(
         self, response: httpx.Response, max_bytes: int, *, strict: bool, total_s: float | None = None
     ) -> bytes:
-        where = describe_request(response.request)
+        where = response.request  # named in an error only (describe_request is not free, the poll's reply is)
         ctype = response.headers.get("content-type", "")
         if strict and ctype.lower().startswith("multipart/"):
             raise ResponseParseError(
-                f"{where}: the camera answers with a stream ({ctype!r}), not a reply: is this the camera's "
-                "VAPIX port, or a video/stream port?"
+                f"{describe_request(where)}: the camera answers with a stream ({ctype!r}), not a reply: is this "
+                "the camera's VAPIX port, or a video/stream port?"
             )
         total = self._config.timeout_s if total_s is None else total_s
         deadline = time.monotonic() + total
         chunks: list[bytes] = []
         size = 0
-        for chunk in response.iter_bytes():
+        # without a Content-Encoding the raw bytes are the body (skips httpx's identity decoder per chunk); a
+        # response built with its content (a test's MockTransport) is already read: iter_bytes yields it
+        raw = not response.is_stream_consumed and "content-encoding" not in response.headers
+        for chunk in response.iter_raw() if raw else response.iter_bytes():
             size += len(chunk)
             if size > max_bytes:
                 if not strict:
                     chunks.append(chunk[: max(0, len(chunk) - (size - max_bytes))])
                     break
                 raise ResponseParseError(
-                    f"{where}: reply larger than {max_bytes} bytes ({ctype or 'no content type'}): not a VAPIX "
-                    "reply (a stream or a huge page; check the port)"
+                    f"{describe_request(where)}: reply larger than {max_bytes} bytes "
+                    f"({ctype or 'no content type'}): not a VAPIX reply (a stream or a huge page; check the port)"
                 )
             chunks.append(chunk)
             if time.monotonic() > deadline:
                 if not strict:
                     break
                 raise CameraTimeout(
-                    f"{where}: reply still arriving after {total:g} s ({size} bytes): not a "
+                    f"{describe_request(where)}: reply still arriving after {total:g} s ({size} bytes): not a "
                     "VAPIX reply (a stream or a trickling page; check the port)"
                 )
         return b"".join(chunks)
@@ -314,8 +380,8 @@ class VapixClient:
         check_status(response, auth_hint=redact(hint, self._secrets()))
 
     def _get_text(self, path_query: str) -> tuple[httpx.Response, str]:
-        response = self._get(path_query)
-        text = _text(response)
+        response, body = self._get(path_query)
+        text = _decode(body)
         message = parse_error_body(text)
         if message is not None:
             raise CommandRejected(
@@ -619,14 +685,13 @@ class VapixClient:
         """One JPEG from ``jpg/image.cgi`` (``fps`` is not sent)."""
         params.validate(self._resolutions)
         # a large JPEG over a slow link may take a while: the time cap only has to end an endless reply
-        response = self._get(
+        response, body = self._get(
             build_path(IMAGE_CGI, params.query(include_fps=False)),
             MAX_SNAPSHOT_BYTES,
             total_s=max(30.0, 4.0 * self._config.timeout_s),
         )
-        body = response.content
         if not body.startswith(b"\xff\xd8"):
-            message = parse_error_body(_text(response))
+            message = parse_error_body(_decode(body))
             if message is not None:
                 raise CommandRejected(f"{IMAGE_CGI}: camera says {message!r}", camera_message=message)
             ctype = response.headers.get("content-type", "?")
@@ -645,7 +710,7 @@ class VapixClient:
             initial_scheme=self._auth.scheme,
             counters=self.auth_counters,
         )
-        http = self._new_http(auth, self._config.timeout(read_timeout_s))
+        http = self._new_http(auth, self._config.timeout(read_timeout_s), self._transport)
         stream = MjpegStream(http, self.video_path(params), auth, self._secrets())
         try:
             stream._open()

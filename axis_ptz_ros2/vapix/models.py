@@ -156,9 +156,7 @@ class Resolution:
     def __post_init__(self) -> None:
         """Refuse non-positive sizes."""
         if not (1 <= self.width <= MAX_IMAGE_SIDE and 1 <= self.height <= MAX_IMAGE_SIDE):
-            raise InvalidArgument(
-                f"resolution {self.width}x{self.height} outside 1..{MAX_IMAGE_SIDE} pixels per side"
-            )
+            raise InvalidArgument(f"resolution {self.width}x{self.height} outside 1..{MAX_IMAGE_SIDE} pixels per side")
 
     @classmethod
     def parse(cls, text: str, *, ntsc: bool = False) -> Resolution:

@@ -21,6 +21,7 @@ an exception message (:func:`~axis_ptz_ros2.vapix.errors.redact`).
 
 from __future__ import annotations
 
+import re
 import socket
 import time
 import urllib.parse
@@ -300,7 +301,8 @@ def parse_rtsp_response(raw: bytes) -> RtspResponse:
         raise ResponseParseError("RTSP reply without the blank line that ends its headers")
     lines = head.decode("latin-1").split("\r\n")
     parts = lines[0].split(" ", 2)
-    if len(parts) < 2 or not parts[0].startswith("RTSP/") or not parts[1].isdigit():
+    # a status code is three ASCII digits (RFC 2326 §7.1.1); str.isdigit() alone also accepts '²' or '٤'
+    if len(parts) < 2 or not parts[0].startswith("RTSP/") or not re.fullmatch(r"[1-9][0-9]{2}", parts[1]):
         raise ResponseParseError(f"not an RTSP status line: {lines[0][:80]!r}")
     headers: dict[str, str] = {}
     for line in lines[1:]:

@@ -395,8 +395,8 @@ def _rtp_info_seq(rtp_info: str) -> int | None:
     """``seq=`` of the first stream in an ``RTP-Info`` header (None if absent)."""
     for item in rtp_info.split(",")[0].split(";"):
         k, _, v = item.strip().partition("=")
-        if k.lower() == "seq" and v.isdigit():
-            return int(v) & 0xFFFF
+        if k.lower() == "seq" and v.isascii() and v.isdigit() and len(v) <= 5 and int(v) <= 0xFFFF:
+            return int(v)  # a 16-bit sequence number; anything else is not one (and is not wrapped into one)
     return None
 
 
@@ -405,8 +405,12 @@ def _interleaved_channels(transport: str) -> tuple[int, int]:
     for item in transport.split(";"):
         k, _, v = item.strip().partition("=")
         a, _, b = v.partition("-")
-        if k.lower() == "interleaved" and a.isdigit():
-            return int(a), int(b) if b.isdigit() else int(a) + 1
+        if k.lower() == "interleaved":
+            rtp = int(a) if a.isascii() and a.isdigit() and len(a) <= 3 else -1
+            rtcp = (int(b) if b.isascii() and b.isdigit() and len(b) <= 3 else -1) if b else rtp + 1
+            if not (0 <= rtp <= 255 and 0 <= rtcp <= 255):  # one byte in the '$' framing (RFC 2326 §10.12)
+                raise ResponseParseError(f"Transport: interleaved={v[:20]!r} is not a channel pair in 0..255")
+            return rtp, rtcp
     return 0, 1
 
 

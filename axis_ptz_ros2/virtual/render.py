@@ -227,9 +227,7 @@ class VirtualCameraRenderer:
             self._maps.popitem(last=False)
         return maps
 
-    def render(
-        self, pano: npt.NDArray[Any], view: ViewSpec, out: npt.NDArray[Any] | None = None
-    ) -> npt.NDArray[Any]:
+    def render(self, pano: npt.NDArray[Any], view: ViewSpec, out: npt.NDArray[Any] | None = None) -> npt.NDArray[Any]:
         """The ``view.height``×``view.width`` perspective image of ``view`` from ``pano`` (bilinear).
 
         ``pano`` is the decoded panorama (any channel count); ``out``, if given, must be a matching
@@ -237,8 +235,7 @@ class VirtualCameraRenderer:
         """
         if pano.shape[:2] != (self.pano_height, self.pano_width):
             raise ValueError(
-                f"panorama is {pano.shape[1]}x{pano.shape[0]}, renderer expects "
-                f"{self.pano_width}x{self.pano_height}"
+                f"panorama is {pano.shape[1]}x{pano.shape[0]}, renderer expects {self.pano_width}x{self.pano_height}"
             )
         map1, map2 = self.maps(view)
         if out is None:

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from scripts.demo import Demo, DemoConfig, DemoError
 
 pytestmark = pytest.mark.browser

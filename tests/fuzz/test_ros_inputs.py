@@ -29,7 +29,7 @@ from axis_ptz_ros2.nodes.common import COMMAND_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
-from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from axis_ptz_ros2.sim.world import load_world  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]

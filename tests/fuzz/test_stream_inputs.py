@@ -28,7 +28,7 @@ from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
-from axis_ptz_ros2.sim.scene import load_world  # noqa: E402
+from axis_ptz_ros2.sim.world import load_world  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]

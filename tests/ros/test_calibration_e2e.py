@@ -47,7 +47,8 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
-from axis_ptz_ros2.sim.scene import Scene, load_world  # noqa: E402
+from axis_ptz_ros2.sim.scene import Scene  # noqa: E402
+from axis_ptz_ros2.sim.world import load_world  # noqa: E402
 from tests.support.sim_picker import scene_dot_features  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(150)]

@@ -30,7 +30,7 @@ from axis_ptz_ros2.nodes.common import COMMAND_QOS
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from tests.ros.processes import node_process
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]

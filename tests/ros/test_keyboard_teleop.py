@@ -29,7 +29,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.nodes.stream_node import StreamNode
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 

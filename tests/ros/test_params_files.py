@@ -24,7 +24,7 @@ from rcl_interfaces.srv import GetParameters
 from axis_ptz_interfaces.msg import VideoParams
 from axis_ptz_ros2.nodes.common import LATCHED_QOS
 from axis_ptz_ros2.sim.camera import SimulatedCamera
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from tests.ros.processes import node_process
 from tests.ros.test_launch_files import ALL_NODES, node_of_section
 

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from axis_ptz_ros2.sim.camera import SimulatedCamera
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from tests.ros.test_launch_files import ALL_NODES, EXE_NODES
 from tests.ros.test_params_files import process, read_params, sections
 

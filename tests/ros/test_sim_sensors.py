@@ -16,7 +16,8 @@ from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.nodes.laser_sim import LaserSim, cloud_points
 from axis_ptz_ros2.nodes.panorama_sim import PanoramaSim
 from axis_ptz_ros2.pointing import project_to_panorama
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 pytestmark = pytest.mark.ros
 

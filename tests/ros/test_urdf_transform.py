@@ -26,7 +26,7 @@ from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import STREAM_QOS, transform_from_msg
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.sim.camera import SimulatedCamera
-from axis_ptz_ros2.sim.scene import load_world
+from axis_ptz_ros2.sim.world import load_world
 from tests.support.urdf_fk import forward_kinematics, parse_urdf
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]

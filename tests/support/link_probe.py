@@ -33,7 +33,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage, JointState
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, VideoParams
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, publisher
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.streaming import jpeg_size
 from tests.support.stamps import sim_stamp
@@ -70,8 +70,8 @@ class LinkProbe(Node):
             self.create_subscription(JointState, "joint_states", self._on_joints, STREAM_QOS)
         if "video/params" in topics:
             self.create_subscription(VideoParams, "video/params", self._on_params, LATCHED_QOS)
-        self._rel = self.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
-        self._abs = self.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS)
+        self._rel = publisher(self, PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
+        self._abs = publisher(self, PtzCommand, "ptz/cmd/absolute", COMMAND_QOS)
         # the operator's viewer reports what it receives, as the web console does (video/feedback)
         self.feedback = FeedbackPublisher(self) if feedback and "image" in topics else None
         if self.feedback is not None:

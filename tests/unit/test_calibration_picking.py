@@ -36,7 +36,8 @@ from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.pointcloud import CloudField, decode_cloud
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 from tests.support.sim_picker import scene_dot_features
 
 pytestmark = pytest.mark.unit

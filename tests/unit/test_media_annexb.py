@@ -21,7 +21,8 @@ from axis_ptz_ros2.media.decoder import H264Decoder
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-from axis_ptz_ros2.sim.scene import load_world, shared_scene
+from axis_ptz_ros2.sim.scene import shared_scene
+from axis_ptz_ros2.sim.world import load_world
 
 pytestmark = pytest.mark.unit
 

@@ -7,8 +7,10 @@ import pytest
 
 from axis_ptz_ros2 import geometry as g
 from axis_ptz_ros2.sim import ptz as sp
+from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
-from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, load_world, shared_scene
+from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, shared_scene
+from axis_ptz_ros2.sim.world import PtzLimits, load_world
 
 pytestmark = pytest.mark.unit
 
@@ -165,12 +167,13 @@ def test_position_format_and_errors_change_nothing(head):
         [("query", "foo")],
         [("pan", "10"), ("tilt", "999")],
         [("continuouspantiltmove", "50")],
+        [("center", "10,10"), ("areazoom", "10,10,200")],  # IndexError inside the simulator before (simsplit)
     ):
-        with pytest.raises(sp.PtzCommandError):
+        with pytest.raises(PtzCommandError):
             st.handle(bad)
     clock.t = 20.0
     assert st.position()[:2] == pytest.approx((12.34567, -5.5))
-    with pytest.raises(sp.PtzCommandError, match="query: unknown value: foo"):
+    with pytest.raises(PtzCommandError, match="query: unknown value: foo"):
         st.handle([("query", "foo")])
 
 
@@ -210,6 +213,22 @@ def test_continuous_move_until_stop_or_limit_and_cancelled_by_absolute(head):
     assert st.position()[0] == pytest.approx(40.0)
 
 
+def test_arrive_now_stops_everything_and_clamps(head):
+    st, clock = head
+    st.handle([("continuouspantiltmove", "50,50"), ("continuouszoommove", "100")])
+    clock.t = 0.5
+    st.arrive_now(-500.0, 20.0, 20000.0)  # beyond MinPan and MaxZoom
+    assert st.position() == pytest.approx((-170.0, 20.0, 9999.0))
+    assert not st.moving()
+    clock.t = 5.0
+    assert st.position() == pytest.approx((-170.0, 20.0, 9999.0))  # the continuous move did not resume
+    with pytest.raises(ValueError, match="finite"):
+        st.arrive_now(math.nan, 0.0, 1.0)
+    endless = sp.PtzState(limits=PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 9999), clock=clock)
+    endless.arrive_now(190.0, 0.0, 1.0)
+    assert endless.position()[0] == pytest.approx(-170.0)  # wrapped, not clamped
+
+
 def test_move_presets_and_home(head):
     st, clock = head
     st.handle([("move", "right")])
@@ -227,7 +246,7 @@ def test_move_presets_and_home(head):
     clock.t = 4.0
     assert st.position() == pytest.approx((0.0, 0.0, 1.0))
     st.handle_config([("removeserverpresetname", "Door")])
-    with pytest.raises(sp.PtzCommandError):
+    with pytest.raises(PtzCommandError):
         st.handle([("gotoserverpresetno", "2")])
 
 

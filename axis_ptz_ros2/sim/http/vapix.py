@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.sim.frames import MAX_FPS, stamp
 from axis_ptz_ros2.sim.persona import ERROR_HTML, NOT_FOUND_HTML, READ_ONLY_PREFIXES, list_params
-from axis_ptz_ros2.sim.ptz import PtzCommandError
-from axis_ptz_ros2.sim.scene import PtzLimits
+from axis_ptz_ros2.sim.ptz_args import PtzCommandError
+from axis_ptz_ros2.sim.world import PtzLimits
 
 if TYPE_CHECKING:
     from axis_ptz_ros2.sim.camera import SimulatedCamera

@@ -1,0 +1,122 @@
+"""Ctrl-C of every executable (the ``[project.scripts]`` of pyproject.toml) against the simulated camera: SIGINT
+to the process alone, and to its whole process group followed by a second SIGINT to the process (what a
+terminal's Ctrl-C under ``ros2 launch`` does: the terminal signals the group, launch then signals its child).
+Each must exit 0 within 2 s, with no traceback and no "exception was never retrieved" on its stderr."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import tomllib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+SCRIPTS = sorted(tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["scripts"])
+EXIT_WITHIN_S = 2.0
+BAD_LINES = ("Traceback", "exception was never retrieved", "Exception ignored", "Segmentation fault")
+
+
+@pytest.fixture(scope="module")
+def camera() -> Iterator[SimulatedCamera]:
+    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
+    try:
+        yield cam
+    finally:
+        cam.stop()
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def command(exe: str, camera: SimulatedCamera, tmp: Path) -> tuple[list[str], int | None]:
+    """The argv that runs ``exe`` against the simulator, and the TCP port that answers once it is up (None: a
+    ROS node, up when it shows in the ROS graph)."""
+    ros_args = ["--ros-args", "-p", f"port:={camera.port}"]
+    if exe == "axis_camera_sim":
+        port = free_port()
+        return [exe, "--port", str(port)], port
+    if exe == "axis_web_console":
+        return [exe, "--ros-args", "-p", "port:=0"], None
+    if exe == "axis_calibrate":  # the ROS part of the calibration tool: capture waits for the PTZ node's data
+        return [exe, "capture", str(tmp / "views.yaml"), "--poses", "0,0", "--timeout", "60"], None
+    if exe in ("axis_stream", "axis_ptz", "axis_camera"):
+        return [exe, *ros_args], None
+    return [exe], None
+
+
+def graph_nodes(ros: Any, probe: Any) -> set[str]:
+    return {f"{ns.rstrip('/')}/{n}" for n, ns in probe.get_node_names_and_namespaces()} - {"/probe"}
+
+
+def wait_up(ros: Any, probe: Any, proc: subprocess.Popen[bytes], port: int | None, before: set[str]) -> None:
+    def up() -> bool:
+        assert proc.poll() is None, f"exited early with {proc.returncode}"
+        if port is not None:
+            with socket.socket() as s:
+                return s.connect_ex(("127.0.0.1", port)) == 0
+        return bool(graph_nodes(ros, probe) - before)
+
+    ros.wait_for(up, timeout=30, period=0.1)
+    time.sleep(1.0)  # timers, threads and first requests running: the state a user interrupts
+
+
+@pytest.mark.parametrize("mode", ["process", "group"])
+@pytest.mark.parametrize("exe", SCRIPTS)
+def test_sigint_exits_cleanly(ros: Any, camera: SimulatedCamera, tmp_path: Path, exe: str, mode: str) -> None:
+    argv, port = command(exe, camera, tmp_path)
+    probe = ros.probe()
+    before = graph_nodes(ros, probe)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", HOME=str(tmp_path))
+    proc = subprocess.Popen(
+        [str(BIN / argv[0]), *argv[1:]],
+        stdin=subprocess.PIPE,  # an open pipe, not a tty (the keyboard teleop must not exit on its own)
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        wait_up(ros, probe, proc, port, before)
+        t0 = time.monotonic()
+        if mode == "process":
+            proc.send_signal(signal.SIGINT)
+        else:
+            os.killpg(proc.pid, signal.SIGINT)
+            time.sleep(0.05)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+            pytest.fail(f"{exe}: still running 10 s after SIGINT")
+        took = time.monotonic() - t0
+        out, err = proc.communicate(timeout=5)
+        text = err.decode(errors="replace")
+        assert proc.returncode == 0, f"{exe}: exit {proc.returncode}\n{text}"
+        for bad in BAD_LINES:
+            assert bad not in text, f"{exe}: {bad!r} on stderr\n{text}"
+        assert took <= EXIT_WITHIN_S, f"{exe}: took {took:.2f} s to exit"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
