@@ -202,6 +202,24 @@ def test_a_bitrate_change_reaches_the_playing_stream_without_a_new_session(
     ros.wait_for(lambda: not camera.rtsp.sessions, timeout=5)
 
 
+def test_a_resolution_change_reconnects_at_the_new_size(ros: RosHarness, camera: SimulatedCamera, cred: str) -> None:
+    make_node(ros, camera, cred)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 10, timeout=15)
+    assert all(r.successful for r in set_params(ros, probe, resolution="1280x720"))
+    t = time.monotonic()
+    ros.wait_for(lambda: any(p.key and p.width == 1280 for p in rec.since(t)), timeout=5)
+    new = rec.since(t)
+    first = next(i for i, p in enumerate(new) if p.width == 1280)
+    assert new[first].key, "the new size starts at an IDR (new SPS/PPS)"
+    assert all(p.width == 1280 for p in new[first:])
+    ros.wait_for(lambda: len(rec.since(t)) >= first + 10, timeout=5)
+    ctx = av.CodecContext.create("h264", "r")
+    sizes = {(f.width, f.height) for p in rec.since(t)[first:] for f in ctx.decode(av.Packet(p.data))}
+    assert sizes == {(1280, 720)}
+
+
 def test_frames_resume_after_a_reboot_without_an_old_frame(ros: RosHarness, camera: SimulatedCamera, cred: str) -> None:
     node = make_node(ros, camera, cred)
     probe = ros.probe()
