@@ -16,11 +16,14 @@ carries what is in effect after every change, including those of the bandwidth b
 Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/compressed``, ``camera_info``
 or (with ``codec`` = ``h264``) the H.264 topics.
 
-H.264 (``codec`` = ``h264``): :class:`~axis_ptz_ros2.streaming.h264.H264Stage` turns the camera's JPEGs (asked for
-at compression 0) into one H.264 stream shared by ``image_raw/ffmpeg`` (``FFMPEGPacket``) and
-``image_raw/foxglove`` (``CompressedVideo``): the same bytes, one access unit per message, stamped with the
-frame's capture time; encoded only while one of them has a subscriber. A new subscriber, a reconnect, or a
-consumer's report of decode errors on ``video/feedback`` asks the stage for an IDR.
+H.264 (``codec`` = ``h264``): a camera that streams H.264 (``Properties.Image.Format``) has its own RTSP stream
+passed through, not re-encoded (:mod:`~axis_ptz_ros2.streaming.rtsp_source`, port ``rtsp_port``, stamped with
+the camera's capture time); for one that does not (the 214), :class:`~axis_ptz_ros2.streaming.h264.H264Stage`
+turns its JPEGs (asked for at compression 0) into H.264. Either way one H.264 stream is shared by
+``image_raw/ffmpeg`` (``FFMPEGPacket``) and ``image_raw/foxglove`` (``CompressedVideo``): the same bytes, one access
+unit per message, stamped with the frame's capture time; read or encoded only while one of them has a subscriber.
+A new subscriber, a reconnect, or a consumer's report of decode errors on ``video/feedback`` asks for an IDR (from
+the camera: RTSP ``Renew-Stream``).
 """
 
 from __future__ import annotations
@@ -77,6 +80,7 @@ from axis_ptz_ros2.streaming.h264 import (
     H264Stage,
     StagedFrame,
 )
+from axis_ptz_ros2.streaming.rtsp_source import passthrough_source
 from axis_ptz_ros2.streaming.status import LogLine, LogThrottle, diagnostic_status, reader_event_line
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
@@ -136,8 +140,9 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "codec",
-        "'h264': the camera is asked for compression 0 and its frames are encoded to image_raw/ffmpeg and "
-        "image_raw/foxglove, the budget drives the encoder's bitrate instead of the MJPEG ladder",
+        "'h264': image_raw/ffmpeg and image_raw/foxglove carry H.264: a camera that streams H.264 passes its own "
+        "through (RTSP), others are asked for compression 0 and encoded here; the budget drives the bitrate "
+        "instead of the MJPEG ladder",
         choices=CODECS,
     ),
     _live(
@@ -173,6 +178,13 @@ PARAMS: tuple[ParamSpec, ...] = (
     *CAMERA_INFO_PARAMS,  # camera_info_url, camera_name (read-only)
     # -- connection (read-only) --
     *CONNECTION_PARAMS,
+    ParamSpec(
+        "rtsp_port",
+        554,
+        "camera RTSP port (codec h264 from a camera that streams H.264)",
+        int_range=(1, 65535),
+        read_only=True,
+    ),
     _timing("read_timeout", "socket read timeout of the stream", 0.05, 60.0),
     # -- self-healing (read-only) --
     _timing(
@@ -255,7 +267,18 @@ class StreamNode(Node):
             self._publish_h264,
             on_problem=lambda text: self._log(LogLine("warn", text, "h264", 10.0)),
         )
-        self._told_transcoding = False
+        self._told_mode = False
+        self._transcode = False  # codec h264 from a camera that cannot stream it: the MJPEG feeds the stage
+        self._rtsp = passthrough_source(  # codec h264 from a camera that streams it: its own H.264, as it is
+            self._client,
+            int(p["rtsp_port"]),
+            lambda: self._video.current,
+            self._video.h264_settings,
+            self._stage,
+            reader_config,
+            on_supported=lambda _ok: self._update_activity(),
+            on_event=lambda text: self._log(LogLine("warn", text, "rtsp", 10.0)),
+        )
 
         self.create_subscription(PtzState, "ptz/state", self._on_ptz_state, STREAM_QOS)
         self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)
@@ -277,6 +300,7 @@ class StreamNode(Node):
         self.add_post_set_parameters_callback(self._apply_params)
         self._publish_params()
         self._reader.start()
+        self._rtsp.start()
         self._discovery.start()  # learn the camera even while nobody subscribes: video/params lists its sizes
         # Activity follows publisher-matched events at once; this 1 Hz timer is only the fallback poll,
         # the byte-trickle watchdog (a silent socket is caught by the read timeout) and diagnostics.
@@ -391,7 +415,8 @@ class StreamNode(Node):
                 self._info_cache[key] = info
             info.header.stamp = stamp
             self._info_pub.publish(info)
-        self._stage.on_jpeg(jpeg, arrival_ns)  # nothing while no H.264 subscriber (or codec mjpeg)
+        if self._transcode:  # (pass-through: the RTSP source feeds the stage)
+            self._stage.on_jpeg(jpeg, arrival_ns)
         step = self._video.on_frame(time.monotonic())
         if step is not None:
             self.get_logger().debug(str(step))
@@ -459,14 +484,19 @@ class StreamNode(Node):
             self._stage.request_idr()  # a new viewer needs a start point
         self._h264_subscribers = h264
         encode = self._video.h264 and h264 > 0
-        if encode and not self._told_transcoding:
-            self._told_transcoding = True
+        supported = self._rtsp.supported  # None until asked (on the first activation)
+        self._transcode = encode and supported is False
+        if encode and supported is not None and not self._told_mode:
+            self._told_mode = True
             self.get_logger().info(
-                "codec h264: the camera's MJPEG (compression 0) is transcoded to H.264 on this host "
-                "(RTSP pass-through of a camera's own H.264 is not available yet)"
+                "codec h264: the camera streams H.264: its own stream (RTSP) is passed through, not re-encoded"
+                if supported
+                else "codec h264: the camera does not stream H.264: its MJPEG (compression 0) is transcoded to "
+                "H.264 on this host"
             )
         self._stage.set_active(encode)
-        return not self._lazy or self._image_wanted or self._info_wanted or encode
+        self._rtsp.set_active(encode)
+        return not self._lazy or self._image_wanted or self._info_wanted or self._transcode
 
     def _update_activity(self) -> None:
         reader = getattr(self, "_reader", None)
@@ -495,7 +525,8 @@ class StreamNode(Node):
         """Reader state changes and errors (reader thread); throttled so an absent camera is not spammed."""
         if state is StreamState.STREAMING:
             self._log_throttle.forget("reconnect")
-            self._stage.discontinuity()  # (re)connected: an IDR first
+            if self._transcode:  # (pass-through: the RTSP session starts with its own IDR)
+                self._stage.discontinuity()  # (re)connected: an IDR first
         line = reader_event_line(state, message, self._video.current, self._reader.config.auth_retry_s)
         if line is not None:
             self._log(line)
@@ -503,7 +534,7 @@ class StreamNode(Node):
     def _publish_diagnostics(self) -> None:
         stats = self._reader.stats()
         rate = self._reader.meter.rate(time.monotonic())
-        extra = self._client.auth_counters.as_dict()
+        extra: dict[str, object] = {**self._client.auth_counters.as_dict()}
         if self._video.h264:
             h = self._stage.stats
             extra |= {
@@ -513,6 +544,10 @@ class StreamNode(Node):
                 "h264 IDRs": h.idrs,
                 "h264 IDRs on demand": h.idr_requests,
                 "h264 dropped inputs": h.bad_inputs,
+                "h264 source": {None: "?", True: "camera (RTSP)", False: "transcoded"}[self._rtsp.supported],
+                "rtsp access units": self._rtsp.stats.access_units,
+                "rtsp reconnects": self._rtsp.stats.reconnects,
+                "rtsp Renew-Stream": self._rtsp.stats.renews,
             }
         level, message, values = diagnostic_status(stats, rate, self._video.state(), extra)
         name = f"{self.get_fully_qualified_name()}: MJPEG stream"
@@ -523,6 +558,9 @@ class StreamNode(Node):
         discovery = getattr(self, "_discovery", None)
         if discovery is not None:
             discovery.stop(0.0)  # no new attempt from here on (joined below, once the reader has stopped)
+        rtsp = getattr(self, "_rtsp", None)
+        if rtsp is not None:
+            rtsp.stop(1.5)
         reader = getattr(self, "_reader", None)
         if reader is not None:
             reader.stop(1.5)

@@ -1,0 +1,221 @@
+"""The pass-through reader (streaming/rtsp_source.py): request, reconnect policy, IDR on demand, no stale frame.
+
+The session here is a scripted stand-in for a camera's RTSP session (the real one is exercised against the
+simulator in tests/ros/test_stream_passthrough.py); the sink is the real H264Stage."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+
+import numpy as np
+
+from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage, StagedFrame
+from axis_ptz_ros2.streaming.rtsp_source import (
+    RtspH264Source,
+    RtspSourceConfig,
+    media_request,
+    needs_reconnect,
+)
+from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
+from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
+from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
+
+
+def test_media_request_follows_the_params_and_caps_the_gop_at_one_second() -> None:
+    req = media_request(VideoParams(Resolution(1920, 1080), 30, 0), H264Settings(800, 300, "superfast", 30, 1500))
+    assert req == MediaStreamRequest(resolution="1920x1080", fps=30, keyframe_interval=30, max_bitrate_kbps=800)
+    q = dict(req.query())
+    assert q["videozgopmode"] == "fixed"
+    assert q["h264profile"] == "baseline"
+    assert q["videobitratemode"] == "mbr"
+
+
+def test_a_small_or_recent_bitrate_move_does_not_reconnect() -> None:
+    a = MediaStreamRequest(max_bitrate_kbps=1000)
+    assert not needs_reconnect(a, a, 100.0)
+    assert not needs_reconnect(a, MediaStreamRequest(max_bitrate_kbps=1100), 100.0)
+    assert not needs_reconnect(a, MediaStreamRequest(max_bitrate_kbps=500), 0.5)
+    assert needs_reconnect(a, MediaStreamRequest(max_bitrate_kbps=500), 10.0)
+    assert needs_reconnect(a, MediaStreamRequest(resolution="640x360", max_bitrate_kbps=1000), 0.0)
+
+
+def _stream(n: int) -> list[bytes]:
+    enc = H264Encoder(EncoderConfig(width=64, height=48, fps=15, bitrate_bps=200_000, keyframe_interval=100))
+    return [enc.encode_bgr(np.full((48, 64, 3), i * 7 % 255, np.uint8)).data for i in range(n)]
+
+
+class Session:
+    """A camera's playing session, scripted: access units, then an error."""
+
+    def __init__(self, units: list[bytes], then: Exception, t0_ns: int) -> None:
+        self.units = deque(units)
+        self.then = then
+        self.t0_ns = t0_ns
+        self.renews = 0
+        self.sent = 0
+        self.adjusted: list[int | None] = []
+        self.closed = threading.Event()
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed.set()
+
+    def read(self, timeout_s: float | None = None) -> ClientAccessUnit:
+        if self.closed.is_set():
+            raise CameraUnreachable("closed")
+        if not self.units:
+            self.closed.wait(timeout_s)
+            raise self.then
+        data = self.units.popleft()
+        time.sleep(0.02)
+        self.sent += 1
+        return ClientAccessUnit(data, annexb.is_idr(data), 0, self.t0_ns + self.sent)
+
+    def renew_stream(self) -> object:
+        self.renews += 1
+        return None
+
+    def adjust_stream(self, *, fps: int | None = None, max_bitrate_kbps: int | None = None) -> object:
+        self.adjusted.append(max_bitrate_kbps)
+        return None
+
+
+def test_plays_renews_reconnects_and_never_publishes_a_dead_sessions_frames() -> None:
+    units = _stream(40)
+    sessions = [Session(units, CameraTimeout("stall"), 1_000), Session(units[:5], CameraTimeout("stall"), 9_000)]
+    made: list[Session] = []
+    out: list[StagedFrame] = []
+    stage = H264Stage(lambda: H264Settings(), out.append)
+    stage.set_active(True)
+
+    def connect(_req: MediaStreamRequest, _t: float) -> Session:
+        s = sessions[min(len(made), len(sessions) - 1)]
+        made.append(s)
+        return s
+
+    told: list[bool] = []
+    src = RtspH264Source(
+        connect,
+        lambda: MediaStreamRequest(resolution="64x48", fps=15),
+        stage,
+        supports_h264=lambda: True,
+        on_supported=told.append,
+        config=RtspSourceConfig(0.01, 0.05, 1.0, 0.2, 0.1),
+    )
+    src.start()
+    try:
+        src.set_active(True)
+        deadline = time.monotonic() + 5
+        while not out and time.monotonic() < deadline:
+            time.sleep(0.01)
+        stage.request_idr()  # a new subscriber: within the on-demand rate limit of the session's start, so held
+        while len(made) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert len(made) >= 2
+        assert told == [True]
+        while len(out) < 45 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        src.stop()
+    assert len(out) >= 45
+    assert out[0].keyframe  # each session starts at its IDR
+    assert out[40].keyframe
+    assert [f.pts for f in out] == sorted({f.pts for f in out})
+    assert all((f.width, f.height) == (64, 48) for f in out)
+    assert out[40].stamp_ns > out[39].stamp_ns  # the second session's frames are newer than the dead one's
+    assert made[0].renews == 1  # the held request, once the rate limit ended: one Renew-Stream
+    assert made[1].renews == 0  # a new session starts with an IDR: no Renew-Stream for it
+    assert src.stats.reconnects >= 1
+
+
+def test_a_camera_without_h264_is_never_asked_for_rtsp() -> None:
+    connects: list[object] = []
+    told: list[bool] = []
+    stage = H264Stage(lambda: H264Settings(), lambda _f: None)
+    src = RtspH264Source(
+        lambda *a: connects.append(a),  # type: ignore[arg-type,return-value]
+        lambda: MediaStreamRequest(),
+        stage,
+        supports_h264=lambda: False,
+        on_supported=told.append,
+    )
+    src.start()
+    try:
+        src.set_active(True)
+        deadline = time.monotonic() + 2
+        while not told and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.1)
+    finally:
+        src.stop()
+    assert told == [False]
+    assert src.supported is False
+    assert not connects
+
+
+def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_is_asked_without() -> None:
+    units = _stream(40)
+    asked: list[MediaStreamRequest] = []
+    sessions: list[Session] = []
+
+    class Refusing(Session):
+        def open(self) -> None:
+            raise RtspStatusError("RTSP DESCRIBE: 400 Bad Request", status_code=400)
+
+    def connect(req: MediaStreamRequest, _t: float) -> Session:
+        asked.append(req)
+        s = Refusing([], CameraTimeout("x"), 0) if len(asked) == 1 else Session(units, CameraTimeout("stall"), 0)
+        sessions.append(s)
+        return s
+
+    def adjustable_connect(req: MediaStreamRequest, _t: float) -> Session:
+        asked.append(req)
+        s = Session(units, CameraTimeout("stall"), 0)
+        sessions.append(s)
+        return s
+
+    out: list[StagedFrame] = []
+    bitrate = [1000]
+    for opener in (adjustable_connect, connect):
+        asked.clear()
+        sessions.clear()
+        out.clear()
+        bitrate[0] = 1000
+        stage = H264Stage(lambda: H264Settings(), out.append)
+        stage.set_active(True)
+        src = RtspH264Source(
+            opener,
+            lambda: MediaStreamRequest(resolution="64x48", fps=15, max_bitrate_kbps=bitrate[0]),
+            stage,
+            supports_h264=lambda: True,
+            on_supported=lambda _ok: None,
+            config=RtspSourceConfig(0.01, 0.05, 1.0, 0.5, 0.3),
+        )
+        src.start()
+        try:
+            src.set_active(True)
+            deadline = time.monotonic() + 5
+            while len(out) < 5 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            bitrate[0] = 1100  # a small move: live where adjustable, ignored (no reconnect) where not
+            while len(out) < 15 and time.monotonic() < deadline:
+                time.sleep(0.01)
+        finally:
+            src.stop()
+        playing = sessions[-1]
+        if opener is adjustable_connect:
+            assert [r.adjustable for r in asked] == [True]
+            assert playing.adjusted == [1100]
+            assert src.stats.adjustments == 1
+        else:
+            assert [r.adjustable for r in asked] == [True, False]  # refused with it: asked again without
+            assert playing.adjusted == []
+            assert src.stats.adjustments == 0
+        assert len(out) >= 15
