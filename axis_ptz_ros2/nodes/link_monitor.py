@@ -26,7 +26,15 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
-from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
+from axis_ptz_ros2.nodes.common import (
+    FEEDBACK_QOS,
+    STREAM_QOS,
+    VIDEO_QOS,
+    ParamSpec,
+    declare_params,
+    publisher,
+    run_nodes,
+)
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
@@ -135,7 +143,7 @@ class LinkMonitorNode(Node):
         self.receiver: AccessUnitReceiver | None = None
         if h264:
             self.receiver = AccessUnitReceiver()
-            self.create_subscription(FFMPEGPacket, topic, self._on_packet, STREAM_QOS)
+            self.create_subscription(FFMPEGPacket, topic, self._on_packet, VIDEO_QOS)
         else:
             self.create_subscription(CompressedImage, topic, self.feedback.add, STREAM_QOS)
         self.feedback.watch()

@@ -22,7 +22,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
-from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, publisher, run_nodes
+from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher, run_nodes
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -65,7 +65,7 @@ class RepublishNode(Node):
         if want and self._sub is None:
             if self._h264:
                 self._receiver = AccessUnitReceiver()  # a new subscription waits for an IDR
-                self._sub = self.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", self._on_packet, STREAM_QOS)
+                self._sub = self.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", self._on_packet, VIDEO_QOS)
             else:
                 self._sub = self.create_subscription(
                     CompressedImage, "image_raw/compressed", self._on_compressed, STREAM_QOS

@@ -54,6 +54,7 @@ from axis_ptz_ros2.nodes.common import (
     FEEDBACK_QOS,
     LATCHED_QOS,
     STREAM_QOS,
+    VIDEO_QOS,
     ParamSpec,
     camera_config_from_params,
     camera_info_msg,
@@ -255,8 +256,8 @@ class StreamNode(Node):
         self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
         self._image_msg = CompressedImage()
         self._image_msg.header.frame_id = self._frame_id
-        self._ffmpeg_pub = publisher(self, FFMPEGPacket, "image_raw/ffmpeg", STREAM_QOS, event_callbacks=events)
-        self._foxglove_pub = publisher(self, CompressedVideo, "image_raw/foxglove", STREAM_QOS, event_callbacks=events)
+        self._ffmpeg_pub = publisher(self, FFMPEGPacket, "image_raw/ffmpeg", VIDEO_QOS, event_callbacks=events)
+        self._foxglove_pub = publisher(self, CompressedVideo, "image_raw/foxglove", VIDEO_QOS, event_callbacks=events)
         self._ffmpeg_msg = FFMPEGPacket(encoding=FFMPEG_ENCODING, is_bigendian=False)
         self._ffmpeg_msg.header.frame_id = self._frame_id
         self._foxglove_msg = CompressedVideo(format="h264", frame_id=self._frame_id)

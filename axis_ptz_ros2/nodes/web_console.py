@@ -46,6 +46,7 @@ from axis_ptz_ros2.nodes.common import (
     COMMAND_QOS,
     LATCHED_QOS,
     STREAM_QOS,
+    VIDEO_QOS,
     ParamSpec,
     declare_params,
     publisher,
@@ -259,7 +260,7 @@ class WebConsole(Node):
         want = self._h264.watchers > 0 and bool(self.p["h264_topic"])
         if want and self._h264_sub is None:
             self._h264_sub = self.create_subscription(
-                FFMPEGPacket, self.p["h264_topic"], self._on_h264, STREAM_QOS, callback_group=self._img_group,
+                FFMPEGPacket, self.p["h264_topic"], self._on_h264, VIDEO_QOS, callback_group=self._img_group,
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
             )  # fmt: skip
         elif self._h264_sub is not None and not want:
