@@ -166,7 +166,7 @@ class AxisBackend:
         zoom_units = None if zoom is None else int(round(zoom))
         vspeed = None
         if speed is not None and math.isfinite(speed) and speed > 0.0:
-            vspeed = max(1, min(100, int(round(100.0 * speed))))
+            vspeed = max(1, min(100, int(round(100.0 * min(speed, 1.0)))))
         self._send(AbsoluteMove(pan_deg, tilt_deg, zoom_units, vspeed))
 
     def velocity(self, pan_rate: float, tilt_rate: float, zoom_rate: float) -> None:

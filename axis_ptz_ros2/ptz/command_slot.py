@@ -79,8 +79,9 @@ class CommandSlot:
         error_types: tuple[type[BaseException], ...] = (Exception,),
         on_error: Callable[[Ticket, BaseException], None] | None = None,
     ) -> None:
-        """``error_types``: exceptions a command may raise that mark its ticket FAILED (others propagate and
-        end the worker, which is then a bug). ``on_error`` is called (from the worker) for each failure."""
+        """``error_types``: exceptions a command may raise that mark its ticket FAILED. Any other exception is a
+        defect: its ticket fails with "internal error: …" and the worker lives on (a dead worker would leave every
+        later command waiting). ``on_error`` is called (from the worker) for each failure."""
         self._name = name
         self._error_types = error_types
         self._on_error = on_error
@@ -142,6 +143,16 @@ class CommandSlot:
                     self.stats.last_error = str(err)
                     self._busy = False
                 ticket._finish(Outcome.FAILED, str(err))
+                if self._on_error is not None:
+                    self._on_error(ticket, err)
+            except Exception as err:  # noqa: BLE001 - a defect in one command must not end the worker
+                # (found by the ROS-input fuzz tier: a speed of 1e308 overflowed while the request was built, the
+                # exception ended this thread and every later command waited forever for it)
+                with self._cond:
+                    self.stats.failed += 1
+                    self.stats.last_error = f"internal error: {type(err).__name__}: {err}"
+                    self._busy = False
+                ticket._finish(Outcome.FAILED, f"internal error: {type(err).__name__}: {err}")
                 if self._on_error is not None:
                     self._on_error(ticket, err)
             else:

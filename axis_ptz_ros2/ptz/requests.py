@@ -84,6 +84,8 @@ class Requests:
         try:
             p, t, z = axis_value(pan, "pan"), axis_value(tilt, "tilt"), axis_value(zoom, "zoom")
             s = axis_value(speed, "speed")
+            if s is not None and not 0.0 <= s <= 1.0:
+                raise ValueError(f"speed {s:g} outside 0..1 (a fraction of the maximum speed; 0 or NaN = the camera's)")
         except ValueError as err:
             return self._cmd.refuse(label, str(err))
         return self._cmd.move(label, p, t, z, relative=relative, speed=s or None)

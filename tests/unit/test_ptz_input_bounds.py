@@ -45,3 +45,45 @@ def test_sizes_beyond_a_real_image_are_refused_by_the_request_layer() -> None:
     for width, height in ((2**32 - 1, 288), (352, MAX_IMAGE_SIDE + 1)):
         with pytest.raises(ValueError, match="outside 1..16384"):
             requests.size(width, height)
+
+
+def test_a_defect_in_one_command_fails_that_command_and_the_slot_lives_on() -> None:
+    """Found by the ROS-input fuzz tier in the full suite: speed 1e308 overflowed while the request was built; the
+    exception ended the command thread and every later service call waited forever for acceptance."""
+    from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
+
+    class CameraError(Exception):
+        pass
+
+    slot = CommandSlot(error_types=(CameraError,))
+    slot.start()
+    try:
+        bad = slot.submit("bad", lambda: int(round(math.inf)), supersedable=False)
+        assert bad.wait(5.0)
+        assert bad.outcome is Outcome.FAILED
+        assert "internal error: OverflowError" in bad.error
+        good = slot.submit("good", lambda: None, supersedable=False)
+        assert good.wait(5.0)
+        assert good.outcome is Outcome.SENT
+    finally:
+        slot.stop()
+
+
+def test_a_speed_outside_0_to_1_is_refused_with_the_reason() -> None:
+    from axis_ptz_ros2.ptz.requests import Requests
+
+    requests = Requests.__new__(Requests)
+    refusals: list[str] = []
+
+    class Cmd:
+        def refuse(self, label: str, reason: str) -> str:
+            refusals.append(reason)
+            return reason
+
+        def move(self, *args: object, **kwargs: object) -> str:
+            return "moved"
+
+    requests._cmd = Cmd()  # type: ignore[assignment]  # noqa: SLF001
+    assert requests.move("absolute", 0.1, 0.0, math.nan, 1e308, relative=False) == refusals[-1]
+    assert "speed 1e+308 outside 0..1" in refusals[-1]
+    assert requests.move("absolute", 0.1, 0.0, math.nan, 0.5, relative=False) == "moved"
