@@ -192,6 +192,10 @@ class JoyTeleopNode(Node):
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
+    # the first Ctrl-C / SIGTERM stops us; a second one (a process group gets one each from launch and the
+    # terminal) must not cut the head's stop short or kill the clean-up: ignore both from now on
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
     raise KeyboardInterrupt
 
 
@@ -214,8 +218,8 @@ def main(args: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)  # noqa: T201
         code = 2
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+        for s in old:  # not the old handlers: Python's would turn a late second signal into a traceback
+            signal.signal(s, signal.SIG_IGN)
         if node is not None:
             try:
                 if node.stop_motion():
