@@ -33,12 +33,25 @@ def module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def imported_names(source: str, module: str, is_package: bool = False) -> set[str]:
+def imported_names(source: str, module: str, is_package: bool = False, *, runtime_only: bool = False) -> set[str]:
     """Every module ``source`` (the text of ``module``) may import; ``from x import y`` gives ``x`` and ``x.y``
-    (``y`` may be a submodule)."""
+    (``y`` may be a submodule). ``runtime_only``: leave out imports under ``if TYPE_CHECKING:`` (annotations)."""
     package = module if is_package else module.rpartition(".")[0]
     out: set[str] = set()
-    for node in ast.walk(ast.parse(source)):
+    tree = ast.parse(source)
+    type_only = (
+        {
+            id(child)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+            for child in ast.walk(node)
+        }
+        if runtime_only
+        else set()
+    )
+    for node in ast.walk(tree):
+        if id(node) in type_only:
+            continue
         if isinstance(node, ast.Import):
             out.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -62,12 +75,13 @@ def imported_names(source: str, module: str, is_package: bool = False) -> set[st
     return out
 
 
-def import_graph() -> dict[str, set[str]]:
-    """Module → the modules it imports, for every module of the package."""
+def import_graph(*, runtime_only: bool = False) -> dict[str, set[str]]:
+    """Module → the modules it imports, for every module of the package (see :func:`imported_names`)."""
     graph = {}
     for path in sorted(PACKAGE.rglob("*.py")):
         name = module_name(path)
-        graph[name] = imported_names(path.read_text(encoding="utf-8"), name, path.name == "__init__.py")
+        source = path.read_text(encoding="utf-8")
+        graph[name] = imported_names(source, name, path.name == "__init__.py", runtime_only=runtime_only)
     return graph
 
 
