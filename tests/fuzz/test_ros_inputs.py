@@ -8,7 +8,6 @@ the camera's limits.
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -19,7 +18,7 @@ import pytest
 pytest.importorskip("rclpy")
 
 from geometry_msgs.msg import PointStamped  # noqa: E402
-from hypothesis import Phase, given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
@@ -30,13 +29,11 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.world import load_world  # noqa: E402
+from tests.fuzz.ros_profile import ros_settings  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]
 
-EXAMPLES = int(os.environ.get("AXIS_FUZZ_ROS_EXAMPLES", "2000" if os.environ.get("AXIS_FUZZ") == "long" else "40"))
-# No shrinking over DDS: each step is a service call, and a failing example is reported as generated.
-ros_settings = settings(max_examples=EXAMPLES, phases=(Phase.explicit, Phase.reuse, Phase.generate))
 
 _f64 = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),

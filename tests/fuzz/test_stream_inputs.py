@@ -8,7 +8,6 @@ camera lists); feedback of any shape never stops the stream.
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -18,7 +17,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from hypothesis import Phase, given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -29,12 +28,11 @@ from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.world import load_world  # noqa: E402
+from tests.fuzz.ros_profile import ros_settings  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(600)]
 
-EXAMPLES = int(os.environ.get("AXIS_FUZZ_ROS_EXAMPLES", "2000" if os.environ.get("AXIS_FUZZ") == "long" else "40"))
-ros_settings = settings(max_examples=EXAMPLES, phases=(Phase.explicit, Phase.reuse, Phase.generate))
 CAMERA_SIZES = {(704, 576), (704, 288), (352, 288), (176, 144)}  # the simulated 214's list
 
 _value = st.one_of(
