@@ -25,6 +25,12 @@ class Backoff:
         self._next = min(self._next * self.factor, self.maximum)
         return delay
 
+    def next_after(self, elapsed_s: float) -> float:
+        """:meth:`next`, less the ``elapsed_s`` the failed attempt already took (never negative): a connect that
+        hung until its timeout has already waited (a camera dropping packets while it reboots), so the next try is
+        not delayed twice."""
+        return max(0.0, self.next() - elapsed_s)
+
     def reset(self) -> None:
         """After a success: start again from ``initial``."""
         self._next = self.initial

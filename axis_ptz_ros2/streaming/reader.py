@@ -293,9 +293,8 @@ class StreamReader:
         self._wake.wait(seconds)
 
     def _retry_delay(self, attempt_start: float) -> float:
-        """Back-off counted from the start of the failed attempt: a connect that hung until its timeout has
-        already waited (a camera that drops packets while it reboots), so the next try is not delayed twice."""
-        return max(0.0, self._backoff.next() - (self._clock() - attempt_start))
+        """Back-off counted from the start of the failed attempt (:meth:`Backoff.next_after`)."""
+        return self._backoff.next_after(self._clock() - attempt_start)
 
     def _run(self) -> None:
         while not self._stop.is_set():

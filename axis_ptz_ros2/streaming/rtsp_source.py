@@ -276,7 +276,7 @@ class RtspH264Source:
                     supported = bool(self._supports())
                 except AxisPtzError as err:
                     self._event(f"cannot ask the camera whether it streams H.264: {err}")
-                    self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
+                    self._wake.wait(self._backoff.next_after(self._clock() - attempt))
                     continue
                 self.supported = supported
                 self._on_supported(supported)
@@ -290,7 +290,7 @@ class RtspH264Source:
                 self._event(str(err))
                 if self._last_au is not None and self._clock() - self._last_au < self._config.auth_grace_s:
                     # frames flowed with these credentials moments ago: a camera still booting (as the MJPEG reader)
-                    self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
+                    self._wake.wait(self._backoff.next_after(self._clock() - attempt))
                 else:
                     self._wake.wait(self._config.auth_retry_s)
                 continue
@@ -301,12 +301,12 @@ class RtspH264Source:
                     continue
                 self.stats.reconnects += 1
                 self._event(f"RTSP H.264: cannot play: {_reason(err)}")
-                self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
+                self._wake.wait(self._backoff.next_after(self._clock() - attempt))
                 continue
             except (AxisPtzError, OSError) as err:  # (a refused or unanswered connect is a bare OSError)
                 self.stats.reconnects += 1
                 self._event(f"RTSP H.264: cannot play: {_reason(err)}")
-                self._wake.wait(max(0.0, self._backoff.next() - (self._clock() - attempt)))
+                self._wake.wait(self._backoff.next_after(self._clock() - attempt))
                 continue
             self._play(session, request)
 
