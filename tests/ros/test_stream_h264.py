@@ -35,14 +35,15 @@ from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.nodes.republish import RepublishNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
-from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.persona import AXIS_214_PICTURE  # noqa: E402
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
-FAST = {"backoff_initial": 0.05, "backoff_max": 0.3, "stall_timeout": 0.4, "auth_retry": 1.0, "read_timeout": 2.0}
+FAST = FAST_STREAM_PARAMS
 H264 = {"codec": "h264", "resolution": "704x576", "fps": 15}
 
 
@@ -57,13 +58,8 @@ def sim() -> Iterator[SimulatedCamera]:
 
 @pytest.fixture
 def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    deadline = time.monotonic() + 5
-    while sim.rebooting and time.monotonic() < deadline:
-        time.sleep(0.05)
-    sim.set_faults(FaultConfig())
-    sim.teleport(0.0, 0.0, 1.0)
-    sim.reset_counts()
-    return sim
+    """The shared simulator with faults and counters reset."""
+    return reset_camera(sim)
 
 
 @dataclass

@@ -21,10 +21,11 @@ from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, LATCHED_QOS, STREAM_QOS  # 
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
-FAST = {"backoff_initial": 0.05, "backoff_max": 0.3, "stall_timeout": 0.4, "auth_retry": 1.0, "read_timeout": 2.0}
+FAST = FAST_STREAM_PARAMS
 
 
 @pytest.fixture(scope="module")

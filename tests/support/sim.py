@@ -16,6 +16,8 @@ import httpx
 import numpy as np
 import numpy.typing as npt
 
+from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.http.mjpeg import BOUNDARY
 from axis_ptz_ros2.vapix.mjpeg import MjpegParser, boundary_from_content_type, multipart_content_type, part_header
 
@@ -84,3 +86,24 @@ def blob(
         return None
     k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     return np.asarray(cent[k], dtype=np.float64)
+
+
+#: Stream-node timing for tests: reconnect and notice stalls quickly (defaults are for real cameras).
+FAST_STREAM_PARAMS = {
+    "backoff_initial": 0.05,
+    "backoff_max": 0.3,
+    "stall_timeout": 0.4,
+    "auth_retry": 1.0,
+    "read_timeout": 2.0,
+}
+
+
+def reset_camera(cam: SimulatedCamera, reboot_wait_s: float = 5.0) -> SimulatedCamera:
+    """A shared simulator as a test expects it: not rebooting, no faults, head at home, counters cleared."""
+    deadline = time.monotonic() + reboot_wait_s
+    while cam.rebooting and time.monotonic() < deadline:
+        time.sleep(0.05)
+    cam.set_faults(FaultConfig())
+    cam.teleport(0.0, 0.0, 1.0)
+    cam.reset_counts()
+    return cam
