@@ -21,11 +21,11 @@ pytest.importorskip("rclpy")
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
+from tests.support.console_rig import start_console_rig
 from tests.support.harness import RosHarness  # noqa: E402
 
 from .test_web_console_browser import shot, wait_for, wait_js  # noqa: E402
@@ -60,16 +60,7 @@ def suite(ros: RosHarness) -> Iterator[tuple[SimulatedCamera, WebConsole]]:
             # a CPU-starved test machine reads as a weak link: keep the asked-for size (as the other browser tests)
             Parameter("adapt_to_link", value=False),
         ]
-        ros.add(StreamNode(context=ros.context, namespace=NS, parameter_overrides=connection + video))
-        ptz = ros.add(PtzNode(context=ros.context, namespace=NS, parameter_overrides=connection))
-        console = ros.add(
-            WebConsole(
-                context=ros.context,
-                namespace=NS,
-                parameter_overrides=[Parameter("port", value=0), Parameter("service_timeout", value=10.0)],
-            )
-        )
-        ros.wait_for(lambda: ptz.poller.latest is not None, 20.0)
+        console = start_console_rig(ros, NS, connection, video)
         yield cam, console
     finally:
         cam.stop()
