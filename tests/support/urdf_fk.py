@@ -10,10 +10,15 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import yaml
 
+from axis_ptz_ros2.config import MountConfig, save_mount
 from axis_ptz_ros2.geometry import FloatArray, Transform, rpy_to_matrix
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,3 +108,24 @@ def forward_kinematics(joints: dict[str, UrdfJoint], root: str, tip: str, positi
         elif j.kind != "fixed":
             raise ValueError(f"joint {j.name!r}: unsupported type {j.kind!r}")
     return T
+
+
+def write_unusual_configuration(directory: Path, limits_deg: tuple[float, float, float, float]) -> tuple[Path, Path]:
+    """(camera model, mount) files in ``directory`` where every term of the chain is non-zero: a rolled, pitched
+    and yawed mount with encoder offsets, a ceiling-mounted ccw camera with an offset optical centre, and the pan
+    and tilt limits ``(min_pan, max_pan, min_tilt, max_tilt)`` in degrees."""
+    mount = directory / "mount.yaml"
+    save_mount(
+        MountConfig(
+            transform=Transform.from_xyz_rpy(0.31, -0.12, 0.62, 0.05, -0.08, 0.9), pan_offset=0.02, tilt_offset=-0.01
+        ),
+        mount,
+    )
+    raw = yaml.safe_load((ROOT / "config" / "axis214.yaml").read_text())
+    raw["convention"] = {"pan_direction": "ccw", "mount": "ceiling"}
+    raw["head"] = {"h_tilt": 0.081, "d_opt": [0.035, 0.004, -0.006]}
+    lo_pan, hi_pan, lo_tilt, hi_tilt = limits_deg
+    raw["limits"].update(min_pan_deg=lo_pan, max_pan_deg=hi_pan, min_tilt_deg=lo_tilt, max_tilt_deg=hi_tilt)
+    model = directory / "model.yaml"
+    model.write_text(yaml.safe_dump(raw))
+    return model, mount

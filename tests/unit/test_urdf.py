@@ -13,11 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from axis_ptz_ros2.config import MountConfig, load_camera_model, load_mount, save_mount
 from axis_ptz_ros2.geometry import Transform
-from tests.support.urdf_fk import forward_kinematics, parse_urdf
+from tests.support.urdf_fk import forward_kinematics, parse_urdf, write_unusual_configuration
 
 pytestmark = pytest.mark.unit
 
@@ -100,20 +99,7 @@ def test_limits_come_from_the_camera_model():
 def unusual(tmp_path: Path) -> tuple[Path, Path]:
     """A rolled/pitched/yawed mount with encoder offsets, and a ceiling-mounted ccw camera with an offset
     optical centre: every term of the chain is non-zero."""
-    mount = tmp_path / "mount.yaml"
-    save_mount(
-        MountConfig(
-            transform=Transform.from_xyz_rpy(0.31, -0.12, 0.62, 0.05, -0.08, 0.9), pan_offset=0.02, tilt_offset=-0.01
-        ),
-        mount,
-    )
-    raw = yaml.safe_load((ROOT / "config" / "axis214.yaml").read_text())
-    raw["convention"] = {"pan_direction": "ccw", "mount": "ceiling"}
-    raw["head"] = {"h_tilt": 0.081, "d_opt": [0.035, 0.004, -0.006]}
-    raw["limits"].update(min_pan_deg=-120.0, max_pan_deg=150.0, min_tilt_deg=-80.0, max_tilt_deg=10.0)
-    model = tmp_path / "model.yaml"
-    model.write_text(yaml.safe_dump(raw))
-    return model, mount
+    return write_unusual_configuration(tmp_path, (-120.0, 150.0, -80.0, 10.0))
 
 
 def test_unusual_configuration_generated_and_xacro_agree_with_the_kinematics(unusual, tmp_path):

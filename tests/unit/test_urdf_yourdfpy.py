@@ -15,8 +15,9 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from axis_ptz_ros2.config import MountConfig, load_camera_model, load_mount, save_mount
+from axis_ptz_ros2.config import load_camera_model, load_mount
 from axis_ptz_ros2.geometry import Transform
+from tests.support.urdf_fk import write_unusual_configuration
 
 yourdfpy = pytest.importorskip("yourdfpy", reason="scripts/bootstrap installs yourdfpy")
 
@@ -103,19 +104,7 @@ def test_shipped_configuration_chain_equals_the_urdf_by_an_independent_library(t
 
 
 def test_unusual_configuration_chain_equals_the_urdf_by_an_independent_library(tmp_path):
-    mount = tmp_path / "mount.yaml"
-    save_mount(
-        MountConfig(
-            transform=Transform.from_xyz_rpy(0.31, -0.12, 0.62, 0.05, -0.08, 0.9), pan_offset=0.02, tilt_offset=-0.01
-        ),
-        mount,
-    )
-    raw = yaml.safe_load((ROOT / "config" / "axis214.yaml").read_text())
-    raw["convention"] = {"pan_direction": "ccw", "mount": "ceiling"}
-    raw["head"] = {"h_tilt": 0.081, "d_opt": [0.035, 0.004, -0.006]}
-    raw["limits"].update(min_pan_deg=-175.0, max_pan_deg=175.0, min_tilt_deg=-90.0, max_tilt_deg=90.0)
-    model = tmp_path / "model.yaml"
-    model.write_text(yaml.safe_dump(raw))
+    model, mount = write_unusual_configuration(tmp_path, (-175.0, 175.0, -90.0, 90.0))
     robot = load(expand(tmp_path, model, mount))
     check(robot, model, mount)
 
