@@ -62,13 +62,13 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     diagnostic,
     field_spec,
-    jpeg_format_of,
+    jpeg_format,
     publisher,
     run_nodes,
     snapshot,
     stamp_from_ns,
 )
-from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState, jpeg_size
+from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
 from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
@@ -81,6 +81,7 @@ from axis_ptz_ros2.streaming.h264 import (
     H264Stage,
     StagedFrame,
 )
+from axis_ptz_ros2.streaming.jpeg import jpeg_sof
 from axis_ptz_ros2.streaming.rtsp_source import passthrough_source
 from axis_ptz_ros2.streaming.status import LogLine, LogThrottle, diagnostic_status, reader_event_line
 from axis_ptz_ros2.vapix import VapixClient
@@ -391,19 +392,21 @@ class StreamNode(Node):
     def _on_frame(self, jpeg: bytes, arrival_ns: int) -> None:
         """Hot path (reader thread): publish the camera's bytes and a restamped CameraInfo."""
         stamp = stamp_from_ns(arrival_ns)
+        sof = jpeg_sof(jpeg) if self._image_wanted or self._info_wanted else None  # one walk of the header
         if self._image_wanted:
             msg = self._image_msg
             msg.header.stamp = stamp
-            msg.format = jpeg_format_of(jpeg)  # colour or greyscale, as compressed_image_transport says it
+            msg.format = jpeg_format(sof[2] if sof else 3)  # colour or greyscale, as compressed_image_transport
             # The rosidl setter would copy into an array.array; the C converter reads any buffer, so hand
             # it the immutable bytes as they are (the only copy is rclpy's serialisation).
             msg._data = jpeg  # noqa: SLF001
             self._image_pub.publish(msg)
         if self._info_wanted:
-            size = jpeg_size(jpeg)
-            if size is None:
+            if sof is None:
                 res = self._video.current.resolution
                 size = (res.width, res.height)
+            else:
+                size = (sof[0], sof[1])
             zoom = self._zoom_ptz if self._zoom_ptz is not None else self._zoom_param
             key = (size[0], size[1], zoom)
             info = self._info_cache.get(key)

@@ -34,22 +34,27 @@ def _segments(data: bytes | bytearray | memoryview) -> Iterator[tuple[int, int, 
         i += 2 + length
 
 
-def jpeg_size(data: bytes | bytearray | memoryview) -> tuple[int, int] | None:
-    """``(width, height)`` from the SOF segment, reading only the header; None if there is none."""
+def jpeg_sof(data: bytes | bytearray | memoryview) -> tuple[int, int, int] | None:
+    """``(width, height, components)`` from the SOF segment in one walk of the header (components 1: greyscale,
+    3: colour); None if there is no usable SOF."""
     for marker, start, end in _segments(data):
-        if marker in _SOF_MARKERS and end - start >= 5:
+        if marker in _SOF_MARKERS and end - start >= 6:
             height = (data[start + 1] << 8) | data[start + 2]
             width = (data[start + 3] << 8) | data[start + 4]
-            return (width, height) if width and height else None
+            return (width, height, int(data[start + 5])) if width and height else None
     return None
+
+
+def jpeg_size(data: bytes | bytearray | memoryview) -> tuple[int, int] | None:
+    """``(width, height)`` from the SOF segment, reading only the header; None if there is none."""
+    sof = jpeg_sof(data)
+    return None if sof is None else (sof[0], sof[1])
 
 
 def jpeg_components(data: bytes | bytearray | memoryview) -> int | None:
     """The number of colour components in the SOF segment (1: greyscale, 3: YCbCr/colour); None if none."""
-    for marker, start, end in _segments(data):
-        if marker in _SOF_MARKERS and end - start >= 6:
-            return int(data[start + 5])
-    return None
+    sof = jpeg_sof(data)
+    return None if sof is None else sof[2]
 
 
 def jpeg_comments(data: bytes | bytearray | memoryview) -> list[bytes]:
