@@ -35,7 +35,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from rclpy.signals import SignalHandlerOptions
-from sensor_msgs.msg import CameraInfo
+from sensor_msgs.msg import CameraInfo, CompressedImage
 
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
 from axis_ptz_ros2.streaming.jpeg import jpeg_components
@@ -142,6 +142,18 @@ JPEG_FORMAT_MONO8 = "mono8; jpeg compressed mono8"
 def jpeg_format(channels: int) -> str:
     """The ``CompressedImage.format`` of a JPEG with ``channels`` components (1 = mono8, else bgr8)."""
     return JPEG_FORMAT_MONO8 if channels == 1 else JPEG_FORMAT_BGR8
+
+
+def jpeg_image_msg(jpeg: Any, frame_id: str, stamp: Time) -> CompressedImage:
+    """A ``CompressedImage`` of JPEG bytes (``cv2.imencode``'s buffer or bytes) with the project's format string
+    (colour or greyscale, read from the JPEG): the one builder of the nodes that encode their own pictures."""
+    data = jpeg.tobytes() if hasattr(jpeg, "tobytes") else bytes(jpeg)
+    msg = CompressedImage()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.format = jpeg_format_of(data)
+    msg.data = data
+    return msg
 
 
 def jpeg_format_of(data: bytes | bytearray | memoryview) -> str:

@@ -23,11 +23,11 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import (
-    JPEG_FORMAT_BGR8,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
     declare_params,
+    jpeg_image_msg,
     publisher,
     run_nodes,
     stamp_from_ns,
@@ -98,12 +98,7 @@ class PanoramaSim(Node):
         if not ok:  # pragma: no cover - cv2 fails only on invalid images
             self.get_logger().error("JPEG encoding failed")
             return
-        msg = CompressedImage()
-        msg.header.stamp = stamp_from_ns(ns)
-        msg.header.frame_id = self._frame_id
-        msg.format = JPEG_FORMAT_BGR8
-        msg.data = buf.tobytes()
-        self._pub.publish(msg)
+        self._pub.publish(jpeg_image_msg(buf, self._frame_id, stamp_from_ns(ns)))
         self._count += 1
 
 

@@ -53,7 +53,7 @@ from axis_ptz_ros2.nodes.common import (
     camera_info_msg,
     check_params,
     declare_params,
-    jpeg_format,
+    jpeg_image_msg,
     publisher,
     run_nodes,
     stamp_from_ns,
@@ -330,11 +330,7 @@ class VirtualCameraNode(Node):
             self.get_logger().error("JPEG encoding failed", throttle_duration_sec=5.0)
             return
         stamp = stamp_from_ns(t_view_ns)
-        msg = CompressedImage()
-        msg.header.stamp = stamp
-        msg.header.frame_id = self.optical_frame
-        msg.format = jpeg_format(3 if img.ndim == 3 else 1)
-        msg.data = buf.tobytes()
+        msg = jpeg_image_msg(buf, self.optical_frame, stamp)
         self._info_pub.publish(camera_info_msg(view.intrinsics, self.optical_frame, stamp))
         self._image_pub.publish(msg)
         self.stats.render_s, self.stats.encode_s = t1 - t0, t2 - t1

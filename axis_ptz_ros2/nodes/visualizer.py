@@ -32,11 +32,11 @@ from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot
 from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
 from axis_ptz_ros2.nodes.common import (
-    JPEG_FORMAT_BGR8,
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
     declare_params,
+    jpeg_image_msg,
     publisher,
     run_nodes,
     transform_from_msg,
@@ -229,15 +229,10 @@ class Visualizer(Node):
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, q])
         if not ok:  # pragma: no cover
             return
-        msg = CompressedImage()
         stamps = [msg_in.header.stamp]
         if self._state is not None:
             stamps.append(self._state.header.stamp)
-        msg.header.stamp = max(stamps, key=Time.from_msg)
-        msg.header.frame_id = msg_in.header.frame_id
-        msg.format = JPEG_FORMAT_BGR8
-        msg.data = buf.tobytes()
-        self._pub.publish(msg)
+        self._pub.publish(jpeg_image_msg(buf, msg_in.header.frame_id, max(stamps, key=Time.from_msg)))
         self.frames_published += 1
 
 
