@@ -314,6 +314,16 @@ def parse_rtsp_response(raw: bytes) -> RtspResponse:
     return RtspResponse(int(parts[1]), parts[2] if len(parts) > 2 else "", headers, body)
 
 
+def check_rtsp_status(resp: RtspResponse, where: str) -> RtspResponse:
+    """``resp`` if it is 2xx; else :class:`AuthError` (401/403) or :class:`RtspStatusError` naming ``where``
+    (method and host, never a URL with credentials)."""
+    if resp.status in (401, 403):
+        raise AuthError(f"{where}: refused ({resp.status} {resp.reason})")
+    if not 200 <= resp.status < 300:
+        raise RtspStatusError(f"{where}: {resp.status} {resp.reason}", status_code=resp.status)
+    return resp
+
+
 class RtspControl:
     """RTSP requests of our own on a separate TCP connection: OPTIONS and SET_PARAMETER, Digest-signed.
 
@@ -384,13 +394,7 @@ class RtspControl:
                 req = flow.send(httpx.Response(resp.status, headers=_www_authenticate(resp), content=b"", request=req))
             except StopIteration:
                 break
-        if resp.status in (401, 403):
-            raise AuthError(f"RTSP {method} {self._host}:{self._port}: refused ({resp.status} {resp.reason})")
-        if not 200 <= resp.status < 300:
-            raise RtspStatusError(
-                f"RTSP {method} {self._host}:{self._port}: {resp.status} {resp.reason}", status_code=resp.status
-            )
-        return resp
+        return check_rtsp_status(resp, f"RTSP {method} {self._host}:{self._port}")
 
     def _exchange(self, method: str, authorization: str | None, extra: dict[str, str], body: bytes) -> RtspResponse:
         self._cseq += 1

@@ -35,7 +35,6 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.vapix.auth import AuthMode
 from axis_ptz_ros2.vapix.errors import (
-    AuthError,
     AxisPtzError,
     CameraTimeout,
     CameraUnreachable,
@@ -46,7 +45,7 @@ from axis_ptz_ros2.vapix.rtsp import (
     USER_AGENT,
     MediaStreamRequest,
     RtspResponse,
-    RtspStatusError,
+    check_rtsp_status,
     parse_rtsp_response,
     sprop_parameter_sets,
 )
@@ -239,13 +238,7 @@ class RtspClient:
                 req = flow.send(fake)
             except StopIteration:
                 break
-        if resp.status in (401, 403):
-            raise AuthError(f"RTSP {method} {self._where()}: refused ({resp.status} {resp.reason})")
-        if not 200 <= resp.status < 300:
-            raise RtspStatusError(
-                f"RTSP {method} {self._where()}: {resp.status} {resp.reason}", status_code=resp.status
-            )
-        return resp
+        return check_rtsp_status(resp, f"RTSP {method} {self._where()}")
 
     def _send(self, method: str, url: str, headers: dict[str, str], body: bytes, sock: socket.socket | None) -> int:
         if sock is None:
