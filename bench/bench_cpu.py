@@ -412,6 +412,7 @@ def main() -> int:
     only = {s.strip() for s in args.only.split(",") if s.strip()} or {"704", "1080", "fleet", "silent"}
     inputs(
         "axis_ptz_ros2/nodes/common.py",
+        "axis_ptz_ros2/nodes/runner.py",
         "axis_ptz_ros2/nodes/camera_main.py",
         "axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/nodes/ptz_node.py",

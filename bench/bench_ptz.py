@@ -122,7 +122,8 @@ def main() -> int:
 
     ok = True
     inputs("axis_ptz_ros2/ptz", "axis_ptz_ros2/nodes/ptz_node.py", "axis_ptz_ros2/nodes/common.py",
-           "axis_ptz_ros2/vapix", "axis_ptz_ros2/sim", "bench/bench_ptz.py")  # fmt: skip
+           "axis_ptz_ros2/nodes/runner.py", "axis_ptz_ros2/vapix", "axis_ptz_ros2/sim",
+           "bench/bench_ptz.py")  # fmt: skip
     try:
         deadline = time.monotonic() + 20.0
         while (

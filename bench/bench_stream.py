@@ -555,6 +555,7 @@ def main() -> int:
         "axis_ptz_ros2/streaming",
         "axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/nodes/common.py",
+        "axis_ptz_ros2/nodes/runner.py",
         "axis_ptz_ros2/vapix",
         "axis_ptz_ros2/sim",
         "bench/bench_stream.py",

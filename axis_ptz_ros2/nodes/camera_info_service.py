@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from sensor_msgs.srv import SetCameraInfo
 
@@ -69,9 +68,7 @@ class CameraInfoService:
                     log.info(f"calibration loaded from {self._store.path} (zoom {self._store.zoom})")
             except CameraInfoError as err:
                 log.error(f"calibration not loaded: {err}; using the camera model's")
-        node.create_service(
-            SetCameraInfo, "~/set_camera_info", self._on_set, callback_group=MutuallyExclusiveCallbackGroup()
-        )
+        node.create_service(SetCameraInfo, "~/set_camera_info", self._on_set)
 
     def apply(self, model: CameraModel) -> CameraModel:
         """``model`` with the stored calibration (unchanged when none is stored)."""

@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 
 from rclpy.node import Node
 
-from axis_ptz_ros2.nodes.common import run_nodes
+from axis_ptz_ros2.nodes.runner import run_nodes
 
 
 def camera_namespaces(argv: Sequence[str]) -> list[str]:

@@ -22,14 +22,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, PointField
 
 from axis_ptz_ros2.geometry import FloatArray, Transform
-from axis_ptz_ros2.nodes.common import (
-    LATCHED_QOS,
-    ParamSpec,
-    declare_params,
-    publisher,
-    run_nodes,
-    transform_msg,
-)
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher, transform_msg
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.sim.scene import Scene, shared_scene
 from axis_ptz_ros2.sim.world import load_world

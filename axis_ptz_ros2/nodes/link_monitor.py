@@ -26,15 +26,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
-from axis_ptz_ros2.nodes.common import (
-    FEEDBACK_QOS,
-    STREAM_QOS,
-    VIDEO_QOS,
-    ParamSpec,
-    declare_params,
-    publisher,
-    run_nodes,
-)
+from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 

@@ -29,10 +29,10 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     jpeg_image_msg,
     publisher,
-    run_nodes,
     stamp_from_ns,
     transform_msg,
 )
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world

@@ -47,11 +47,11 @@ from axis_ptz_ros2.nodes.common import (
     diagnostic,
     field_spec,
     publisher,
-    run_nodes,
     snapshot,
     stamp_from_ns,
     transform_msg,
 )
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket

@@ -22,7 +22,8 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
-from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher, run_nodes
+from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (

@@ -64,10 +64,10 @@ from axis_ptz_ros2.nodes.common import (
     field_spec,
     jpeg_format,
     publisher,
-    run_nodes,
     snapshot,
     stamp_from_ns,
 )
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
 from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery

@@ -55,10 +55,10 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     jpeg_image_msg,
     publisher,
-    run_nodes,
     stamp_from_ns,
 )
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
 from axis_ptz_ros2.virtual.render import ViewSpec, VirtualCameraRenderer
 

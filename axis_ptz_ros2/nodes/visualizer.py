@@ -38,9 +38,9 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     jpeg_image_msg,
     publisher,
-    run_nodes,
     transform_from_msg,
 )
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import footprint_on_panorama, point_along_ray, project_to_panorama
 

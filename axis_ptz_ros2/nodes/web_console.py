@@ -50,9 +50,9 @@ from axis_ptz_ros2.nodes.common import (
     ParamSpec,
     declare_params,
     publisher,
-    run_nodes,
 )
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
+from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
 from axis_ptz_ros2.web import api

@@ -21,7 +21,7 @@ from rclpy.exceptions import InvalidHandle  # noqa: E402
 from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from axis_ptz_ros2.nodes.common import Spinner, new_executor, retrieve_task_errors, spin_once  # noqa: E402
+from axis_ptz_ros2.nodes.runner import Spinner, new_executor, retrieve_task_errors, spin_once  # noqa: E402
 from tests.ros.processes import node_process  # noqa: E402
 from tests.support.harness import DEADLINE_SCALE  # noqa: E402
 
@@ -131,6 +131,81 @@ def test_spinner_blocks_until_there_is_work_and_stops_at_once():
         t0 = time.monotonic()
         assert spinner.stop(2.0)
         assert time.monotonic() - t0 < 1.0
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_pool_executor_submits_each_callback_once_and_loses_no_message():
+    # rclpy Jazzy's MultiThreadedExecutor re-submits a task still waiting in its pool at every wake-up
+    # (ros2/rclpy#1452): 2,551 submissions a second for 20 Hz commands to the PTZ node. The PTZ node's shape:
+    # commands and a 50 Hz timer in one mutually exclusive group, a second group beside it.
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+    from rclpy.qos import QoSProfile
+
+    ctx, node = _context_node("pool_probe")
+    commands = MutuallyExclusiveCallbackGroup()
+    got: list[str] = []
+    ticks = [0]
+
+    def on_command(msg: String) -> None:
+        time.sleep(0.003)  # a camera request
+        got.append(msg.data)
+
+    node.create_subscription(String, "cmd", on_command, QoSProfile(depth=200), callback_group=commands)
+    node.create_timer(0.02, lambda: ticks.__setitem__(0, ticks[0] + 1), callback_group=commands)
+    node.create_timer(0.05, lambda: None, callback_group=MutuallyExclusiveCallbackGroup())
+    pub_ctx, pub_node = _context_node("pool_probe_pub")
+    pub = pub_node.create_publisher(String, "cmd", QoSProfile(depth=200))
+    executor = new_executor(ctx)
+    executor.add_node(node)
+    spinner = Spinner(executor, "test-pool").start()
+    try:
+        assert _wait(lambda: pub.get_subscription_count() > 0)
+        time.sleep(0.2)
+        before, ticks_before = executor.submitted, ticks[0]
+        sent = [str(i) for i in range(150)]
+        for text in sent:
+            pub.publish(String(data=text))
+            time.sleep(0.01)
+        assert _wait(lambda: len(got) == len(sent)), f"{len(got)} of {len(sent)} commands ran"
+        assert got == sent
+        callbacks = len(sent) + (ticks[0] - ticks_before) + 10  # + the 20 Hz timer's ticks at most
+        submitted = executor.submitted - before
+        assert submitted <= 2 * callbacks, f"{submitted} tasks submitted for about {callbacks} callbacks"
+    finally:
+        assert spinner.stop(2.0)
+        node.destroy_node()
+        pub_node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        rclpy.try_shutdown(context=pub_ctx)
+
+
+def test_pool_executor_resumes_a_coroutine_callback_after_its_await():
+    # A task that is not queued any more (a coroutine waiting on a future) must still be handed out again.
+    from rclpy.task import Future
+
+    ctx, node = _context_node("pool_coroutine")
+    executor = new_executor(ctx)
+    done = Future(executor=executor)
+    results: list[str] = []
+
+    async def on_message(msg: String) -> None:
+        results.append("started")
+        results.append(await done)
+
+    node.create_subscription(String, "go", on_message, 10)
+    pub = node.create_publisher(String, "go", 10)
+    executor.add_node(node)
+    spinner = Spinner(executor, "test-pool").start()
+    try:
+        assert _wait(lambda: pub.get_subscription_count() > 0)
+        pub.publish(String(data="x"))
+        assert _wait(lambda: results == ["started"])
+        done.set_result("resumed")
+        executor.wake()
+        assert _wait(lambda: results == ["started", "resumed"]), results
+    finally:
+        assert spinner.stop(2.0)
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
 

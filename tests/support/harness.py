@@ -1,5 +1,5 @@
 """An in-process ROS graph: a private rclpy context with the node processes' executor (multi-threaded, blocking
-spin in a background thread: :class:`~axis_ptz_ros2.nodes.common.Spinner`). Used by the ROS test tier and by
+spin in a background thread: :class:`~axis_ptz_ros2.nodes.runner.Spinner`). Used by the ROS test tier and by
 benchmarks that run nodes in one process (test and bench tooling: not part of the installed package)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 
-from axis_ptz_ros2.nodes.common import Spinner, new_executor, retrieve_task_errors, wait_for_running_callbacks
+from axis_ptz_ros2.nodes.runner import Spinner, new_executor, retrieve_task_errors, wait_for_running_callbacks
 
 #: Multiplier of every ``wait_for`` deadline (conditions are awaited, not timed).
 DEADLINE_SCALE = float(os.environ.get("AXIS_TEST_DEADLINE_SCALE", "4"))
