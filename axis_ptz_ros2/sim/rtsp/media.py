@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Final
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, EncoderConfig, H264Encoder
 from axis_ptz_ros2.sim.frames import MAX_FPS
+from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
 
 if TYPE_CHECKING:
@@ -67,15 +68,10 @@ def parse_media_args(cam: SimulatedCamera, args: list[tuple[str, str]]) -> Media
     a = {k.lower(): v for k, v in args}
 
     def integer(name: str, lo: int, hi: int, default: int) -> int:
-        if name not in a:
-            return default
         try:
-            v = int(a[name])
+            return int_arg(a, name, lo, hi, default)
         except ValueError as err:
-            raise MediaError(400, f"Invalid {name}: {a[name]}") from err
-        if not lo <= v <= hi:
-            raise MediaError(400, f"Invalid {name}: {a[name]}")
-        return v
+            raise MediaError(400, str(err)) from err
 
     def choice(name: str, allowed: tuple[str, ...]) -> str | None:
         v = a.get(name)
