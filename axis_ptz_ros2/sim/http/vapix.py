@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.sim.frames import MAX_FPS, stamp
-from axis_ptz_ros2.sim.persona import ERROR_HTML, NOT_FOUND_HTML, READ_ONLY_PREFIXES, list_params
+from axis_ptz_ros2.sim.http.pages import ERROR_HTML, NOT_FOUND_HTML
+from axis_ptz_ros2.sim.params import READ_ONLY_PREFIXES, list_params
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.world import PtzLimits
