@@ -13,13 +13,28 @@ from __future__ import annotations
 import socket
 import threading
 from collections.abc import Callable
+from pathlib import Path
 
 from axis_ptz_ros2.camera_models import CameraProfile, discover
+from axis_ptz_ros2.config import default_config_path
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import FrameSource
 from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraUnreachable, InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+
+
+def camera_model_path(value: str) -> str | None:
+    """The camera-model file a ``camera_model`` parameter names (None: '' = learn it from the camera): the path as
+    given when it exists, else the packaged file of that name (e.g. ``config/axis214.yaml`` from another working
+    directory), else the path as given (loading it then says what is missing)."""
+    if not value:
+        return None
+    p = Path(value).expanduser()
+    if p.exists():
+        return str(p)
+    packaged = default_config_path(p.name)
+    return str(packaged) if packaged.exists() else str(p)
 
 
 def probe_tcp(config: CameraConfig) -> None:
