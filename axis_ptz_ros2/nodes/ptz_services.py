@@ -101,11 +101,9 @@ class PtzServices:
         if hasattr(resp, "state"):
             if sample is not None:
                 resp.state = self._state_msg(sample)
-            if not wait and order.target is not None:
-                for axis in ("pan", "tilt", "zoom"):
-                    value = getattr(order.target, axis)
-                    if value is not None:
-                        setattr(resp.state, axis, float(value))
+            if not wait and order.target is not None:  # not waiting: the answer shows where the head is sent
+                for axis, value in order.target.commanded().items():
+                    setattr(resp.state, axis, value)
         return resp
 
     def _srv_absolute(self, req: MovePtz.Request, resp: MovePtz.Response) -> MovePtz.Response:
