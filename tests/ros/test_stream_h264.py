@@ -245,7 +245,7 @@ def test_mjpeg_mode_never_encodes_and_switches_live(ros: RosHarness, camera: Sim
     node = make_node(ros, camera, resolution="352x288", fps=15)
     probe = ros.probe()
     rec, _ = subscribe(probe)
-    ros.wait_for(lambda: node._h264_subscribers == 1, timeout=5)
+    ros.wait_for(lambda: node._h264.subscribers == 1, timeout=5)
     time.sleep(1.0)
     # codec mjpeg: an H.264 subscriber alone is nobody to stream for (lazy): no request, no encoder
     assert camera.request_counts.endpoints.get("video", 0) == 0
