@@ -33,6 +33,12 @@ def compression_size_factor(compression: int) -> float:
     return _COMPRESSION_PRIOR[-1][1]
 
 
+def same_aspect(a: Resolution, b: Resolution, tolerance: float = 0.02) -> bool:
+    """True if ``a`` and ``b`` have the same width:height within ``tolerance`` (relative): 1280x720 and 640x360
+    do, 1280x720 and 640x480 do not, nor 704x576 and 704x288 (the 214's half-height 2CIF)."""
+    return abs(a.width * b.height - b.width * a.height) <= tolerance * b.width * a.height
+
+
 @dataclass(frozen=True, slots=True)
 class BudgetConfig:
     """How the :class:`BandwidthController` steps (times in seconds, fractions of the budget)."""
@@ -162,6 +168,10 @@ class BandwidthController:
             key=lambda r: r.width * r.height,
             reverse=True,
         )
+        # keep the requested shape: a 16:9 request never steps to 4:3 (a camera crops or squeezes for those, and
+        # the operator's layout and camera_info change with it); sizes of another shape only if none is left
+        same_shape = [r for r in smaller if same_aspect(r, p.resolution)]
+        smaller = same_shape or smaller
         for res in smaller:
             last = replace(last, resolution=res)
             ladder.append(last)

@@ -111,8 +111,19 @@ def test_ladder_order_compression_then_fps_then_resolution():
     fps_part = [p.fps for p in ladder[7:14]]
     assert fps_part == [25, 20, 15, 10, 5, 2, 1]
     tail = [str(p.resolution) for p in ladder[14:]]
-    assert tail == ["704x288", "352x288", "176x144"]
+    assert tail == ["352x288", "176x144"]  # 2CIF (704x288, half the lines) is another shape: skipped
     assert all(p.compression == 60 and p.fps == 1 for p in ladder[14:])
+
+
+def test_ladder_keeps_the_requested_shape_while_the_camera_has_sizes_of_it():
+    sizes = [Resolution(w, h) for w, h in ((1920, 1080), (1280, 960), (1280, 720), (1024, 768), (640, 480), (640, 360))]
+    hd = VideoParams(fps=30, resolution=Resolution(1920, 1080), compression=30)
+    c = BandwidthController(hd, 1000, sizes, BudgetConfig(max_compression=60))
+    assert [str(r) for r in dict.fromkeys(p.resolution for p in c.ladder)] == ["1920x1080", "1280x720", "640x360"]
+    # no size of the requested shape below it: the smaller ones of any shape, rather than no resolution step
+    odd = VideoParams(fps=30, resolution=Resolution(1280, 960), compression=30)
+    c = BandwidthController(odd, 1000, [Resolution(1280, 960), Resolution(640, 360)], BudgetConfig(max_compression=60))
+    assert [str(r) for r in dict.fromkeys(p.resolution for p in c.ladder)] == ["1280x960", "640x360"]
 
 
 def test_compression_prior_is_monotone():
