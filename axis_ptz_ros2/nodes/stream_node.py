@@ -458,8 +458,8 @@ class StreamNode(Node):
             gap_s=float(msg.gap_s),
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
         )
-        if msg.decode_errors > 0 and self._stage.active:
-            self._stage.request_idr()  # the consumer lost sync: a start point now, not at the next periodic IDR
+        if self._stage.active:  # new losses at the consumer: a start point now, not at the next periodic IDR
+            self._stage.consumer_errors(str(msg.consumer), int(msg.decode_errors))
         judgement = self._video.feedback(report, self._subscribed)
         if judgement is not None:
             self.get_logger().debug(str(judgement))

@@ -139,6 +139,26 @@ def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
     assert h.stage.stats.idr_requests == 2
 
 
+def test_consumer_errors_ask_for_an_idr_only_when_they_grow(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    h.feed(jpegs[:10])  # clock advances 1.0 s
+    assert h.stage.consumer_errors("/op/monitor", 3)  # new losses: an IDR
+    f = h.feed(jpegs[10:11])[0]
+    assert f is not None
+    assert f.keyframe
+    h.clock.t += 1.0
+    # the consumer recovered: its window still holds the 3 errors, then fewer as they leave it: no new IDR
+    assert not h.stage.consumer_errors("/op/monitor", 3)
+    assert not h.stage.consumer_errors("/op/monitor", 2)
+    assert not any(x is not None and x.keyframe for x in h.feed(jpegs[11:14]))
+    assert h.stage.consumer_errors("/op/monitor", 5)  # new losses again
+    assert h.stage.consumer_errors("/op/other", 1)  # each consumer on its own
+    assert not h.stage.consumer_errors("/op/monitor", 0)
+    assert h.stage.consumer_errors("/op/monitor", 1)  # after a clean report, any error is new
+    assert h.stage.stats.idr_requests == 1
+
+
 def test_deactivation_drops_the_encoder_and_reactivation_starts_with_an_idr(jpegs: list[bytes]) -> None:
     h = Harness()
     h.stage.set_active(True)
