@@ -169,8 +169,8 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
         from axis_ptz_ros2.nodes import link_monitor as lm
 
         class Recording(lm.FeedbackPublisher):
-            def add(self, msg: Any, nbytes: int | None = None) -> None:
-                super().add(msg, nbytes)
+            def add(self, msg: Any, nbytes: int | None = None, rx: float | None = None) -> None:
+                super().add(msg, nbytes, rx)
                 if codec == "mjpeg":
                     on_jpeg(bytes(msg.data), time.time_ns())
 

@@ -77,6 +77,7 @@ class FeedbackPublisher:
         self._pub = publisher(node, LinkFeedback, feedback_topic, FEEDBACK_QOS)
         self._timer = node.create_timer(period_s, self._report, callback_group=callback_group)
         self._since: float | None = None
+        self._first_rx: float | None = None  # the first frame since watching began
         self._errors: deque[tuple[float, int]] = deque()
         self._last_urgent = -1e18
         self.reports = 0
@@ -85,15 +86,19 @@ class FeedbackPublisher:
         """The node subscribed to the video: report from now on (idempotent)."""
         if self._since is None:
             self._since = time.time()
+            self._first_rx = None
 
     def stop(self) -> None:
         """The node unsubscribed: no more reports until :meth:`watch` or the next frame."""
         self._since = None
+        self._first_rx = None
 
-    def add(self, msg: CompressedImage, nbytes: int | None = None) -> None:
-        """One image received now (any thread)."""
-        rx = time.time()
+    def add(self, msg: CompressedImage, nbytes: int | None = None, rx: float | None = None) -> None:
+        """One image received now, or at ``rx`` (wall clock, s: its arrival, before any decoding) (any thread)."""
+        rx = time.time() if rx is None else rx
         self.watch()
+        if self._first_rx is None:
+            self._first_rx = rx
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         if stamp <= 0:
             return
@@ -114,6 +119,11 @@ class FeedbackPublisher:
         if since is None:
             return
         now = time.time()
+        first = self._first_rx
+        if first is not None and now - first < self._meter.window_s:
+            # frames arrive, but for less than a window: its rates would read as a narrow link (weak-link bench:
+            # the first report of a new monitor, 7 of 30 fps, cut the H.264 budget to 161 kbit/s)
+            return
         while self._errors and self._errors[0][0] <= now - self._meter.window_s:
             self._errors.popleft()
         r = self._meter.report(now)
@@ -158,9 +168,10 @@ class LinkMonitorNode(Node):
         single loss look like a narrow link — every access unit up to the next IDR is unusable — and the
         adapter stepped the bitrate down to its floor on a 2 Mbit/s link (weak-link bench, 488faa0)."""
         assert self.receiver is not None
+        rx = time.time()  # the arrival: the decoding's time is no delay on the link
         data = bytes(msg.data)
         shown = self.receiver.feed(data, int(msg.pts)) is not None
-        self.feedback.add(msg, len(data))
+        self.feedback.add(msg, len(data), rx)
         self.feedback.add_errors(self.receiver.take_unusable(), urgent=self._showing and not shown)
         self._showing = shown
 
