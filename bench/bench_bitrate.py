@@ -4,16 +4,17 @@ Run: ``.venv/bin/python bench/bench_bitrate.py [--quick]``. Starts the simulated
 loopback port with the demo's world (``config/sim_world.yaml``) and reads ``mjpg/video.cgi`` for each of the
 thesis's 27 cells (704×576, 352×288, 176×144 × compression 0, 30, 100 × 1, 15, 30 fps) at the home view
 (pan 0, tilt 0, zoom 1), first with the camera still, then panning (``continuouspantiltmove=20,0``). A cell's
-figure is the mean JPEG size × 8 × the requested fps (kbit/s; the achieved fps is printed beside it), compared
-with the thesis's cell read as kB/s (``camera_model.THESIS_UNIT_BYTES``; the README says why) and, for
-reference, as printed. Then:
+figure is the mean JPEG size × 8 × the pictures a second the camera serves (the requested fps, at most the PAL
+214's 25: ``Persona.frame_rate``; the thesis's Table 6.5 shows its camera delivering 24.8/s when asked 30), in
+kbit/s (the achieved fps of this loaded client is printed beside it), compared with the thesis's cell read as
+kB/s (``camera_model.THESIS_UNIT_BYTES``; the README says why) and, for reference, as printed. Then:
 
 * the still camera's frame-to-frame size variation (sensor noise: the coefficient of variation of the JPEG
   sizes over the cell's frames);
-* the thesis's Figure 6.4 statement as a measure, per resolution, on one frame per compression (the same
-  sensor noise in each): "almost indistinguishable from 0" = luma SSIM against the compression-0 frame
-  ≥ 0.95 at compression 30; "usable" = luma SSIM ≥ 0.90 and PSNR ≥ 30 dB against the noise-free (softened)
-  view at 60; "not usable" = SSIM < 0.90 or PSNR < 30 dB against it at 100;
+* the thesis's Figure 6.4 statement as a measure (``tests/support/picture.py``), per resolution, on one frame
+  per compression (the same sensor noise in each): "almost indistinguishable from 0" = luma SSIM against the
+  compression-0 frame ≥ 0.95 at compression 30; "usable" = luma SSIM ≥ 0.90 and PSNR ≥ 30 dB against the
+  noise-free (softened) view at 60; "not usable" = SSIM < 0.90 or PSNR < 30 dB against it at 100;
 * the current-Axis persona's 1920×1080 MJPEG bytes per frame at compression 0, 30, 60 and 100.
 """
 
@@ -25,9 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-import cv2
 import httpx
-import numpy as np
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support
@@ -35,8 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.camera_model import THESIS_FPS, THESIS_TABLES, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
-from axis_ptz_ros2.sim.renderer import PtzRenderer
 from axis_ptz_ros2.sim.world import load_world
+from tests.support.picture import Figure64, figure_6_4
 from tests.support.sim import parts, read_stream
 
 COMPRESSIONS = (0, 30, 100)
@@ -67,24 +66,6 @@ def cell(client: httpx.Client, res: str, fps: int, comp: int, seconds: float) ->
     return complete, (len(complete) - 1) / elapsed
 
 
-def ssim(a: np.ndarray, b: np.ndarray) -> float:
-    """Mean SSIM of two 8-bit planes (Wang et al. 2004, 11×11 Gaussian window σ 1.5)."""
-    x, y = a.astype(np.float64), b.astype(np.float64)
-    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
-
-    def g(v: np.ndarray) -> np.ndarray:
-        return np.asarray(cv2.GaussianBlur(v, (11, 11), 1.5), dtype=np.float64)
-
-    mx, my = g(x), g(y)
-    sxx, syy, sxy = g(x * x) - mx * mx, g(y * y) - my * my, g(x * y) - mx * my
-    m = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
-    return float(m.mean())
-
-
-def luma(img: np.ndarray) -> np.ndarray:
-    return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2YCrCb)[:, :, 0])
-
-
 Cells = dict[tuple[str, int, int], tuple[float, float, list[int]]]  # (res, comp, fps) → (kbit/s, fps, sizes)
 
 
@@ -100,7 +81,8 @@ def measure_cells(client: httpx.Client, panning: bool, quick: bool) -> Cells:
                 sizes, achieved = cell(client, res, fps, comp, seconds)
                 if panning:
                     client.get("/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "0,0"}).raise_for_status()
-                kbit = statistics.fmean(sizes) * 8.0 * fps / 1000.0
+                served = min(fps, AXIS_214.frame_rate)  # the PAL 214 makes 25 pictures a second
+                kbit = statistics.fmean(sizes) * 8.0 * served / 1000.0
                 out[(res, comp, fps)] = (kbit, achieved, sizes)
     return out
 
@@ -126,27 +108,6 @@ def print_cells(title: str, cells: Cells) -> list[float]:
         f"max {max(ratios):.2f}"
     )
     return ratios
-
-
-def figure_6_4(width: int = 704, height: int = 576) -> tuple[dict[int, tuple[float, float, float, int]], bool]:
-    """{compression: (SSIM vs the compression-0 frame, PSNR dB and SSIM vs the noise-free view, bytes)} of one
-    frame (the same noise in each) of the home view; and whether the thesis's statement holds by the measure of
-    the module docstring."""
-    world = load_world()
-    renderer = PtzRenderer(world)
-    model = AXIS_214.picture
-    view = renderer.render(0.0, 0.0, 1.0, width, height)
-    ref = luma(model.soften(view, 1.0))
-    frames = {}
-    for comp in (0, 10, 30, 60, 80, 100):
-        pool = PicturePool(model)  # a new pool: its first frame has the same noise as the others' first
-        jpeg = pool.jpeg("home", lambda: view, 1.0, comp)
-        frames[comp] = (luma(cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)), len(jpeg))
-    out: dict[int, tuple[float, float, float, int]] = {}
-    for comp, (y, n) in frames.items():
-        out[comp] = (ssim(frames[0][0], y), float(cv2.PSNR(ref, y)), ssim(ref, y), n)
-    ok = out[30][0] >= 0.95 and out[60][2] >= 0.90 and out[60][1] >= 30.0 and (out[100][2] < 0.90 or out[100][1] < 30.0)
-    return out, ok
 
 
 def modern_1080p() -> dict[int, tuple[float, float]]:
@@ -175,6 +136,8 @@ def main() -> int:
         "axis_ptz_ros2/sim/scene.py",
         "axis_ptz_ros2/sim/frames.py",
         "axis_ptz_ros2/sim/camera.py",
+        "axis_ptz_ros2/sim/http/mjpeg.py",
+        "tests/support/picture.py",
         "config/sim_world.yaml",
     )
     cam = SimulatedCamera(load_world(), port=0).start()
@@ -194,17 +157,20 @@ def main() -> int:
         f"\nstill camera, frame-to-frame JPEG size variation (CV, 15 and 30 fps cells): {100 * cv_lo:.2f}–"
         f"{100 * cv_hi:.2f} %"
     )
-    figs = {}
+    figs: dict[int, Figure64] = {}
     for w, h in ((704, 576), (352, 288), (176, 144)):
-        fig, fig_ok = figure_6_4(w, h)
-        figs[w] = (fig, fig_ok)
+        fig = figure_6_4(AXIS_214.picture, w, h)
+        figs[w] = fig
         print(f"\nFigure 6.4 statement, {w}×{h}: SSIM vs the compression-0 frame; PSNR, SSIM vs the noise-free view:")
-        for comp, (s0, psnr, s, n) in fig.items():
+        for comp, g in fig.grades.items():
             print(
-                f"  compression {comp:>3} (IJG quality {AXIS_214.picture.quality(comp, w):>3}): SSIM {s0:.3f}; "
-                f"PSNR {psnr:5.1f} dB, SSIM {s:.3f}; {n} bytes"
+                f"  compression {comp:>3} (IJG quality {g.quality:>3}): SSIM {g.ssim_vs_0:.3f}; "
+                f"PSNR {g.psnr_db:5.1f} dB, SSIM {g.ssim:.3f}; {g.nbytes} bytes"
             )
-        print(f"  statement holds by the measure: {fig_ok}")
+        print(
+            f"  30 like 0: {fig.up_to_30_like_0}; 60 usable: {fig.at_60_usable}; 100 not usable: "
+            f"{fig.at_100_not_usable}; statement holds by the measure: {fig.holds}"
+        )
     modern = modern_1080p()
     print("\ncurrent-Axis persona, 1920×1080, home view, camera still:")
     for comp, (mean, cv) in modern.items():
@@ -230,13 +196,15 @@ def main() -> int:
         "non-zero",
         cv_lo > 0,
     )
-    for w, (fig, fig_ok) in figs.items():
+    for w, fig in figs.items():
+        g = fig.grades
         row(
             f"thesis Fig. 6.4 as a measure, {w} px wide: SSIM vs compression 0 at 30 / PSNR, SSIM vs the noise-free "
             "view at 60 / at 100",
-            f"{fig[30][0]:.3f} / {fig[60][1]:.1f} dB, {fig[60][2]:.3f} / {fig[100][1]:.1f} dB, {fig[100][2]:.3f}",
+            f"{g[30].ssim_vs_0:.3f} / {g[60].psnr_db:.1f} dB, {g[60].ssim:.3f} / {g[100].psnr_db:.1f} dB, "
+            f"{g[100].ssim:.3f}",
             "≥ 0.95 / ≥ 30 dB and ≥ 0.90 / < 30 dB or < 0.90",
-            fig_ok,
+            fig.holds,
         )
     row(
         "current-Axis persona 1920×1080 MJPEG, bytes per frame at compression 0 / 30 / 60 / 100",

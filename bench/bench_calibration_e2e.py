@@ -46,7 +46,6 @@ from rclpy.parameter import Parameter  # noqa: E402
 from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
-    CaptureSession,
     PoseCommand,
     capture_views,
     next_view_names,
@@ -57,6 +56,7 @@ from axis_ptz_ros2.calibration.correspondences import load_correspondences  # no
 from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import Transform  # noqa: E402
+from axis_ptz_ros2.nodes.calibration_capture import CaptureSession  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402

@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python bench/bench_sim.py [--seconds 10]``. Starts ``axis_camera_sim --port 0`` as a
 subprocess, reads ``/axis-cgi/mjpg/video.cgi?resolution=704x576&fps=30`` for N seconds (static camera, then
-while panning continuously), then ``fps=0`` (max rate), and reports the frame rate received by this client and
+while panning continuously; the simulated 214 is a PAL camera and serves 25 of the 30 asked, ``Persona.frame_rate``),
+then ``fps=0`` (max rate), and reports the frame rate received by this client and
 the server's CPU time per frame and % of one core from ``/proc/<pid>/stat`` (utime + stime). Also times
 in-process renders at changing poses (the cost of a frame during motion, before JPEG encoding).
 """
@@ -78,18 +79,19 @@ def main() -> int:
         inputs("axis_ptz_ros2/sim", "axis_ptz_ros2/geometry.py", "config", "bench/bench_sim.py")
         fps, ms, pct = measure(base, proc.pid, q, args.seconds)
         still = (fps, pct)
-        report("static camera, 704x576 requested 30 fps", fps, ms, pct)
+        report("static camera, 704x576 requested 30 fps (PAL: 25)", fps, ms, pct)
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"pan": "-170"})
         time.sleep(3.5)
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "10,0"})
         fps, ms, pct = measure(base, proc.pid, q, min(args.seconds, 8.0))
         httpx.get(base + "/axis-cgi/com/ptz.cgi", params={"continuouspantiltmove": "0,0"})
-        report("panning camera,  704x576 requested 30 fps", fps, ms, pct)
+        report("panning camera,  704x576 requested 30 fps (PAL: 25)", fps, ms, pct)
         row(
-            "simulator, 704×576 @ 30 fps, still / panning camera",
-            f"{still[0]:.1f} fps at {still[1]:.1f} % / {fps:.1f} fps at {pct:.1f} % of a core",
-            "30 fps, most of a core free",
-            min(still[0], fps) >= 29.0 and max(still[1], pct) < 50.0,
+            "simulated 214, 704×576 asked 30 fps (a PAL camera: 25 served), still / panning camera",
+            f"{still[0]:.1f} fps at {still[1]:.1f} % / {fps:.1f} fps at {pct:.1f} % of a core "
+            f"(panning: {ms:.1f} ms CPU per picture)",
+            "25 fps, most of a core free",
+            min(still[0], fps) >= 25 * 29 / 30 and max(still[1], pct) < 50.0,  # the old 29-of-30 slack
         )
         fps, ms, pct = measure(base, proc.pid, "resolution=704x576&fps=0", min(args.seconds, 5.0))
         report("fps=0 (as fast as possible), 704x576", fps, ms, pct)

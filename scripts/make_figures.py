@@ -10,8 +10,9 @@
   so the plate is a few unreadable pixels at zoom 1 and readable at 9999.
 * ``bitrate.png`` / ``bitrate.csv`` — like the thesis's Tables 6.2–6.4: the MJPEG stream's bitrate over
   resolution × fps × compression, measured on ``mjpg/video.cgi`` at the home view, camera still: mean bytes
-  per part (JPEG + multipart headers) × 8 × the requested fps (the achieved fps is recorded beside it; on a
-  loaded machine the simulator may not reach 30 fps, which would understate a bytes-per-second figure). The
+  per part (JPEG + multipart headers) × 8 × the pictures a second the camera serves (the requested fps, at most
+  the PAL 214's 25, ``Persona.frame_rate``; the achieved fps is recorded beside it: on a loaded machine the
+  simulator may fall short, which would understate a bytes-per-second figure). The
   thesis's values for the real 214 are drawn beside ours, read as kB/s (printed as "kBit/s"; see
   ``camera_model.THESIS_UNIT_BYTES``): ``thesis_kbit_s`` = printed value × 8, ``thesis_printed`` as printed.
   ``bench/bench_bitrate.py`` prints the same comparison with JPEG sizes only, still and panning.
@@ -34,6 +35,7 @@ import numpy as np
 from axis_ptz_ros2.geometry import AXIS_214_ZOOM
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.camera_model import THESIS_TABLES, thesis_kbit_s
+from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.world import load_world
 
@@ -139,7 +141,7 @@ def zoom_montage(client: httpx.Client, out: Path, zooms: tuple[int, ...]) -> Non
 
 
 def stream_rate(client: httpx.Client, res: str, fps: int, comp: int, seconds: float) -> tuple[float, float, int]:
-    """(kbit/s at the requested fps, achieved fps, frames) of one MJPEG stream."""
+    """(kbit/s at the rate the camera serves, achieved fps, frames) of one MJPEG stream."""
     url = f"/axis-cgi/mjpg/video.cgi?resolution={res}&fps={fps}&compression={comp}"
     _status, _headers, body, marks = read_stream(client, url, max_seconds=seconds)
     found = parts(body)
@@ -151,7 +153,8 @@ def stream_rate(client: httpx.Client, res: str, fps: int, comp: int, seconds: fl
     per_part = float(np.mean(np.diff(starts)))
     elapsed = max(1e-6, marks[-1][0] - marks[0][0])
     achieved = (len(complete) - 1) / elapsed
-    return per_part * 8.0 * fps / 1000.0, achieved, len(complete)
+    served = min(fps, AXIS_214.frame_rate)  # the PAL 214 makes 25 pictures a second
+    return per_part * 8.0 * served / 1000.0, achieved, len(complete)
 
 
 def bitrate(client: httpx.Client, out_png: Path, out_csv: Path, resolutions: tuple[str, ...], quick: bool) -> None:
@@ -204,7 +207,7 @@ def bitrate(client: httpx.Client, out_png: Path, out_csv: Path, resolutions: tup
             )
         ax.set_yscale("log")
         ax.set_xticks(FPS)
-        ax.set_xlabel("frames per second")
+        ax.set_xlabel("fps asked (PAL 214: 30 asked, 25 served)")
         ax.set_title(res, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("kbit/s")

@@ -33,8 +33,9 @@ Picking by hand (a real robot; no automatic picker)::
    view spread over the image, ≥ 5 views, some at a higher zoom; then ``axis_calibrate solve calib.yaml
    --sigma-3d 0.01 --out mount.yaml`` and check the residual table for mis-picks.
 
-Everything above the :class:`CaptureSession` class is ROS-free; ``rclpy`` and the message packages are
-imported only when a session is created, so ``axis_ptz_ros2.calibration`` stays importable without ROS.
+This module is ROS-free: the views, their files, the picker plug-ins, what makes a still view and the capture
+run. The ROS side that receives the data and commands the head (``CaptureSession``, ``RosCapture``) is
+:mod:`axis_ptz_ros2.nodes.calibration_capture`, which is also the ``axis_calibrate`` executable.
 """
 
 from __future__ import annotations
@@ -44,12 +45,11 @@ import importlib.util
 import math
 import re
 import sys
-import threading
-import time
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, cast
+from typing import Protocol, cast
 
 import cv2
 import numpy as np
@@ -70,7 +70,6 @@ from axis_ptz_ros2.calibration.picking import (
 )
 from axis_ptz_ros2.config import CameraModel
 from axis_ptz_ros2.geometry import Transform
-from axis_ptz_ros2.pointcloud import decode_cloud_msg
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -225,206 +224,96 @@ def store_view(
 
 
 # --------------------------------------------------------------------------------------------------------
-# The ROS side
+# One still view from what the running system sent (the session that receives it: nodes/calibration_capture.py)
 # --------------------------------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True)
-class _Stamped:
-    t: float  # time.monotonic() at reception
-    value: Any
+class HeadState(Protocol):
+    """The fields of a ``ptz/state`` message the capture reads (rad REP-103, zoom units; encoder offsets added)."""
+
+    @property
+    def pan(self) -> float: ...  # noqa: D102
+    @property
+    def tilt(self) -> float: ...  # noqa: D102
+    @property
+    def zoom(self) -> float: ...  # noqa: D102
+    @property
+    def moving(self) -> bool: ...  # noqa: D102
 
 
-class CaptureSession:
-    """Subscriptions and the service client of the capture tool on a caller-provided rclpy ``Node``.
+def still_view(
+    name: str,
+    states: Sequence[HeadState],
+    jpeg: bytes,
+    cloud: FloatArray,
+    *,
+    pan_offset: float = 0.0,
+    tilt_offset: float = 0.0,
+    still_tolerance: float = 2e-4,
+    timings: dict[str, float] | None = None,
+) -> CapturedView:
+    """The view ``name`` from the states received while the head stood still (its pose: their median, minus the
+    encoder offsets), one camera frame and one laser cloud in ``base_link``. Refused (:class:`CaptureError`) when a
+    state says the head moved, pan/tilt changed by more than ``still_tolerance`` rad, or the frame does not
+    decode."""
+    if not states:
+        raise CaptureError(f"view {name!r}: no ptz/state received while capturing")
+    if any(s.moving for s in states):
+        raise CaptureError(f"view {name!r}: the head moved while capturing; hold it still and retry")
+    pans = np.array([s.pan for s in states])
+    tilts = np.array([s.tilt for s in states])
+    zooms = np.array([s.zoom for s in states])
+    spread = float(max(np.ptp(pans), np.ptp(tilts)))
+    if spread > still_tolerance:
+        raise CaptureError(f"view {name!r}: pan/tilt changed by {math.degrees(spread):.4f}° while capturing; retry")
+    arr = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    if arr is None:
+        raise CaptureError(f"view {name!r}: the camera frame is not a decodable JPEG")
+    return CapturedView(
+        name=name,
+        pan=float(np.median(pans)) - pan_offset,
+        tilt=float(np.median(tilts)) - tilt_offset,
+        zoom=float(np.median(zooms)),
+        jpeg=jpeg,
+        image_width=int(arr.shape[1]),
+        image_height=int(arr.shape[0]),
+        cloud=cloud,
+        state_spread=spread,
+        timings=dict(timings or {}),
+    )
 
-    The node must be spun by an executor in another thread (the blocking methods wait on data that arrives
-    through the node's callbacks). ``T_base_laser`` transforms the cloud into ``base_link`` when its
-    ``frame_id`` is ``laser_frame`` (a cloud already in ``base_frame`` is taken as is; any other frame is
-    refused). ``pan_offset``/``tilt_offset`` (rad) are the encoder offsets the PTZ node adds (its mount file);
-    they are removed so the stored pan/tilt are the head's reported position.
-    """
 
-    def __init__(
-        self,
-        node: Any,
-        *,
-        T_base_laser: Transform,
-        laser_frame: str = "laser_link",
-        base_frame: str = "base_link",
-        pan_offset: float = 0.0,
-        tilt_offset: float = 0.0,
-        laser_qos: str = "reliable",
-        settle_s: float = 0.3,
-        timeout_s: float = 15.0,
-        still_tolerance: float = 2e-4,
-    ) -> None:
-        # ROS imports happen here, not at module level (the calibration package is ROS-free); taken as Any
-        # because the interface packages ship no type information.
-        qos: Any = importlib.import_module("rclpy.qos")
-        sensor_msgs: Any = importlib.import_module("sensor_msgs.msg")
-        ptz_msg: Any = importlib.import_module("axis_ptz_interfaces.msg")
-        ptz_srv: Any = importlib.import_module("axis_ptz_interfaces.srv")
-        QoSProfile, History, Reliability = qos.QoSProfile, qos.HistoryPolicy, qos.ReliabilityPolicy
-        MovePtz = ptz_srv.MovePtz
+def cloud_in_base(
+    points: FloatArray, frame: str, *, base_frame: str, laser_frame: str, T_base_laser: Transform
+) -> FloatArray:
+    """A decoded laser cloud in ``base_frame``: as is when it is already there, moved by ``T_base_laser`` when it
+    is in ``laser_frame``; any other frame is refused (the laser pose given is not for it)."""
+    frame = frame.lstrip("/")
+    if frame == base_frame:
+        return points
+    if frame != laser_frame:
+        raise CaptureError(
+            f"laser/points is in frame {frame!r}, but the laser pose given is for {laser_frame!r} "
+            f"(set the laser frame/pose, e.g. config/robot.yaml)"
+        )
+    return transform_cloud(points, T_base_laser)
 
-        self.node = node
-        self.T_base_laser = T_base_laser
-        self.laser_frame = laser_frame
-        self.base_frame = base_frame
-        self.pan_offset = pan_offset
-        self.tilt_offset = tilt_offset
-        self.settle_s = settle_s
-        self.timeout_s = timeout_s
-        self.still_tolerance = still_tolerance
-        self._lock = threading.Condition()
-        self._states: list[_Stamped] = []
-        self._image: _Stamped | None = None
-        self._cloud: _Stamped | None = None
-        self._MovePtz = MovePtz
-        stream = QoSProfile(depth=1, history=History.KEEP_LAST, reliability=Reliability.RELIABLE)
-        if laser_qos == "reliable":  # matches reliable publishers; gets a latched scan at once
-            lq = QoSProfile(
-                depth=1,
-                history=History.KEEP_LAST,
-                reliability=Reliability.RELIABLE,
-                durability=qos.DurabilityPolicy.TRANSIENT_LOCAL,
-            )
-        elif laser_qos == "best_effort":  # matches every publisher (sensor-data QoS scanners)
-            lq = QoSProfile(depth=1, history=History.KEEP_LAST, reliability=Reliability.BEST_EFFORT)
-        else:
-            raise ValueError(f"laser_qos must be 'reliable' or 'best_effort', got {laser_qos!r}")
-        self._subs = [
-            node.create_subscription(ptz_msg.PtzState, "ptz/state", self._on_state, stream),
-            node.create_subscription(sensor_msgs.CompressedImage, "image_raw/compressed", self._on_image, stream),
-            node.create_subscription(sensor_msgs.PointCloud2, "laser/points", self._on_cloud, lq),
-        ]
-        self._move = node.create_client(MovePtz, "ptz/move_absolute")
 
-    # ---- callbacks (executor thread) ---------------------------------------------------------------
-    def _on_state(self, msg: Any) -> None:
-        with self._lock:
-            self._states.append(_Stamped(time.monotonic(), msg))
-            if len(self._states) > 400:
-                del self._states[:200]
-            self._lock.notify_all()
-
-    def _on_image(self, msg: Any) -> None:
-        with self._lock:
-            self._image = _Stamped(time.monotonic(), bytes(msg.data))
-            self._lock.notify_all()
-
-    def _on_cloud(self, msg: Any) -> None:
-        with self._lock:
-            self._cloud = _Stamped(time.monotonic(), msg)
-            self._lock.notify_all()
-
-    # ---- blocking API (caller thread) --------------------------------------------------------------
-    def _wait(self, what: str, pred: Callable[[], Any], timeout: float | None = None) -> Any:
-        deadline = time.monotonic() + (self.timeout_s if timeout is None else timeout)
-        with self._lock:
-            while True:
-                v = pred()
-                if v:
-                    return v
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise CaptureError(f"timed out after {self.timeout_s:.1f} s waiting for {what}")
-                self._lock.wait(min(left, 0.1))
+class ViewSource(Protocol):
+    """Where :func:`capture_views` gets its views: the running system
+    (:class:`axis_ptz_ros2.nodes.calibration_capture.CaptureSession`)."""
 
     def wait_ready(self, timeout: float | None = None) -> None:
         """Wait until PTZ state, a camera frame and a laser scan have been received."""
-        self._wait("ptz/state", lambda: bool(self._states), timeout)
-        self._wait("image_raw/compressed", lambda: self._image is not None, timeout)
-        self._wait("laser/points", lambda: self._cloud is not None, timeout)
 
     def move(self, pose: PoseCommand) -> None:
-        """Command an absolute pose and wait until the PTZ node reports the head arrived."""
-        if not self._move.wait_for_service(timeout_sec=self.timeout_s):
-            raise CaptureError("service ptz/move_absolute is not available (is the PTZ node running?)")
-        req = self._MovePtz.Request()
-        req.command.pan = float(pose.pan + self.pan_offset)
-        req.command.tilt = float(pose.tilt + self.tilt_offset)
-        req.command.zoom = float(pose.zoom)
-        req.command.speed = math.nan
-        req.wait = True
-        req.timeout_s = float(self.timeout_s)
-        fut = self._move.call_async(req)
-        deadline = time.monotonic() + self.timeout_s + 5.0
-        while not fut.done():
-            if time.monotonic() > deadline:
-                raise CaptureError("ptz/move_absolute did not answer")
-            time.sleep(0.01)
-        resp = fut.result()
-        if resp is None or not resp.success:
-            msg = "no response" if resp is None else resp.message
-            raise CaptureError(
-                f"move to pan {math.degrees(pose.pan):.2f}°, tilt {math.degrees(pose.tilt):.2f}°, "
-                f"zoom {pose.zoom:g} failed: {msg}"
-            )
+        """Command an absolute pose and wait until the head arrived (CaptureError when it does not)."""
 
-    def capture(self, name: str, *, fresh_cloud: bool = True) -> CapturedView:
+    def capture(self, name: str) -> CapturedView:
         """Record one view at the current (still) head position."""
-        t0 = time.monotonic()
-        # 1. A state received from now on that says the head stands still.
-        self._wait(
-            "a still ptz/state",
-            lambda: any(s.t >= t0 and not s.value.moving for s in self._states),
-        )
-        t_still = time.monotonic()
-        time.sleep(self.settle_s)
-        t1 = time.monotonic()
-        # 2. A frame received after the settle time, and a state after that frame.
-        img = self._wait("a camera frame", lambda: self._image if self._image and self._image.t >= t1 else None)
-        self._wait("ptz/state after the frame", lambda: any(s.t > img.t for s in self._states))
-        # 3. A laser scan (received after the head stopped, unless fresh_cloud is False).
-        t_cloud = t_still if fresh_cloud else -math.inf
-        cloud_msg = self._wait(
-            "laser/points", lambda: self._cloud if self._cloud and self._cloud.t >= t_cloud else None
-        )
-        with self._lock:
-            window = [s.value for s in self._states if t_still <= s.t]
-        if any(s.moving for s in window):
-            raise CaptureError(f"view {name!r}: the head moved while capturing; hold it still and retry")
-        pans = np.array([s.pan for s in window])
-        tilts = np.array([s.tilt for s in window])
-        zooms = np.array([s.zoom for s in window])
-        spread = float(max(np.ptp(pans), np.ptp(tilts)))
-        if spread > self.still_tolerance:
-            raise CaptureError(f"view {name!r}: pan/tilt changed by {math.degrees(spread):.4f}° while capturing; retry")
-        jpeg: bytes = img.value
-        arr = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
-        if arr is None:
-            raise CaptureError(f"view {name!r}: the camera frame is not a decodable JPEG")
-        cloud = self._cloud_in_base(cloud_msg.value)
-        return CapturedView(
-            name=name,
-            pan=float(np.median(pans)) - self.pan_offset,
-            tilt=float(np.median(tilts)) - self.tilt_offset,
-            zoom=float(np.median(zooms)),
-            jpeg=jpeg,
-            image_width=int(arr.shape[1]),
-            image_height=int(arr.shape[0]),
-            cloud=cloud,
-            state_spread=spread,
-            timings={"still": t_still - t0, "total": time.monotonic() - t0},
-        )
 
-    def _cloud_in_base(self, msg: Any) -> FloatArray:
-        pts = decode_cloud_msg(msg)
-        frame = str(msg.header.frame_id).lstrip("/")
-        if frame == self.base_frame:
-            return pts
-        if frame != self.laser_frame:
-            raise CaptureError(
-                f"laser/points is in frame {frame!r}, but the laser pose given is for {self.laser_frame!r} "
-                f"(set the laser frame/pose, e.g. config/robot.yaml)"
-            )
-        return transform_cloud(pts, self.T_base_laser)
 
-    def close(self) -> None:
-        """Destroy the subscriptions and the client (the node stays)."""
-        for s in self._subs:
-            self.node.destroy_subscription(s)
-        self.node.destroy_client(self._move)
+#: Opens a :class:`ViewSource` on the running system for ``axis_calibrate capture``: called with the ROS
+#: namespace and the session's keywords, a context manager that closes it again.
+CaptureOpener = Callable[..., AbstractContextManager[ViewSource]]
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -522,7 +411,7 @@ def next_view_names(out: str | Path, count: int, prefix: str = "view") -> list[s
 
 
 def capture_views(
-    session: CaptureSession,
+    session: ViewSource,
     out: str | Path,
     names: Sequence[str],
     *,
@@ -556,52 +445,3 @@ def capture_views(
             msg += f"  {len(picked)} pairs picked"
         log(msg)
     return report
-
-
-class RosCapture:
-    """A private rclpy context, node and executor thread for a :class:`CaptureSession` (CLI use).
-
-    DDS discovery follows the environment like every ROS 2 node (it must reach the robot's driver).
-    """
-
-    def __init__(self, namespace: str = "", **session_kwargs: Any) -> None:
-        self._rclpy: Any = importlib.import_module("rclpy")
-        executors: Any = importlib.import_module("rclpy.executors")
-        context_mod: Any = importlib.import_module("rclpy.context")
-        self.context = context_mod.Context()
-        self._rclpy.init(context=self.context)
-        self.node = self._rclpy.create_node("axis_calibrate_capture", namespace=namespace, context=self.context)
-        self.executor = executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name="axis_calibrate_spin", daemon=True)
-        self._thread.start()
-        try:
-            self.session = CaptureSession(self.node, **session_kwargs)
-        except BaseException:
-            self.close()
-            raise
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - the context was shut down under us while closing
-                if not self.context.ok():
-                    return
-                raise
-
-    def close(self) -> None:
-        """Stop the executor and shut the context down."""
-        session = getattr(self, "session", None)
-        if session is not None:
-            session.close()
-        self.executor.shutdown(timeout_sec=2.0)
-        self.node.destroy_node()
-        self._rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
-
-    def __enter__(self) -> RosCapture:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -23,7 +23,8 @@ refuses only when the data cannot determine the pose; ``--max-sigma-cm`` / ``--m
 ``--report`` writes a JSON report (:mod:`~axis_ptz_ros2.calibration.report`), also for a refusal.
 
 ``capture`` records views from the running ROS system (``ptz/state``, ``image_raw/compressed``,
-``laser/points``; see :mod:`axis_ptz_ros2.calibration.capture`) and appends them to OUT.yaml with
+``laser/points``; see :mod:`axis_ptz_ros2.calibration.capture`; the ROS side, plugged in by the executable, is
+:mod:`axis_ptz_ros2.nodes.calibration_capture`) and appends them to OUT.yaml with
 :func:`~axis_ptz_ros2.calibration.correspondences.append_view`. With ``--picker`` a plug-in
 (:class:`~axis_ptz_ros2.calibration.capture.BoardPicker`; the tests pass the simulated boards' picker) picks
 the pairs automatically; otherwise a person adds them to each view's ``points``.
@@ -39,6 +40,7 @@ import sys
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,6 +55,9 @@ from axis_ptz_ros2.calibration.solver import CalibrationInputError, CalibrationR
 from axis_ptz_ros2.calibration.synthetic import make_fixed_scene, make_scene, real_like_camera_info
 from axis_ptz_ros2.camera_info import CameraInfoError, load_camera_info, save_camera_info
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot, save_mount
+
+if TYPE_CHECKING:
+    from axis_ptz_ros2.calibration.capture import CaptureOpener
 
 
 def format_result(result: CalibrationResult, *, max_rows: int = 200) -> str:
@@ -270,7 +275,7 @@ def _interrupt_once(signum: int, frame: object) -> None:
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
-    # Imported here: the capture module is ROS-free at import time, but keep the solve path light.
+    # Imported here: keep the solve path light.
     from axis_ptz_ros2.calibration import capture as cap
 
     try:
@@ -309,9 +314,17 @@ def _cmd_capture(args: argparse.Namespace) -> int:
             except EOFError:
                 return False
 
+    open_capture: CaptureOpener | None = args.open_capture
+    if open_capture is None:
+        print(
+            "error: capture needs the ROS side: run the axis_calibrate executable "
+            "(axis_ptz_ros2.nodes.calibration_capture:main)",
+            file=sys.stderr,
+        )
+        return 1
     signal.signal(signal.SIGINT, _interrupt_once)
     try:
-        with cap.RosCapture(
+        with open_capture(
             args.namespace,
             T_base_laser=T_laser,
             laser_frame=laser_frame,
@@ -321,10 +334,10 @@ def _cmd_capture(args: argparse.Namespace) -> int:
             laser_qos=args.laser_qos,
             settle_s=args.settle,
             timeout_s=args.timeout,
-        ) as ros:
-            ros.session.wait_ready()
+        ) as session:
+            session.wait_ready()
             report = cap.capture_views(
-                ros.session,
+                session,
                 args.out,
                 names,
                 poses=poses,
@@ -439,9 +452,12 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``axis_calibrate`` console script."""
+def main(argv: Sequence[str] | None = None, *, open_capture: CaptureOpener | None = None) -> int:
+    """The ``axis_calibrate`` command line; ``open_capture``: the ROS side ``capture`` records views with (the
+    executable, :func:`axis_ptz_ros2.nodes.calibration_capture.main`, plugs it in; without it ``capture``
+    refuses once its arguments are checked)."""
     args = build_parser().parse_args(argv)
+    args.open_capture = open_capture
     try:
         rc: int = args.func(args)
     except BrokenPipeError:  # output piped into `head` & co.: stop quietly, like other command-line tools

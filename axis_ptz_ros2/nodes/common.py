@@ -1,4 +1,4 @@
-"""Shared ROS glue for every node: declarative parameters, the Jazzy-correct runner, credentials, messages.
+"""Shared ROS glue for every node: QoS, declarative parameters, the camera connection, messages.
 
 This is the only place (with the node modules) that knows both the ROS-free layers and ROS messages.
 """
@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -31,6 +29,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage
 from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
 from axis_ptz_ros2.streaming.jpeg import jpeg_components
 from axis_ptz_ros2.vapix import CameraConfig
+from axis_ptz_ros2.vapix.credentials import load_credentials
 
 _C = TypeVar("_C")
 
@@ -313,7 +312,7 @@ def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraC
             f"verify_tls is false: the certificate of the camera at {p['hostname']} is NOT checked, so anyone "
             "on the path can impersonate it (set ca_file to the camera's certificate instead)"
         )
-    user, password = load_credentials(str(p["password_file"]))
+    user, password = load_credentials(str(p["password_file"]), warn=rclpy.logging.get_logger("axis_ptz_ros2").error)
     verify: bool | str = str(p["ca_file"]) if p["ca_file"] and p["verify_tls"] else bool(p["verify_tls"])
     return CameraConfig(
         host=str(p["hostname"]),
@@ -327,39 +326,6 @@ def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraC
         connect_timeout_s=float(p["connect_timeout"]),
         auth=str(p["auth"]),
     )
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Credentials: from the environment or a file, never from a readable parameter, never logged
-# ---------------------------------------------------------------------------------------------------------
-_OPEN_PASSWORD_FILES_WARNED: set[str] = set()
-
-
-def load_credentials(password_file: str = "") -> tuple[str | None, str | None]:
-    """Camera credentials: ``AXIS_USERNAME``/``AXIS_PASSWORD`` environment variables, or ``password_file``
-    (a file with ``user:password`` on its first line, or ``AXIS_PASSWORD_FILE``). Returns ``(None, None)``
-    for anonymous access. Nothing here is logged or stored in a parameter."""
-    path = password_file or os.environ.get("AXIS_PASSWORD_FILE", "")
-    if path:
-        file = Path(path).expanduser()
-        mode = file.stat().st_mode & 0o777
-        if mode & 0o077 and str(file) not in _OPEN_PASSWORD_FILES_WARNED:
-            _OPEN_PASSWORD_FILES_WARNED.add(str(file))
-            rclpy.logging.get_logger("axis_ptz_ros2").error(
-                f"the credentials file {file} can be read by others (mode {mode:o}): anyone with an account on "
-                f"this machine can read the camera's password; chmod 600 {file}"
-            )
-        text = file.read_text(encoding="utf-8").splitlines()
-        first = text[0].strip() if text else ""
-        if ":" not in first:
-            raise ValueError("credentials file must contain 'user:password' on its first line")
-        user, _, pw = first.partition(":")
-        return user, pw
-    env_user = os.environ.get("AXIS_USERNAME")
-    env_pw = os.environ.get("AXIS_PASSWORD")
-    if env_pw is not None and not env_user:
-        env_user = "root"
-    return env_user, env_pw
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -7,7 +7,9 @@ recorded on the camera's acceptance, velocity mode, presets, arrival, the drive-
 goals follow it with :mod:`~axis_ptz_ros2.ptz.goals` (arrival, cancel and pre-emption policy); state comes from
 :mod:`~axis_ptz_ros2.ptz.state_loop` and its health from :mod:`~axis_ptz_ros2.ptz.health`. The same
 :class:`PtzNode` serves the Axis backend (default, built from parameters) and any other
-:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``.
+:class:`~axis_ptz_ros2.ptz.backend.PtzBackend` passed as ``backend=``. This module holds the parameters, the
+command topics and the wiring; the services and the ``ptz/move`` action are :mod:`~axis_ptz_ros2.nodes.ptz_services`,
+the state, joint-state and transform publishing :mod:`~axis_ptz_ros2.nodes.ptz_publish`.
 
 Threads: one command worker (:class:`~axis_ptz_ros2.ptz.command_slot.CommandSlot`, latest motion wins, at
 most one request in flight) and the state loop's poll thread (its own connection, paced at ``state_rate``,
@@ -22,24 +24,18 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, TransformStamped, Twist
+from geometry_msgs.msg import PointStamped, Twist
 from nav_msgs.msg import Odometry
-from rclpy.action.server import ActionServer, CancelResponse, GoalResponse, ServerGoalHandle
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 
-from axis_ptz_interfaces.action import PtzMove
-from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzState, PtzVelocity, VideoParams
-from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom
+from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzVelocity, VideoParams
 from axis_ptz_ros2.config import CameraModel, MountConfig, load_camera_model, load_mount
 from axis_ptz_ros2.nodes.common import (
     COMMAND_QOS,
     CONNECTION_PARAMS,
     LATCHED_QOS,
-    STREAM_QOS,
     ParamSpec,
     camera_config_from_params,
     check_params,
@@ -48,22 +44,20 @@ from axis_ptz_ros2.nodes.common import (
     field_spec,
     publisher,
     snapshot,
-    stamp_from_ns,
-    transform_msg,
 )
+from axis_ptz_ros2.nodes.ptz_publish import PtzFrames, PtzStatePublisher
+from axis_ptz_ros2.nodes.ptz_services import PtzServices, center_order, look_at_order, move_order
 from axis_ptz_ros2.nodes.runner import run_nodes
-from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
-from axis_ptz_ros2.ptz.commander import Commander, Order, Progress, Tolerances, wait_accepted
+from axis_ptz_ros2.ptz.commander import Commander, Order, Tolerances
 from axis_ptz_ros2.ptz.control import JointOffsets, Target
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSafeZoom
-from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus
+from axis_ptz_ros2.ptz.goals import Follower
 from axis_ptz_ros2.ptz.health import Health, diagnostic_values, judge, stale_after, state_age
-from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
+from axis_ptz_ros2.ptz.requests import Requests, stream_size
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop
-from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
@@ -150,10 +144,13 @@ class PtzNode(Node):
         self._mount: MountConfig = mount if mount is not None else load_mount(p["mount_file"] or None)
         self._offsets = JointOffsets(self._mount.pan_offset, self._mount.tilt_offset)
         prefix = str(p["frame_prefix"])
-        self._base_frame = prefix + (p["base_frame"] or self._mount.parent_frame)
-        self._ptz_base_frame = prefix + (p["ptz_base_frame"] or self._mount.child_frame)
-        self._optical_frame = prefix + str(p["optical_frame"])
-        self._joint_names = [str(p["pan_joint"]), str(p["tilt_joint"])]
+        frames = PtzFrames(
+            base=prefix + (p["base_frame"] or self._mount.parent_frame),
+            ptz_base=prefix + (p["ptz_base_frame"] or self._mount.child_frame),
+            optical=prefix + str(p["optical_frame"]),
+            pan_joint=str(p["pan_joint"]),
+            tilt_joint=str(p["tilt_joint"]),
+        )
 
         self._backend: PtzBackend = backend if backend is not None else build_axis_backend(p, self._model)
         self._slot = CommandSlot(error_types=(PtzBackendError,), on_error=self._on_command_error)
@@ -167,7 +164,7 @@ class PtzNode(Node):
             self._cmd,
             self._model.zoom,
             self._model.head,
-            (self._ptz_base_frame, self._base_frame),
+            (frames.ptz_base, frames.base),
             self._mount.transform,
             lambda: self.limits,
             lambda: (int(p["image_width"]), int(p["image_height"])),
@@ -178,18 +175,21 @@ class PtzNode(Node):
             zoom = DriveSafeZoom(snapshot(DriveSafeConfig, PARAMS, p))
             self._drive = DriveSafeCap(zoom, self._cmd, self.get_logger().info)
 
-        # Publishers.
-        self._state_pub = publisher(self, PtzState, "ptz/state", STREAM_QOS)
-        self._joint_pub = publisher(self, JointState, "joint_states", STREAM_QOS)
-        self._tf_pub = publisher(self, TransformStamped, "ptz/transform", STREAM_QOS)
-        self._mount_pub = publisher(self, TransformStamped, "ptz/mount", LATCHED_QOS)
+        # ptz/state, joint_states, ptz/transform, ptz/mount, /tf, /tf_static; /diagnostics
+        drive = self._drive
+        self._out = PtzStatePublisher(
+            self,
+            self._model,
+            self._mount,
+            self._offsets,
+            frames,
+            publish_tf=bool(p["publish_tf"]),
+            cmd=self._cmd,
+            limits=lambda: self.limits,
+            image_size=self._req.size,
+            drive_zoom_cap=lambda: drive.config.zoom_cap if drive is not None else math.nan,
+        )
         self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
-        self._tf, self._tf_static = make_tf_broadcasters(self, bool(p["publish_tf"]))
-        now = stamp_from_ns(time.time_ns())
-        mount_msg = transform_msg(self._mount.transform, self._base_frame, self._ptz_base_frame, now)
-        self._mount_pub.publish(mount_msg)
-        if self._tf_static is not None:
-            self._tf_static.sendTransform(mount_msg)
 
         # State: a thread of its own (ptz.state_loop); publishing from it is thread-safe in rclpy.
         self._loop = StateLoop(
@@ -202,7 +202,6 @@ class PtzNode(Node):
         )
         self._loop.start()
         # Services never block topic commands; the velocity watchdog ticks only while a velocity command runs.
-        self._srv_group = MutuallyExclusiveCallbackGroup()
         self._cmd_group = g = MutuallyExclusiveCallbackGroup()
         watchdog = min(0.05, float(p["velocity_timeout"]) / 4.0)
         self._watchdog = self.create_timer(watchdog, self._on_watchdog, callback_group=g)
@@ -221,30 +220,12 @@ class PtzNode(Node):
             else:
                 self.create_subscription(Odometry, p["drive_topic"], self._on_odometry, 10, callback_group=g)
 
-        s = self._srv_group
-        self.create_service(MovePtz, "ptz/move_absolute", self._srv_absolute, callback_group=s)
-        self.create_service(MovePtz, "ptz/move_relative", self._srv_relative, callback_group=s)
-        self.create_service(CenterOnPixel, "ptz/center", self._srv_center, callback_group=s)
-        self.create_service(AreaZoom, "ptz/area_zoom", self._srv_area_zoom, callback_group=s)
-        self.create_service(SetZoom, "ptz/set_zoom", self._srv_set_zoom, callback_group=s)
-        self.create_service(LookAt, "ptz/look_at", self._srv_look_at, callback_group=s)
-        self.create_service(Trigger, "ptz/home", self._srv_home, callback_group=s)
-        self.create_service(Preset, "ptz/preset", self._srv_preset, callback_group=s)
-        self.create_service(ListPresets, "ptz/list_presets", self._srv_list_presets, callback_group=s)
-        self._goals = GoalBook()
-        self._action_server = ActionServer(
-            self,
-            PtzMove,
-            "ptz/move",
-            execute_callback=self._execute_move,
-            goal_callback=lambda _goal: GoalResponse.ACCEPT,
-            handle_accepted_callback=self._accept_move,
-            cancel_callback=lambda _goal: CancelResponse.ACCEPT,
-            callback_group=ReentrantCallbackGroup(),
+        self._ptz_services = PtzServices(
+            self, self._req, self._cmd, self._follower, self._slot, self._backend, self._out.state_msg, self._p
         )
         self.get_logger().info(
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
-            f"{self._base_frame} -> {self._ptz_base_frame} -> {self._optical_frame}"
+            f"{frames.base} -> {frames.ptz_base} -> {frames.optical}"
         )
         fixed = getattr(self._backend, "fixed_camera_reason", lambda: "")()
         if fixed:
@@ -258,8 +239,9 @@ class PtzNode(Node):
             self._drive.reconfigure(snapshot(DriveSafeConfig, PARAMS, self._p))
 
     def _on_video_params(self, msg: VideoParams) -> None:
-        if self._p["follow_video_params"] and 0 < msg.width <= MAX_IMAGE_SIDE and 0 < msg.height <= MAX_IMAGE_SIDE:
-            self._p["image_width"], self._p["image_height"] = int(msg.width), int(msg.height)
+        size = stream_size(msg.width, msg.height)
+        if self._p["follow_video_params"] and size is not None:
+            self._p["image_width"], self._p["image_height"] = size
 
     # -- state ----------------------------------------------------------------------------------------
     @property
@@ -297,54 +279,12 @@ class PtzNode(Node):
             self.get_logger().warn(
                 "head settled away from the commanded target; relative moves now start from the measured pose"
             )
-        self._publish_state(sample)
+        self._out.publish(sample)
 
     def health(self) -> Health:
         """The state polling's diagnostic verdict (age, staleness, camera answering)."""
         stale = stale_after(self._poller.period_s, float(self._p["state_timeout"]))
         return judge(self._poller.stats, state_age(self._poller.latest, time.time_ns()), stale)
-
-    def _state_msg(self, sample: StateSample) -> PtzState:
-        r = self._offsets.from_head(sample.reading)
-        w, h = self._req.size()
-        intr = self._model.zoom.intrinsics(r.zoom, w, h)
-        lim = self.limits
-        m = PtzState()
-        m.header.stamp = stamp_from_ns(r.stamp_ns)
-        m.header.frame_id = self._ptz_base_frame
-        m.pan, m.tilt, m.zoom = float(r.pan), float(r.tilt), float(r.zoom)
-        m.magnification = float(self._model.zoom.magnification(r.zoom))
-        m.hfov, m.vfov = float(intr.hfov), float(intr.vfov)
-        m.moving = bool(sample.head_moving or self._cmd.moving_expected(r))
-        m.pan_min, m.pan_max, m.tilt_min, m.tilt_max = lim.pan_min, lim.pan_max, lim.tilt_min, lim.tilt_max
-        m.zoom_min, m.zoom_max = lim.zoom_min, lim.zoom_max
-        cap, requested = self._cmd.zoom_cap, self._cmd.requested_zoom
-        m.zoom_capped = cap is not None
-        m.zoom_cap = self._drive.config.zoom_cap if self._drive is not None else math.nan
-        m.requested_zoom = float(requested) if requested is not None else math.nan
-        return m
-
-    def _publish_state(self, sample: StateSample) -> None:
-        """ptz/state, joint_states, ptz/transform (each only when someone listens) and /tf when available."""
-        r = self._offsets.from_head(sample.reading)
-        stamp = stamp_from_ns(r.stamp_ns)
-        if self._state_pub.get_subscription_count() > 0:
-            self._state_pub.publish(self._state_msg(sample))
-        if self._joint_pub.get_subscription_count() > 0:
-            js = JointState()
-            js.header.stamp = stamp
-            js.name = list(self._joint_names)
-            js.position = [float(r.pan), float(r.tilt)]
-            js.velocity = [float(sample.pan_rate), float(sample.tilt_rate)]
-            self._joint_pub.publish(js)
-        want_tf = self._tf_pub.get_subscription_count() > 0
-        if want_tf or self._tf is not None:
-            T_opt = self._model.head.optical_in_ptz_base(r.pan, r.tilt)
-            if want_tf:
-                T = self._mount.transform @ T_opt
-                self._tf_pub.publish(transform_msg(T, self._base_frame, self._optical_frame, stamp))
-            if self._tf is not None:
-                self._tf.sendTransform(transform_msg(T_opt, self._ptz_base_frame, self._optical_frame, stamp))
 
     def _publish_diagnostics(self) -> None:
         if self._loop.ensure_running():
@@ -364,9 +304,6 @@ class PtzNode(Node):
     def _on_command_error(self, ticket: Ticket, err: BaseException) -> None:
         self.get_logger().warn(f"PTZ command {ticket.label} failed: {err}", throttle_duration_sec=2.0)
 
-    def _command_move(self, label: str, c: PtzCommand, *, relative: bool) -> Order:
-        return self._req.move(label, c.pan, c.tilt, c.zoom, c.speed, relative=relative)
-
     def _on_watchdog(self) -> None:
         if not self._cmd.velocity_active:
             self._watchdog.cancel()
@@ -374,22 +311,16 @@ class PtzNode(Node):
             self._watchdog.cancel()
             self.get_logger().info("velocity command timed out: stopping", throttle_duration_sec=5.0)
 
-    def _center(self, t: PixelTarget) -> Order:
-        return self._req.center(t.u, t.v, t.image_width, t.image_height, t.zoom_delta)
-
-    def _look_at(self, msg: PointStamped, zoom: float) -> Order:
-        return self._req.look_at((msg.point.x, msg.point.y, msg.point.z), msg.header.frame_id, zoom)
-
     # -- topics ---------------------------------------------------------------------------------------
     def _log_refusal(self, what: str, order: Order) -> None:
         if order.refused:
             self.get_logger().warn(f"{what}: {order.reason}", throttle_duration_sec=2.0)
 
     def _on_absolute(self, msg: PtzCommand) -> None:
-        self._log_refusal("ptz/cmd/absolute", self._command_move("absolute", msg, relative=False))
+        self._log_refusal("ptz/cmd/absolute", move_order(self._req, "absolute", msg, relative=False))
 
     def _on_relative(self, msg: PtzCommand) -> None:
-        self._log_refusal("ptz/cmd/relative", self._command_move("relative", msg, relative=True))
+        self._log_refusal("ptz/cmd/relative", move_order(self._req, "relative", msg, relative=True))
 
     def _on_velocity(self, msg: PtzVelocity) -> None:
         order = self._cmd.velocity(msg.pan_rate, msg.tilt_rate, msg.zoom_rate)
@@ -398,110 +329,10 @@ class PtzNode(Node):
             self._watchdog.reset()
 
     def _on_center(self, msg: PixelTarget) -> None:
-        self._log_refusal("ptz/cmd/center", self._center(msg))
+        self._log_refusal("ptz/cmd/center", center_order(self._req, msg))
 
     def _on_look_at(self, msg: PointStamped) -> None:
-        self._log_refusal("ptz/cmd/look_at", self._look_at(msg, math.nan))
-
-    # -- services -------------------------------------------------------------------------------------
-    def _timeout(self, timeout_s: float) -> float:
-        return float(timeout_s) if math.isfinite(timeout_s) and timeout_s > 0.0 else float(self._p["wait_timeout"])
-
-    def _finish(self, order: Order, wait: bool, timeout_s: float, resp: Any) -> Any:
-        """Fill ``resp`` (success, message, state) for a motion service."""
-        resp.success, resp.message, sample = self._follower.follow(order, wait, self._timeout(timeout_s))
-        if hasattr(resp, "state"):
-            if sample is not None:
-                resp.state = self._state_msg(sample)
-            if not wait and order.target is not None:
-                for axis in ("pan", "tilt", "zoom"):
-                    value = getattr(order.target, axis)
-                    if value is not None:
-                        setattr(resp.state, axis, float(value))
-        return resp
-
-    def _srv_absolute(self, req: MovePtz.Request, resp: MovePtz.Response) -> MovePtz.Response:
-        return self._finish(self._command_move("absolute", req.command, relative=False), req.wait, req.timeout_s, resp)
-
-    def _srv_relative(self, req: MovePtz.Request, resp: MovePtz.Response) -> MovePtz.Response:
-        return self._finish(self._command_move("relative", req.command, relative=True), req.wait, req.timeout_s, resp)
-
-    def _srv_center(self, req: CenterOnPixel.Request, resp: CenterOnPixel.Response) -> CenterOnPixel.Response:
-        return self._finish(self._center(req.target), req.wait, req.timeout_s, resp)
-
-    def _srv_area_zoom(self, req: AreaZoom.Request, resp: AreaZoom.Response) -> AreaZoom.Response:
-        order = self._req.area_zoom((req.u_min, req.v_min, req.u_max, req.v_max), req.image_width, req.image_height)
-        return self._finish(order, req.wait, req.timeout_s, resp)
-
-    def _srv_set_zoom(self, req: SetZoom.Request, resp: SetZoom.Response) -> SetZoom.Response:
-        return self._finish(self._req.set_zoom(req.zoom, req.magnification, req.hfov), req.wait, req.timeout_s, resp)
-
-    def _srv_look_at(self, req: LookAt.Request, resp: LookAt.Response) -> LookAt.Response:
-        return self._finish(self._look_at(req.target, req.zoom), req.wait, req.timeout_s, resp)
-
-    def _srv_home(self, req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        """Answers when the head has arrived at the home pose (or why it did not), within wait_timeout."""
-        resp.success, resp.message, _ = self._follower.follow(self._cmd.home(), True, float(self._p["wait_timeout"]))
-        return resp
-
-    def _srv_preset(self, req: Preset.Request, resp: Preset.Response) -> Preset.Response:
-        resp.success, resp.message = self._follower.preset(req.action, req.name, req.wait, self._timeout(req.timeout_s))
-        return resp
-
-    def _srv_list_presets(self, req: ListPresets.Request, resp: ListPresets.Response) -> ListPresets.Response:
-        out: list[Any] = []
-        b = self._backend
-        ticket = self._slot.submit("list_presets", lambda: out.extend(b.list_presets()), supersedable=False)
-        resp.success, resp.message = wait_accepted(ticket, "", float(self._p["timeout"]))
-        resp.numbers = [int(pr.number) for pr in out]
-        resp.names = [str(pr.name) for pr in out]
-        return resp
-
-    # -- ptz/move action ------------------------------------------------------------------------------
-    def _goal_order(self, g: PtzMove.Goal) -> Order:
-        """The order of a ptz/move goal (refused with the reason when the goal is invalid)."""
-        c, pt = g.command, g.point.point
-        return self._req.goal(
-            MoveGoal(g.kind, (c.pan, c.tilt, c.zoom, c.speed), g.magnification, g.hfov, (pt.x, pt.y, pt.z),
-                     g.point.header.frame_id, g.preset)
-        )  # fmt: skip
-
-    def _accept_move(self, goal: ServerGoalHandle) -> None:
-        """Submit the goal's order now (a valid one pre-empts the running goal)."""
-        self._goals.accept(bytes(goal.goal_id.uuid), self._goal_order(goal.request))
-        goal.execute()
-
-    def _execute_move(self, goal: ServerGoalHandle) -> PtzMove.Result:
-        """Follow the goal's order with feedback (ptz.goals: cancel stops the head, a newer goal pre-empts)."""
-        key = bytes(goal.goal_id.uuid)
-
-        def feedback(step: Progress) -> None:
-            assert step.sample is not None
-            fb = PtzMove.Feedback(state=self._state_msg(step.sample))
-            fb.pan_error, fb.tilt_error, fb.zoom_error = (float(e) for e in step.error)
-            goal.publish_feedback(fb)
-
-        try:
-            order = self._goals.take(key)
-            end = self._follower.run_goal(
-                order if order is not None else self._goal_order(goal.request),
-                self._timeout(goal.request.timeout_s),
-                lambda: goal.is_cancel_requested,
-                lambda: self._goals.preempted(key),
-                feedback,
-            )
-            result = PtzMove.Result(success=end.status is GoalStatus.SUCCEEDED, message=end.message)
-            if end.sample is not None:
-                result.state = self._state_msg(end.sample)
-            if end.status is GoalStatus.SUCCEEDED:
-                goal.succeed()
-            elif end.status is GoalStatus.CANCELED:
-                goal.canceled()
-            else:
-                goal.abort()
-            return result
-        finally:
-            self._goals.finish(key)
+        self._log_refusal("ptz/cmd/look_at", look_at_order(self._req, msg, math.nan))
 
     # -- drive-safe zoom ------------------------------------------------------------------------------
     def _on_odometry(self, msg: Odometry) -> None:
@@ -521,7 +352,7 @@ class PtzNode(Node):
         self._loop.stop(timeout_s=float(self._p["state_timeout"]) + 1.0)
         self._slot.stop(timeout=float(self._p["timeout"]) + 1.0)
         self._backend.close()
-        self._action_server.destroy()
+        self._ptz_services.destroy()
         super().destroy_node()
 
 

@@ -121,7 +121,7 @@ class PoolExecutor(MultiThreadedExecutor):
         wait_condition: Callable[[], bool] = lambda: False,
     ) -> None:
         try:
-            handler, _entity, _node = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
+            handler = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)[0]
         except (ExternalShutdownException, ShutdownException, TimeoutException, ConditionReachedException):
             return
         with self._queued_lock:

@@ -28,6 +28,12 @@ class Target:
         """No axis commanded."""
         return self.pan is None and self.tilt is None and self.zoom is None
 
+    def commanded(self) -> dict[str, float]:
+        """The commanded axes and their values (``pan``/``tilt`` rad, ``zoom`` units), the others left out."""
+        return {
+            axis: float(v) for axis, v in (("pan", self.pan), ("tilt", self.tilt), ("zoom", self.zoom)) if v is not None
+        }
+
     def reached(self, r: PtzReading, tol_rad: float, tol_zoom: float) -> bool:
         """Every commanded axis is within tolerance of the reading."""
         return (

@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +20,11 @@ from axis_ptz_ros2.ptz.control import JointOffsets
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 
 CANCEL_SETTLE_S = 2.0  #: how long a cancelled goal waits for the head to report standing still
+
+
+def wait_timeout(timeout_s: float, default_s: float) -> float:
+    """A request's ``timeout_s`` when it is a positive finite number, else the default (``wait_timeout``)."""
+    return float(timeout_s) if math.isfinite(timeout_s) and timeout_s > 0.0 else float(default_s)
 
 
 class GoalStatus(StrEnum):

@@ -48,6 +48,13 @@ def _unused_if_zero(v: float) -> float:
     return math.nan if v == 0.0 else v  # 0 is no valid zoom, magnification or field of view
 
 
+def stream_size(width: int, height: int) -> tuple[int, int] | None:
+    """A published stream size (``video/params``) the pixel commands follow; None when it is no usable size."""
+    if 0 < width <= MAX_IMAGE_SIDE and 0 < height <= MAX_IMAGE_SIDE:
+        return int(width), int(height)
+    return None
+
+
 class Requests:
     """Turns requests in ROS units into orders of one :class:`Commander`."""
 

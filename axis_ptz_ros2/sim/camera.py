@@ -24,7 +24,8 @@ from axis_ptz_ros2.sim.digest import AUTH_MODES, CHALLENGE_STYLES, NONCE_LIFETIM
 from axis_ptz_ros2.sim.faults import REBOOT_ERROR_KINDS, Blackhole, FaultConfig
 from axis_ptz_ros2.sim.frames import MAX_FPS, FrameSource
 from axis_ptz_ros2.sim.http.server import HttpListener
-from axis_ptz_ros2.sim.persona import Persona, persona, preset_params
+from axis_ptz_ros2.sim.params import preset_params
+from axis_ptz_ros2.sim.persona import Persona, persona
 from axis_ptz_ros2.sim.ptz import PtzState, Speeds
 from axis_ptz_ros2.sim.renderer import PtzRenderer
 from axis_ptz_ros2.sim.rtsp.server import DEFAULT_SESSION_TIMEOUT_S, RtspListener

@@ -18,7 +18,7 @@ from axis_ptz_ros2.sim.ptz import PtzState
 from axis_ptz_ros2.sim.renderer import PtzRenderer, insert_comment
 from axis_ptz_ros2.sim.scene import SimWorld
 
-MAX_FPS = 30  #: the camera's top frame rate
+MAX_FPS = 30  #: the highest ``fps=`` the cameras accept (what they deliver: ``Persona.frame_rate``)
 
 
 def stamp(jpeg: bytes, seq: int) -> bytes:

@@ -11,19 +11,18 @@ optics, default authentication and HTTPS, and which newer VAPIX features the mod
   certificate, ``query=attributes``, presets also under ``PTZ.Preset.P0.*``, ``PTZ.ImageSource.I0.PTZEnabled``.
   Where each figure comes from is in ``config/q6075.yaml`` and the README.
 
-The 214's parameter tree and reply texts below are unchanged module-level helpers; :func:`persona` looks a
-model up by name.
+The parameter trees the personas answer ``param.cgi`` with are in :mod:`axis_ptz_ros2.sim.params`, the error
+pages in :mod:`axis_ptz_ros2.sim.http.pages`; :func:`persona` looks a model up by name.
 """
 
 from __future__ import annotations
 
-import fnmatch
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from axis_ptz_ros2.geometry import PtzKinematics, ZoomCurve, ZoomModel
 from axis_ptz_ros2.sim.camera_model import CameraModel
+from axis_ptz_ros2.sim.params import axis214_tree, modern_tree
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import PtzLimits
 
@@ -36,211 +35,6 @@ RESOLUTIONS: dict[str, tuple[int, int]] = {
     "QCIF": (176, 144),
 }
 SQUARE_PIXEL_FACTOR = 12.0 / 11.0  # PAL
-
-
-def square_width(width: int) -> int:
-    """Width of the square-pixel (``squarepixel=1``) stream."""
-    return int(round(width * SQUARE_PIXEL_FACTOR))
-
-
-#: Every WxH the simulated 214 accepts in ``resolution=`` (native and square-pixel sizes).
-ACCEPTED_SIZES: frozenset[tuple[int, int]] = frozenset(
-    list(RESOLUTIONS.values()) + [(square_width(w), h) for w, h in RESOLUTIONS.values()]
-)
-
-
-def parse_resolution(value: str, squarepixel: bool) -> tuple[int, int]:
-    """``resolution`` (CIF name or WxH) → output (width, height); raises ValueError if unsupported."""
-    name = value.strip().upper()
-    if name in RESOLUTIONS:
-        w, h = RESOLUTIONS[name]
-    else:
-        parts = name.split("X")
-        if len(parts) != 2 or not all(p.isdigit() for p in parts):
-            raise ValueError(f"Invalid resolution: {value}")
-        w, h = int(parts[0]), int(parts[1])
-        if (w, h) not in ACCEPTED_SIZES:
-            raise ValueError(f"Unsupported resolution: {value}")
-    if squarepixel and (w, h) in RESOLUTIONS.values():
-        w = square_width(w)
-    return w, h
-
-
-NOT_FOUND_HTML = (
-    "<HTML><HEAD><TITLE>404 Not Found</TITLE></HEAD>\n<BODY><H1>404 Not Found</H1>\n"
-    "The requested URL {path} was not found on this server.\n</BODY></HTML>\n"
-)
-UNAUTHORIZED_HTML = (
-    "<HTML><HEAD><TITLE>401 Unauthorized</TITLE></HEAD>\n<BODY><H1>401 Unauthorized</H1>\n"
-    "Your client does not have permission to get URL {path} from this server.\n</BODY></HTML>\n"
-)
-ERROR_HTML = "<HTML><HEAD><TITLE>{code} {reason}</TITLE></HEAD>\n<BODY><H1>{code} {reason}</H1>\n</BODY></HTML>\n"
-
-_SUPPORT = [
-    "AbsolutePan",
-    "AbsoluteTilt",
-    "AbsoluteZoom",
-    "AbsoluteFocus",
-    "AbsoluteIris",
-    "AreaZoom",
-    "AutoFocus",
-    "AutoIris",
-    "ContinuousPan",
-    "ContinuousTilt",
-    "ContinuousZoom",
-    "ContinuousFocus",
-    "RelativePan",
-    "RelativeTilt",
-    "RelativeZoom",
-    "RelativeFocus",
-    "RelativeIris",
-    "ServerPreset",
-    "SpeedCtl",
-    "IrCutFilter",
-    "AutoIrCutFilter",
-    "BackLight",
-]
-_NO_SUPPORT = [
-    "AbsoluteBrightness",
-    "RelativeBrightness",
-    "ContinuousBrightness",
-    "ContinuousIris",
-    "DigitalZoom",
-    "Auxiliary",
-    "DevicePreset",
-    "OSDMenu",
-    "ActionNotification",
-    "ProportionalSpeed",
-    "LensOffset",
-    "JoyStickEmulation",
-    "GenericHTTP",
-]
-
-READ_ONLY_PREFIXES = ("Properties.", "Brand.")
-
-
-def parameter_tree(limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
-    """The 214's parameters (names without the ``root.`` prefix) in listing order."""
-    p: dict[str, str] = {
-        "Brand.Brand": "AXIS",
-        "Brand.ProdFullName": "AXIS 214 PTZ Network Camera",
-        "Brand.ProdNbr": "214",
-        "Brand.ProdShortName": "AXIS 214 PTZ",
-        "Brand.ProdType": "PTZ Network Camera",
-        "Brand.WebURL": "http://www.axis.com/",
-        "Image.I0.Appearance.Compression": "30",
-        "Image.I0.Appearance.Resolution": "4CIF",
-        "Image.I0.Appearance.Rotation": "0",
-        "Image.I0.Appearance.SquarePixelEnabled": "no",
-        "Image.I0.Stream.FPS": "0",
-        # the analogue input's standard, as an AXIS P5512 (fw 5.51) reports it [V-obs S8]; on the 214 [I]
-        "ImageSource.I0.Video.DetectedType": "PAL",
-        "ImageSource.I0.Video.CaptureMode": "PAL",
-        "Network.HTTP.AuthenticationPolicy": "basic_digest" if auth == "none" else auth,
-        "Properties.API.HTTP.Version": "2",
-        "Properties.API.HTTP.AdminPath": "/operator/basic.shtml",
-        "Properties.Firmware.BuildDate": "Mar 05 2009 14:23",
-        "Properties.Firmware.Version": "4.49",
-        "Properties.Image.Format": "jpeg,mjpeg,mpeg4",
-        "Properties.Image.NbrOfViews": "1",
-        "Properties.Image.Resolution": ",".join(RESOLUTIONS),
-        "Properties.Image.Rotation": "0,180",
-        "Properties.PTZ.PTZ": "yes",
-        "Properties.PTZ.DigitalPTZ": "no",
-        "Properties.System.Architecture": "crisv32",
-        "Properties.System.SerialNumber": mac,
-        "PTZ.BoaProtPTZOperator": "anonymous" if auth == "none" else "password",
-        "PTZ.CameraDefault": "1",
-        "PTZ.NbrOfCameras": "1",
-        "PTZ.NbrOfSerPorts": "1",
-        "PTZ.Limit.L1.MinPan": f"{limits.min_pan:g}",
-        "PTZ.Limit.L1.MaxPan": f"{limits.max_pan:g}",
-        "PTZ.Limit.L1.MinTilt": f"{limits.min_tilt:g}",
-        "PTZ.Limit.L1.MaxTilt": f"{limits.max_tilt:g}",
-        "PTZ.Limit.L1.MinZoom": str(limits.min_zoom),
-        "PTZ.Limit.L1.MaxZoom": str(limits.max_zoom),
-        "PTZ.Limit.L1.MinFocus": "1",
-        "PTZ.Limit.L1.MaxFocus": "9999",
-        "PTZ.Limit.L1.MinIris": "1",
-        "PTZ.Limit.L1.MaxIris": "9999",
-        "PTZ.Limit.L1.MinFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.max_zoom)) * 10))),
-        "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
-    }
-    p.update(real_listing_ptz_keys())
-    for cap in _SUPPORT:
-        p[f"PTZ.Support.S1.{cap}"] = "true"
-    for cap in _NO_SUPPORT:
-        p[f"PTZ.Support.S1.{cap}"] = "false"
-    p.update(
-        {
-            "PTZ.UserAdv.U1.MoveSpeed": "100",
-            "PTZ.Various.V1.PanEnabled": "true",
-            "PTZ.Various.V1.TiltEnabled": "true",
-            "PTZ.Various.V1.ZoomEnabled": "true",
-            "PTZ.Various.V1.FocusEnabled": "true",
-            "PTZ.Various.V1.IrisEnabled": "true",
-            "PTZ.Various.V1.HomePresetSet": "true",
-            "PTZ.Various.V1.Locked": "false",
-            "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
-        }
-    )
-    return p
-
-
-def real_listing_ptz_keys() -> dict[str, str]:
-    """``PTZ`` keys every recorded real listing has (Kane610 fixtures of a Sony-block dome and of 5.51
-    cameras, vapix.md §4.7) that are the same on both personas. Values as recorded; the brightness limits
-    agree with ``query=limits``."""
-    p = {
-        "PTZ.CamPorts.Cam1Port": "1",
-        "PTZ.ImageSource.I0.PTZEnabled": "true",
-        "PTZ.Limit.L1.MinBrightness": "1",
-        "PTZ.Limit.L1.MaxBrightness": "9999",
-        "PTZ.PTZDriverStatuses.Driver1Status": "3",  # 3 = driver installed
-        "PTZ.Various.V1.AutoFocus": "true",
-        "PTZ.Various.V1.AutoIris": "true",
-        "PTZ.Various.V1.CtlQueueing": "false",
-        "PTZ.Various.V1.CtlQueueLimit": "20",
-        "PTZ.Various.V1.CtlQueuePollTime": "20",
-        "PTZ.Various.V1.SpeedCtlEnabled": "true",
-        "PTZ.Various.V1.ReturnToOverview": "0",
-    }
-    for n, (group, priority, timeout_type, timeout, cookie) in enumerate(
-        (
-            ("Administrator", 10, "activity", 60, "yes"),
-            ("Operator", 30, "activity", 60, "yes"),
-            ("Viewer", 50, "timespan", 60, "yes"),
-            ("Event", 20, "activity", 20, "no"),
-        )
-    ):
-        p[f"PTZ.UserCtlQueue.U{n}.Priority"] = str(priority)
-        p[f"PTZ.UserCtlQueue.U{n}.TimeoutTime"] = str(timeout)
-        p[f"PTZ.UserCtlQueue.U{n}.TimeoutType"] = timeout_type
-        p[f"PTZ.UserCtlQueue.U{n}.UseCookie"] = cookie
-        p[f"PTZ.UserCtlQueue.U{n}.UserGroup"] = group
-    return p
-
-
-def list_params(tree: dict[str, str], groups: list[str]) -> str:
-    """``param.cgi?action=list`` body; echoes the requester's ``root.`` style (vapix.md §6)."""
-    lines: list[str] = []
-    if not groups:
-        return "".join(f"root.{k}={v}\n" for k, v in tree.items())
-    for g in groups:
-        rooted = g.startswith("root.") or g == "root"
-        bare = g[5:] if g.startswith("root.") else ("" if g == "root" else g)
-        hits = [
-            k
-            for k in tree
-            if not bare
-            or k == bare
-            or k.startswith(bare + ".")
-            or ("*" in bare and (fnmatch.fnmatchcase(k, bare) or fnmatch.fnmatchcase(k, bare + ".*")))
-        ]
-        if not hits:
-            lines.append(f"# Error: Error -1 getting param in group '{g}'")
-        lines += [f"{'root.' if rooted else ''}{k}={tree[k]}" for k in hits]
-    return "\n".join(lines) + "\n"
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -256,6 +50,8 @@ class Persona:
     ``limits``/``zoom_model`` None: take them from the world file (the 214's come from ``sim_world.yaml``).
     ``resolutions`` maps the names listed in ``Properties.Image.Resolution`` (CIF names or ``WxH``) to sizes;
     ``square_pixel_factor`` is the width stretch of ``squarepixel=1`` (1.0 = pixels already square).
+    ``frame_rate`` is the most pictures per second the camera makes (its video standard's or sensor's rate): a
+    stream asked for more (``fps=`` up to :data:`~axis_ptz_ros2.sim.frames.MAX_FPS` is accepted) gets this many.
     """
 
     key: str
@@ -279,6 +75,11 @@ class Persona:
     server_header: str = ""  # "" = no Server header
     aliases: tuple[str, ...] = ()
     picture: CameraModel = field(default_factory=CameraModel)  # softness, noise, JPEG quality (camera_model.py)
+    frame_rate: int = 30  # pictures per second at most, whatever fps= asks (see the class docstring)
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.frame_rate <= 120:
+            raise ValueError(f"persona {self.key}: frame_rate={self.frame_rate} outside 1…120 pictures per second")
 
     @property
     def accepted_sizes(self) -> frozenset[tuple[int, int]]:
@@ -313,22 +114,22 @@ class Persona:
         return self.tree(self, limits, zoom, mac, auth)
 
 
-def _axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
-    return parameter_tree(limits, zoom, mac, auth)
-
-
 #: The 214's picture (``sim/camera_model.py``; README "What the simulated camera's pictures are made of").
 #: Sources: PAL 4CIF sampled per ITU-R BT.601 (13.5 MHz, 704 active samples); PAL chroma bandwidth ~1.3 MHz
 #: and the line-averaging delay line (PAL system standard); Kell factor ~0.7 for interlaced CCDs (textbook).
 #: Guesses: luminance bandwidth 4 MHz (composite/Y-C decoder of the camera block), lens σ 0.5…1.0 px
 #: (wide…tele). Fitted to the thesis's Tables 6.2-6.4 (read as kB/s, bench/bench_bitrate.py): temporal noise
 #: 2.0 / 0.7 DN (luma / chroma at 704×576), scaler softness 0.3 px per halving of the width, and the
-#: compression → IJG quality curve q(c) = 98 − (98 − 60)·(c/100)^1.7, 27 quality points lower at compression 100
-#: per halving of the width (q(0, 10, 30, 60, 100) = 98, 97, 93, 82, 60 at 704×576; 98, 97, 90, 71, 33 at
-#: 352×288; 98, 96, 86, 59, 6 at 176×144). The exponent 1.7 rather than 2 keeps a first compression step of 10
-#: visible in the frame size (with 2 it rounds to the same quality: the stream node's budget controller then
-#: learns that compression does nothing). No source explains the per-resolution drop; the tables need it (the real 214's
-#: small pictures shrink far more at compression 100 than its 704×576 picture).
+#: compression → IJG quality curve q(c) = 98 − (98 − q100)·(c/100)^1.85 with q100 = 60 at 704×576 and 44 quality
+#: points lower per halving of the width (q(0, 10, 30, 60, 100) = 98, 97, 94, 83, 60 at 704×576; 98, 97, 89,
+#: 66, 16 at 352×288; 98, 97, 88, 60, 1 at 176×144), held to the tables (every cell 0.5–2×, median 0.8–1.25,
+#: with 30 fps served at the PAL 25) and to the thesis's Figure 6.4 statement as measured by
+#: tests/support/picture.py: compression 30 like 0, 60 usable, 100 not usable (at 352×288 and 176×144; at
+#: 704×576 the tables' compression-100 frames, 36–43 kB, are more bytes than the demo scene takes at any quality
+#: that the measure calls unusable: README). The exponent stays below 2 so that a first compression step of 10
+#: is visible in the frame size (with 2 it rounds to the same quality at 704×576: the stream node's budget
+#: controller then learns that compression does nothing). No source explains the per-resolution drop; the tables
+#: need it (the real 214's small pictures shrink far more at compression 100 than its 704×576 picture).
 AXIS_214_PICTURE = CameraModel(
     native_width=704,
     sample_rate_mhz=13.5,
@@ -344,8 +145,8 @@ AXIS_214_PICTURE = CameraModel(
     noise_chroma=0.7,
     quality_at_0=98.0,
     quality_at_100=60.0,
-    quality_gamma=1.7,
-    quality_drop_per_halving=27.0,
+    quality_gamma=1.85,
+    quality_drop_per_halving=44.0,
     pool_frames=8,
 )
 
@@ -358,12 +159,18 @@ AXIS_214 = Persona(
     api_version=2,
     default_auth="none",
     https=False,
-    tree=_axis214_tree,
+    tree=axis214_tree,
     camera_model_file="axis214.yaml",
     preset_params=True,  # every recorded listing keeps presets under PTZ.Preset.P0 (assumed for fw 4.49)
     server_header="",  # a real Axis MJPEG reply has no Server header; for other replies of fw 4.49: unknown
     aliases=("214",),
     picture=AXIS_214_PICTURE,
+    # PAL: 25 pictures per second (50 fields). vapix.md lists the 214's video as "up to 30 fps (25 PAL)" (the
+    # 25 an inference there); the thesis's Table 6.5 shows it: its raw 704x576 topic carried 1.217 MB pictures
+    # at 1.0, 14.8 and 24.8 per second when 1, 15 and 30 fps were asked (camera_model.THESIS_UNIT_BYTES). What
+    # the real 214 answers to fps=30 is not recorded: taken to be accepted (as the thesis's driver asked it
+    # without an error) and served at 25.
+    frame_rate=25,
 )
 
 #: The modern persona's resolution list: 16:9 sizes and a few 4:3 ones (square pixels, 4:3 = sides cropped).
@@ -404,117 +211,6 @@ Q6075_ZOOM = ZoomModel(
 )
 Q6075_LIMITS = PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 19999)
 
-_Q6075_SUPPORT = {
-    "AbsolutePan": True,
-    "AbsoluteTilt": True,
-    "AbsoluteZoom": True,
-    "AbsoluteFocus": True,
-    "AbsoluteIris": False,
-    "AbsoluteBrightness": False,
-    "AreaZoom": True,
-    "AutoFocus": True,
-    "AutoIris": True,
-    "ContinuousPan": True,
-    "ContinuousTilt": True,
-    "ContinuousZoom": True,
-    "ContinuousFocus": True,
-    "ContinuousIris": False,
-    "ContinuousBrightness": False,
-    "RelativePan": True,
-    "RelativeTilt": True,
-    "RelativeZoom": True,
-    "RelativeFocus": True,
-    "RelativeIris": False,
-    "RelativeBrightness": False,
-    "DigitalZoom": True,
-    "ServerPreset": True,
-    "DevicePreset": False,
-    "SpeedCtl": True,
-    "IrCutFilter": True,
-    "AutoIrCutFilter": True,
-    "BackLight": False,
-    "Auxiliary": False,  # the simulator implements no auxiliary= functions (info=1 does not offer them)
-    "OSDMenu": False,
-    "ActionNotification": True,
-    "ProportionalSpeed": True,
-    "LensOffset": False,
-    "JoyStickEmulation": True,
-    "GenericHTTP": False,
-}
-
-
-def _modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
-    """A current AXIS OS PTZ dome's parameters (names as in vapix.md §4.7, §6; values per the persona)."""
-    resolutions = ",".join(persona.resolutions)
-    optical_end = zoom.optical_max_zoom or limits.max_zoom
-    p: dict[str, str] = {
-        "Brand.Brand": "AXIS",
-        "Brand.ProdFullName": "AXIS Q6075-E PTZ Network Camera",
-        "Brand.ProdNbr": "Q6075-E",
-        "Brand.ProdShortName": "AXIS Q6075-E",
-        "Brand.ProdType": "PTZ Network Camera",
-        "Brand.ProdVariant": "50 Hz",
-        "Brand.WebURL": "http://www.axis.com",
-        "HTTPS.Enabled": "yes" if persona.https else "no",
-        "HTTPS.Port": "443",
-        "Image.I0.Appearance.Compression": "30",
-        "Image.I0.Appearance.Resolution": persona.default_resolution,
-        "Image.I0.Appearance.Rotation": "0",
-        "Image.I0.Stream.FPS": "0",
-        "Network.HTTP.AuthenticationPolicy": "digest" if auth in ("none", "digest") else auth,
-        "Properties.API.HTTP.Version": str(persona.api_version),
-        "Properties.API.HTTP.AdminPath": "/index.html",
-        "Properties.Firmware.BuildDate": "Jun 12 2024 09:41",
-        "Properties.Firmware.Version": "11.11.73",
-        "Properties.HTTPS.HTTPS": "yes",
-        "Properties.Image.Format": "jpeg,mjpeg,h264,h265",
-        "Properties.Image.NbrOfViews": "1",
-        "Properties.Image.Resolution": resolutions,
-        "Properties.Image.I0.Resolution": resolutions,
-        "Properties.Image.Rotation": "0,180",
-        "Properties.PTZ.PTZ": "yes",
-        "Properties.PTZ.DigitalPTZ": "no",
-        "Properties.System.Architecture": "armv7hf",
-        "Properties.System.SerialNumber": mac,
-        "PTZ.BoaProtPTZOperator": "anonymous" if auth == "none" else "password",
-        "PTZ.CameraDefault": "1",
-        "PTZ.ImageSource.I0.PTZEnabled": "true",
-        "PTZ.NbrOfCameras": "1",
-        "PTZ.NbrOfSerPorts": "0",
-        "PTZ.Limit.L1.MinPan": f"{limits.min_pan:g}",
-        "PTZ.Limit.L1.MaxPan": f"{limits.max_pan:g}",
-        "PTZ.Limit.L1.MinTilt": f"{limits.min_tilt:g}",
-        "PTZ.Limit.L1.MaxTilt": f"{limits.max_tilt:g}",
-        "PTZ.Limit.L1.MinZoom": str(limits.min_zoom),
-        "PTZ.Limit.L1.MaxZoom": str(limits.max_zoom),
-        "PTZ.Limit.L1.MinFocus": "1",
-        "PTZ.Limit.L1.MaxFocus": "9999",
-        "PTZ.Limit.L1.MinIris": "1",
-        "PTZ.Limit.L1.MaxIris": "9999",
-        "PTZ.Limit.L1.MinFieldAngle": str(max(1, int(round(math.degrees(zoom.hfov(optical_end)) * 10)))),
-        "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
-    }
-    p.update(real_listing_ptz_keys())
-    for cap, on in _Q6075_SUPPORT.items():
-        p[f"PTZ.Support.S1.{cap}"] = "true" if on else "false"
-    p.update(
-        {
-            "PTZ.UserAdv.U1.MoveSpeed": "100",
-            "PTZ.Various.V1.PanEnabled": "true",
-            "PTZ.Various.V1.TiltEnabled": "true",
-            "PTZ.Various.V1.ZoomEnabled": "true",
-            "PTZ.Various.V1.FocusEnabled": "true",
-            "PTZ.Various.V1.IrisEnabled": "false",
-            "PTZ.Various.V1.HomePresetSet": "true",
-            "PTZ.Various.V1.Locked": "false",
-            "PTZ.Various.V1.ProportionalSpeedEnabled": "true",
-            "PTZ.Various.V1.MaxProportionalSpeed": "200",
-            "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
-        }
-    )
-    return p
-
-
 #: The modern persona's picture: a digital 1080p sensor (no analogue band limit, progressive). All guesses:
 #: temporal noise 1.0 / 0.5 DN (a current 1/2.8" CMOS in office light after the camera's noise filter), lens
 #: σ 0 (no softening: it would cost a 1080p frame ~10 ms while panning), the compression curve linear from
@@ -544,7 +240,7 @@ AXIS_Q6075 = Persona(
     api_version=3,
     default_auth="digest",
     https=True,
-    tree=_modern_tree,
+    tree=modern_tree,
     camera_model_file="q6075.yaml",
     speeds=Speeds(pan_deg_s=450.0, tilt_deg_s=300.0, zoom_full_travel_s=4.0, focus_full_travel_s=1.0),
     limits=Q6075_LIMITS,
@@ -557,6 +253,7 @@ AXIS_Q6075 = Persona(
     server_header="Apache",
     aliases=("q6075-e", "modern"),
     picture=Q6075_PICTURE,
+    frame_rate=30,  # a guess: the 50 Hz variant's 1080p25/50 is not modelled (fps= accepts up to 30)
 )
 
 PERSONAS: dict[str, Persona] = {p.key: p for p in (AXIS_214, AXIS_Q6075)}
@@ -573,17 +270,3 @@ def persona(name: str | Persona | None) -> Persona:
         if key == p.key or key in p.aliases:
             return p
     raise ValueError(f"unknown camera model {name!r}; known: {', '.join(PERSONAS)}")
-
-
-def preset_params(presets: list[tuple[int, str, float, float, float]], home: int) -> dict[str, str]:
-    """``PTZ.Preset.P0.*`` of a modern camera from (number, name, pan°, tilt°, zoom) server presets
-    (layout of the deprecated parameter storage, vapix.md §4.6)."""
-    out = {
-        "PTZ.Preset.P0.HomePosition": str(home),
-        "PTZ.Preset.P0.ImageSource": "0",
-        "PTZ.Preset.P0.Name": "",
-    }
-    for number, name, pan, tilt, zoom in presets:
-        out[f"PTZ.Preset.P0.Position.P{number}.Name"] = name
-        out[f"PTZ.Preset.P0.Position.P{number}.Data"] = f"tilt={tilt:.6f}:pan={pan:.6f}:zoom={zoom:.6f}"
-    return out

@@ -416,6 +416,19 @@ def _adapter_config(settings: VideoSettings) -> AdapterConfig:
     return h264_adapter_config(release) if settings.codec == "h264" else AdapterConfig(release_s=release)
 
 
+def requested_changes(fps: int, resolution: str, compression: int) -> dict[str, int | str]:
+    """The live parameters a ``video/set_params`` request changes: ``fps`` 0, ``resolution`` '' and
+    ``compression`` -1 leave theirs as they are."""
+    changes: dict[str, int | str] = {}
+    if fps != 0:
+        changes["fps"] = int(fps)
+    if resolution:
+        changes["resolution"] = str(resolution)
+    if compression != -1:
+        changes["compression"] = int(compression)
+    return changes
+
+
 def _check_h264(settings: VideoSettings) -> str | None:
     """The reason the codec settings cannot be used (None = fine)."""
     if settings.codec not in CODECS:

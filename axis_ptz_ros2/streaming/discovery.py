@@ -13,13 +13,29 @@ from __future__ import annotations
 import socket
 import threading
 from collections.abc import Callable
+from pathlib import Path
 
 from axis_ptz_ros2.camera_models import CameraProfile, discover
+from axis_ptz_ros2.config import default_config_path
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import FrameSource
+from axis_ptz_ros2.streaming.worker import Worker
 from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraUnreachable, InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+
+
+def camera_model_path(value: str) -> str | None:
+    """The camera-model file a ``camera_model`` parameter names (None: '' = learn it from the camera): the path as
+    given when it exists, else the packaged file of that name (e.g. ``config/axis214.yaml`` from another working
+    directory), else the path as given (loading it then says what is missing)."""
+    if not value:
+        return None
+    p = Path(value).expanduser()
+    if p.exists():
+        return str(p)
+    packaged = default_config_path(p.name)
+    return str(packaged) if packaged.exists() else str(p)
 
 
 def probe_tcp(config: CameraConfig) -> None:
@@ -64,8 +80,8 @@ class CameraDiscovery:
         self._learned: tuple[Resolution, ...] = ()  # the camera's resolution list once asked successfully
         self._answered = False
         self._unreachable = False  # the last attempt could not connect: probe with TCP first
-        self._stopping = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = Worker("discovery", "axis-stream-learn", self._run)
+        self._stopping = self._worker.stopping
 
     @property
     def learned(self) -> tuple[Resolution, ...]:
@@ -74,17 +90,11 @@ class CameraDiscovery:
 
     def start(self) -> None:
         """Start the start-up thread (once)."""
-        if self._thread is not None:
-            raise RuntimeError("discovery already started")
-        self._thread = threading.Thread(target=self._run, name="axis-stream-learn", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self, timeout: float = 2.0) -> None:
         """Stop and join the start-up thread."""
-        self._stopping.set()
-        thread = self._thread
-        if thread is not None:
-            thread.join(timeout)
+        self._worker.stop(timeout)
 
     def learn(self) -> tuple[Resolution, ...]:
         """The camera's resolution list: asked once (() if it could not say; asked again next time).

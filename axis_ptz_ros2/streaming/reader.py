@@ -15,6 +15,7 @@ from enum import StrEnum
 from typing import Protocol
 
 from axis_ptz_ros2.streaming.meter import Backoff, BitrateMeter
+from axis_ptz_ros2.streaming.worker import Worker
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraTimeout, InvalidArgument
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import VideoParams
@@ -158,9 +159,9 @@ class StreamReader:
         self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
         self.meter = meter if meter is not None else BitrateMeter(cfg.meter_window_s)
         self._lock = threading.Lock()
-        self._stop = threading.Event()
+        self._worker = Worker("reader", "axis-mjpeg-reader", self._run, self._interrupt)
+        self._stop = self._worker.stopping
         self._wake = threading.Event()
-        self._thread: threading.Thread | None = None
         self._source: FrameSource | None = None
         self._restart = False  # the current stream was closed on purpose (new params, lazy, stop)
         self._stalled = False
@@ -193,21 +194,14 @@ class StreamReader:
 
     def start(self) -> None:
         """Start the reader thread (once)."""
-        if self._thread is not None:
-            raise RuntimeError("reader already started")
-        self._thread = threading.Thread(target=self._run, name="axis-mjpeg-reader", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self, timeout: float = 1.5) -> bool:
         """Stop and join; returns False if the thread did not end within ``timeout``."""
-        self._stop.set()
-        self._interrupt()
-        thread = self._thread
-        if thread is None:
+        ended = self._worker.stop(timeout)
+        if not self._worker.started:
             self._state = StreamState.STOPPED
-            return True
-        thread.join(timeout)
-        return not thread.is_alive()
+        return ended
 
     def set_params(self, params: VideoParams) -> None:
         """Stream with ``params`` from now on (reconnects at once if they differ); fixed parameters only."""

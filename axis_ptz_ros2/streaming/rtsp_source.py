@@ -38,6 +38,7 @@ from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import ReaderConfig
+from axis_ptz_ros2.streaming.worker import Worker
 from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
@@ -210,10 +211,10 @@ class RtspH264Source:
         self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
         self._lock = threading.Lock()
         self._wake = threading.Event()
-        self._stop = threading.Event()
+        self._worker = Worker("RTSP source", "axis-rtsp-h264", self._run, self._interrupt)
+        self._stop = self._worker.stopping
         self._active = False
         self._session: RtspSession | None = None
-        self._thread: threading.Thread | None = None
         self._last_au: float | None = None
         self._adjustable = True  #: ask for adjustablelivestream=1 until the camera refuses it
         self.supported: bool | None = None  #: None until the camera has said whether it streams H.264
@@ -227,20 +228,11 @@ class RtspH264Source:
 
     def start(self) -> None:
         """Start the thread (once); it idles until :meth:`set_active`."""
-        if self._thread is not None:
-            raise RuntimeError("RTSP source already started")
-        self._thread = threading.Thread(target=self._run, name="axis-rtsp-h264", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self, timeout: float = 1.5) -> bool:
         """Stop and join; False if the thread did not end within ``timeout``."""
-        self._stop.set()
-        self._interrupt()
-        thread = self._thread
-        if thread is None:
-            return True
-        thread.join(timeout)
-        return not thread.is_alive()
+        return self._worker.stop(timeout)
 
     def set_active(self, active: bool) -> None:
         """Play (asking the camera first whether it can) or stop playing."""

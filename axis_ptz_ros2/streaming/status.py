@@ -1,5 +1,6 @@
-"""What the stream node says about itself: reader events as (throttled) log lines, the diagnostics status.
-ROS-free (levels are ``diagnostic_msgs/DiagnosticStatus`` values as integers).
+"""What the stream node says about itself: reader events as (throttled) log lines, the diagnostics status
+(with the H.264 side's values and the line that says where its H.264 comes from). ROS-free (levels are
+``diagnostic_msgs/DiagnosticStatus`` values as integers).
 """
 
 from __future__ import annotations
@@ -10,8 +11,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from axis_ptz_ros2.streaming.controller import VideoState
+from axis_ptz_ros2.streaming.h264 import StageStats
 from axis_ptz_ros2.streaming.meter import Rate
 from axis_ptz_ros2.streaming.reader import ReaderStats, StreamState
+from axis_ptz_ros2.streaming.rtsp_source import RtspSourceStats
 from axis_ptz_ros2.vapix.models import VideoParams
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # DiagnosticStatus levels
@@ -116,3 +119,28 @@ def diagnostic_status(
     elif s.state is StreamState.INVALID_PARAMS:
         message = "invalid parameters: " + s.last_error
     return _STATE_LEVEL[s.state], message, values
+
+
+def h264_mode_line(camera_streams_h264: bool) -> str:
+    """What ``codec`` = ``h264`` does with this camera (logged once, when first known)."""
+    if camera_streams_h264:
+        return "codec h264: the camera streams H.264: its own stream (RTSP) is passed through, not re-encoded"
+    return "codec h264: the camera does not stream H.264: its MJPEG (compression 0) is transcoded to H.264 on this host"
+
+
+def h264_diagnostic_values(
+    encoding: bool, bitrate_kbps: int, stage: StageStats, rtsp: RtspSourceStats, camera_streams_h264: bool | None
+) -> dict[str, Any]:
+    """The H.264 side's diagnostics values (``camera_streams_h264``: None until the camera was asked)."""
+    return {
+        "h264 encoding": encoding,
+        "h264 bitrate target [kbit/s]": bitrate_kbps,
+        "h264 access units": stage.frames,
+        "h264 IDRs": stage.idrs,
+        "h264 IDRs on demand": stage.idr_requests,
+        "h264 dropped inputs": stage.bad_inputs,
+        "h264 source": {None: "?", True: "camera (RTSP)", False: "transcoded"}[camera_streams_h264],
+        "rtsp access units": rtsp.access_units,
+        "rtsp reconnects": rtsp.reconnects,
+        "rtsp Renew-Stream": rtsp.renews,
+    }

@@ -181,7 +181,25 @@ class CameraConfig:
         return httpx.Timeout(self.timeout_s, connect=self.connect_timeout_s, read=read)
 
 
-class VapixClient:
+class _ClosesOnExit:
+    """A context manager that calls ``close()`` on exit (the client, a stream)."""
+
+    def close(self) -> None:
+        """Release what is held (each class its own)."""
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        """Context manager: closes on exit."""
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        """Close."""
+        self.close()
+
+
+class VapixClient(_ClosesOnExit):
     """Typed access to one Axis camera over one kept-alive ``httpx.Client``."""
 
     def __init__(
@@ -247,16 +265,6 @@ class VapixClient:
     def close(self) -> None:
         """Close the PTZ connection (streams are closed by their own ``close``)."""
         self._http.close()
-
-    def __enter__(self) -> Self:
-        """Context manager: closes on exit."""
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        """Close the client."""
-        self.close()
 
     def __repr__(self) -> str:
         """No credentials."""
@@ -720,7 +728,7 @@ class VapixClient:
         return stream
 
 
-class MjpegStream:
+class MjpegStream(_ClosesOnExit):
     """A running MJPEG request: iterate for frames; :meth:`close` may be called from any thread."""
 
     def __init__(
@@ -852,13 +860,3 @@ class MjpegStream:
             with contextlib.suppress(httpx.HTTPError, OSError):
                 self._response.close()
         self._http.close()
-
-    def __enter__(self) -> Self:
-        """Context manager: closes on exit."""
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        """Close the stream."""
-        self.close()

@@ -4,7 +4,7 @@
 behind one lock; the node feeds it and asks it for :meth:`ConsoleModel.state`, the JSON of ``GET /api/state``.
 The PTZ video is metered with the package's one meter (:class:`axis_ptz_ros2.streaming.meter.BitrateMeter`).
 Messages are read through small protocols (attribute names of ``PtzState`` / ``VideoParams``), so tests
-use plain objects.
+use plain objects. The answers to the operator's commands are worded here too (:func:`service_answer` & co.).
 """
 
 from __future__ import annotations
@@ -13,12 +13,13 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Protocol
 
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.web.api import BadRequest
+from axis_ptz_ros2.web.server import CommandResult
 
 #: Browser ``KeyboardEvent.key`` for the key map's special keys (letters and digits are themselves).
 BROWSER_KEYS = {"<left>": "ArrowLeft", "<right>": "ArrowRight", "<up>": "ArrowUp", "<down>": "ArrowDown",
@@ -90,6 +91,43 @@ def move_text(c: keymap.RelativeMove) -> str:
     if not math.isnan(c.zoom):
         parts.append(f"zoom {c.zoom:+.0f}")
     return " ".join(parts)
+
+
+def _note(message: str) -> str:
+    return f" ({message})" if message else ""
+
+
+def service_answer(success: bool, message: str, what: str) -> CommandResult:
+    """A node's answer to a command: success is ``what`` (+ the node's note), a refusal the node's reason (409)."""
+    if success:
+        return CommandResult(True, what + _note(message))
+    return CommandResult(False, f"{what}: refused: {message or 'no reason given'}", 409)
+
+
+def video_answer(success: bool, message: str, in_effect: str) -> CommandResult:
+    """The stream node's answer to ``video/set_params``; ``in_effect``: the parameters it now streams with."""
+    if not success:
+        return CommandResult(False, message or "video parameters refused", 409)
+    return CommandResult(True, f"video {in_effect}" + _note(message))
+
+
+def budget_answer(successful: bool, reason: str, kbps: int) -> CommandResult:
+    """The stream node's answer to a ``max_bitrate_kbps`` set (0 = off)."""
+    if not successful:
+        return CommandResult(False, f"bandwidth budget refused: {reason or 'no reason given'}", 409)
+    return CommandResult(True, f"bandwidth budget {kbps} kbit/s" if kbps else "bandwidth budget off")
+
+
+def in_turn(steps: Iterable[Callable[[], CommandResult]]) -> CommandResult:
+    """Run the steps of one command in turn: the first refusal ends it (later steps are not run); else one
+    success with their messages joined by ``; ``."""
+    messages = []
+    for step in steps:
+        result = step()
+        if not result.ok:
+            return result
+        messages.append(result.message)
+    return CommandResult(True, "; ".join(messages))
 
 
 def ptz_json(s: PtzStateLike, age_s: float) -> dict[str, Any]:

@@ -41,6 +41,7 @@ from sensor_msgs.msg import CompressedImage  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.teleop import keymap  # noqa: E402
 from axis_ptz_ros2.web import api  # noqa: E402
+from axis_ptz_ros2.web.h264relay import CONTENT_TYPE as H264_RELAY_TYPE  # noqa: E402
 from axis_ptz_ros2.web.view import FROM_BROWSER  # noqa: E402
 from tests.ros.test_web_console import FakePtz, jpeg  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
@@ -267,8 +268,9 @@ def send(env: Env, method: str, path: str, headers: dict[str, str], body: bytes)
         conn.endheaders(body or None)
         r = conn.getresponse()
         hdrs = {k.lower(): v for k, v in r.getheaders()}
-        if hdrs.get("content-type", "").startswith("multipart/"):
-            return r.status, hdrs, b""  # a video stream: the answer started; hang up
+        ctype = hdrs.get("content-type", "")
+        if ctype.startswith("multipart/") or ctype == H264_RELAY_TYPE:
+            return r.status, hdrs, b""  # a video stream (MJPEG or the H.264 relay): the answer started; hang up
         return r.status, hdrs, r.read()
     finally:
         conn.close()

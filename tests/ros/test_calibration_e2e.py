@@ -30,17 +30,17 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
     CaptureError,
-    CaptureSession,
     PoseCommand,
     cloud_path,
     parse_poses,
 )
-from axis_ptz_ros2.calibration.cli import main as cli_main  # noqa: E402
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
 from axis_ptz_ros2.calibration.picking import picking_noise  # noqa: E402
 from axis_ptz_ros2.calibration.solver import rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import quaternion_to_matrix  # noqa: E402
+from axis_ptz_ros2.nodes.calibration_capture import CaptureSession  # noqa: E402
+from axis_ptz_ros2.nodes.calibration_capture import main as cli_main  # noqa: E402
 from axis_ptz_ros2.nodes.common import LATCHED_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402

@@ -95,11 +95,11 @@ def test_stream_node_learns_size_aspect_and_model(ros: Any, cam: SimulatedCamera
     info = infos[-1]
     fx, fy = info.k[0], info.k[4]
     if cam.persona.key == "axis214":
-        assert node._model.name == "AXIS 214 PTZ"  # noqa: SLF001 - selected by Brand.ProdNbr=214
+        assert node.camera_model.name == "AXIS 214 PTZ"  # noqa: SLF001 - selected by Brand.ProdNbr=214
         assert fy / fx == pytest.approx(12.0 / 11.0, rel=1e-6)  # PAL 704x576: non-square pixels
         assert fx == pytest.approx(352.0 / math.tan(math.radians(47.98) / 2), rel=1e-6)
     else:
-        assert node._model.name == "AXIS Q6075-E"  # noqa: SLF001 - selected by Brand.ProdNbr=Q6075-E
+        assert node.camera_model.name == "AXIS Q6075-E"  # noqa: SLF001 - selected by Brand.ProdNbr=Q6075-E
         assert fy == pytest.approx(fx, rel=1e-9)  # square pixels
         assert fx == pytest.approx(960.0 / math.tan(math.radians(63.7) / 2), rel=1e-6)
     # the camera's own resolution list reaches the teleops (latched video/params)

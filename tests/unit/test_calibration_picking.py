@@ -14,9 +14,12 @@ import pytest
 
 from axis_ptz_ros2.calibration.capture import (
     CapturedView,
+    CaptureError,
+    cloud_in_base,
     cloud_path,
     parse_pose6,
     parse_poses,
+    still_view,
     store_view,
     transform_cloud,
     views_dir,
@@ -287,6 +290,42 @@ def test_store_view_writes_image_cloud_and_appends(tmp_path):
         store_view(out, cap)
     with pytest.raises(CorrespondenceError, match="letters"):
         store_view(out, CapturedView("../x", 0.0, 0.0, 1.0, b"", W, H, np.zeros((0, 4))))
+
+
+def _state(pan: float, tilt: float, zoom: float = 1.0, moving: bool = False):
+    import types
+
+    return types.SimpleNamespace(pan=pan, tilt=tilt, zoom=zoom, moving=moving)
+
+
+def test_a_still_view_is_the_median_pose_minus_the_encoder_offsets_and_refuses_motion():
+    ok, jpeg = cv2.imencode(".jpg", np.full((H, W, 3), 90, np.uint8))
+    assert ok
+    cloud = np.array([[1.0, 2.0, 3.0, 0.5]])
+    states = [_state(0.30, -0.10, 900.0), _state(0.30005, -0.10, 1000.0), _state(0.30, -0.10005, 1000.0)]
+    view = still_view("v1", states, jpeg.tobytes(), cloud, pan_offset=0.1, tilt_offset=-0.2, timings={"total": 1.5})
+    assert (view.pan, view.tilt, view.zoom) == (pytest.approx(0.2), pytest.approx(0.1), 1000.0)
+    assert (view.image_width, view.image_height) == (W, H)
+    assert view.state_spread == pytest.approx(5e-5)
+    assert view.timings == {"total": 1.5}
+    with pytest.raises(CaptureError, match="moved"):
+        still_view("v", [*states, _state(0.3, -0.1, moving=True)], jpeg.tobytes(), cloud)
+    with pytest.raises(CaptureError, match="changed by"):
+        still_view("v", [_state(0.3, -0.1), _state(0.301, -0.1)], jpeg.tobytes(), cloud)
+    with pytest.raises(CaptureError, match="not a decodable JPEG"):
+        still_view("v", states, b"not a jpeg", cloud)
+    with pytest.raises(CaptureError, match="no ptz/state"):
+        still_view("v", [], jpeg.tobytes(), cloud)
+
+
+def test_a_cloud_goes_into_base_link_only_from_the_frame_its_pose_is_for():
+    T = Transform.from_xyz_rpy(0.25, 0.0, 0.4, 0, 0, math.pi / 2)
+    pts = np.array([[1.0, 0.0, 0.0, 0.7]])
+    frames = {"base_frame": "base_link", "laser_frame": "velodyne", "T_base_laser": T}
+    np.testing.assert_allclose(cloud_in_base(pts, "/velodyne", **frames), [[0.25, 1.0, 0.4, 0.7]], atol=1e-12)
+    assert cloud_in_base(pts, "base_link", **frames) is pts
+    with pytest.raises(CaptureError, match="frame 'laser_link'"):
+        cloud_in_base(pts, "laser_link", **frames)
 
 
 def test_picking_and_capture_modules_import_without_ros():

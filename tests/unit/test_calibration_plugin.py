@@ -78,3 +78,14 @@ def test_the_cli_refuses_a_bad_picker_before_capturing(
     assert err.startswith("error: ")
     assert reason in err
     assert not out.exists()
+
+
+def test_the_ros_free_command_line_refuses_capture_without_its_ros_side(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``capture`` needs the ROS side the ``axis_calibrate`` executable plugs in (nodes/calibration_capture.py)."""
+    out = tmp_path / "views.yaml"
+    assert cli_main(["capture", str(out), "--poses", "0,0"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: capture needs the ROS side")
+    assert not out.exists()

@@ -7,6 +7,7 @@ import pytest
 
 from axis_ptz_ros2.sim.camera_model import CameraModel, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
+from tests.support.picture import figure_6_4
 from tests.support.sim import decode
 
 
@@ -37,8 +38,9 @@ def test_out_of_range_values_are_refused_with_a_reason(field: str, value: float,
 
 def test_quality_curve_falls_with_compression_and_matches_the_documented_points() -> None:
     m = AXIS_214.picture
-    assert [m.quality(c, 704) for c in (0, 10, 30, 60, 100)] == [98, 97, 93, 82, 60]
-    assert [m.quality(c, 176) for c in (0, 30, 60, 100)] == [98, 86, 59, 6]
+    assert [m.quality(c, 704) for c in (0, 10, 30, 60, 100)] == [98, 97, 94, 83, 60]
+    assert [m.quality(c, 352) for c in (0, 10, 30, 60, 100)] == [98, 97, 89, 66, 16]
+    assert [m.quality(c, 176) for c in (0, 10, 30, 60, 100)] == [98, 97, 88, 60, 1]
     for w in (704, 352, 176):
         q = [m.quality(c, w) for c in range(0, 101, 5)]
         assert q == sorted(q, reverse=True)
@@ -104,3 +106,22 @@ def test_memory_stays_bounded_with_a_changing_overlay() -> None:
     views = pool._views  # noqa: SLF001 - the bound is the point of this test
     assert len(views) == 2
     assert all(len(v.pools) <= 4 for v in views.values())
+
+
+@pytest.mark.parametrize(("width", "height"), [(704, 576), (352, 288), (176, 144)])
+def test_thesis_figure_6_4_bands(width: int, height: int) -> None:
+    """Compression up to 30 almost indistinguishable from 0, 60 visibly worse but usable, above 60 not usable
+    (the measure: tests/support/picture.py). At 704x576 compression 100 stays usable on the demo scene: the
+    real 214's 36-43 kB frames there are more bytes than the scene takes at any unusable quality (README)."""
+    fig = figure_6_4(AXIS_214.picture, width, height)
+    g = fig.grades
+    assert fig.up_to_30_like_0, g[30]
+    assert g[10].ssim_vs_0 >= g[30].ssim_vs_0  # and 10 closer to 0 than 30
+    assert fig.at_60_usable, g[60]
+    assert g[60].ssim_vs_0 < g[30].ssim_vs_0  # visibly worse than 30
+    assert [g[c].nbytes for c in (0, 10, 30, 60, 80, 100)] == sorted((g[c].nbytes for c in g), reverse=True)
+    if width < 704:
+        assert fig.at_100_not_usable, g[100]
+        assert fig.holds
+    else:  # the known deviation: still usable, and the bytes the tables ask for are why
+        assert not fig.at_100_not_usable, "704x576 reproduces the statement now: update the test and the README"

@@ -37,9 +37,6 @@ LAYER_3 = {"nodes"}
 ROS_OK_OUTSIDE_NODES = {
     "axis_ptz_ros2.camera_info_store": {"ament_index_python"},
     "axis_ptz_ros2.config": {"ament_index_python"},
-    # the calibration tool's capture session is its ROS side, imported lazily (importlib) so the rest of
-    # calibration/ stays ROS-free; mypy treats it as a node module too (pyproject). Noticed: it belongs in nodes/.
-    "axis_ptz_ros2.calibration.capture": {"rclpy", "sensor_msgs", "axis_ptz_interfaces"},
 }
 
 

@@ -709,3 +709,9 @@ def test_a_slow_move_does_not_leave_the_camera_slow(head_and_commander: Any) -> 
     _done(cmd.move("abs", 0.3, None, None))  # no speed given: full speed again (VAPIX speed persists)
     _done(cmd.move("abs", 0.4, None, None))
     assert head.speeds == [None, 0.1, 1.0, None]
+
+
+def test_a_target_lists_only_its_commanded_axes():
+    assert Target(0.5, None, 1200).commanded() == {"pan": 0.5, "zoom": 1200.0}
+    assert Target().commanded() == {}
+    assert Target(0.0, -0.1, None).commanded() == {"pan": 0.0, "tilt": -0.1}  # 0 is a commanded value

@@ -11,6 +11,8 @@ import pytest
 from axis_ptz_ros2.config import load_camera_model
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.control import area_zoom_command
+from axis_ptz_ros2.ptz.goals import wait_timeout
+from axis_ptz_ros2.ptz.requests import stream_size
 from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 pytestmark = pytest.mark.unit
@@ -87,3 +89,19 @@ def test_a_speed_outside_0_to_1_is_refused_with_the_reason() -> None:
     assert requests.move("absolute", 0.1, 0.0, math.nan, 1e308, relative=False) == refusals[-1]
     assert "speed 1e+308 outside 0..1" in refusals[-1]
     assert requests.move("absolute", 0.1, 0.0, math.nan, 0.5, relative=False) == "moved"
+
+
+@pytest.mark.parametrize(
+    ("given", "expected"),
+    [(2.5, 2.5), (0.0, 15.0), (-1.0, 15.0), (math.nan, 15.0), (math.inf, 15.0), (-math.inf, 15.0)],
+)
+def test_a_service_timeout_falls_back_to_wait_timeout(given, expected):
+    assert wait_timeout(given, 15.0) == expected
+
+
+@pytest.mark.parametrize(
+    ("size", "expected"),
+    [((704, 576), (704, 576)), ((0, 576), None), ((704, 0), None), ((-1, 5), None), ((MAX_IMAGE_SIDE + 1, 5), None)],
+)
+def test_only_a_usable_published_stream_size_is_followed(size, expected):
+    assert stream_size(*size) == expected

@@ -1,5 +1,6 @@
 """Simulator core without sockets: sign mapping, world, raycast, PTZ language and dynamics, optics."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -7,6 +8,7 @@ import pytest
 
 from axis_ptz_ros2 import geometry as g
 from axis_ptz_ros2.sim import ptz as sp
+from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
 from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, shared_scene
@@ -271,3 +273,10 @@ def test_center_and_areazoom_are_exact_at_high_tilt(head):
 
 def test_scene_constructor_loads_default_world():
     assert Scene().target("hazard_label").width == pytest.approx(0.30)
+
+
+@pytest.mark.parametrize("rate", [0, -25, 121])
+def test_a_persona_frame_rate_out_of_range_is_refused(rate: int) -> None:
+    with pytest.raises(ValueError, match="frame_rate"):
+        dataclasses.replace(AXIS_214, frame_rate=rate)
+    assert AXIS_214.frame_rate == 25  # PAL

@@ -520,3 +520,23 @@ def test_reader_401_without_recent_frames_waits_auth_retry(reader_factory):
     wait_for(lambda: r.state is StreamState.AUTH_FAILED)
     time.sleep(0.3)
     assert len(opener.calls) == 1
+
+
+def test_a_worker_starts_once_and_stop_interrupts_and_joins():
+    from axis_ptz_ros2.streaming.worker import Worker  # noqa: PLC0415
+
+    interrupted: list[bool] = []
+    holder: list[Worker] = []
+    w = Worker("probe", "test-worker", lambda: holder[0].stopping.wait(5.0), lambda: interrupted.append(True))
+    holder.append(w)
+    assert not w.started
+    w.start()
+    with pytest.raises(RuntimeError, match="probe already started"):
+        w.start()
+    t0 = time.monotonic()
+    assert w.stop(2.0) is True
+    assert time.monotonic() - t0 < 1.0
+    assert interrupted == [True]
+    never = Worker("idle", "test-idle", lambda: None)
+    assert never.stop(0.1) is True
+    assert not never.started

@@ -11,7 +11,13 @@ from dataclasses import replace
 import pytest
 
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader
-from axis_ptz_ros2.streaming.controller import AUTO_PLACEHOLDER, VIDEO_FIELDS, VideoController, VideoSettings
+from axis_ptz_ros2.streaming.controller import (
+    AUTO_PLACEHOLDER,
+    VIDEO_FIELDS,
+    VideoController,
+    VideoSettings,
+    requested_changes,
+)
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
@@ -268,3 +274,10 @@ def test_the_reader_streams_what_the_controller_says_without_a_copy():
             reader.set_params(VideoParams(Resolution(176, 144), 1, 0))
     finally:
         assert reader.stop(2.0)
+
+
+def test_a_video_set_params_request_changes_only_what_it_names():
+    assert requested_changes(0, "", -1) == {}
+    assert requested_changes(5, "", -1) == {"fps": 5}
+    assert requested_changes(0, "352x288", 0) == {"resolution": "352x288", "compression": 0}
+    assert requested_changes(30, "CIF", 100) == {"fps": 30, "resolution": "CIF", "compression": 100}

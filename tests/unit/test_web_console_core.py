@@ -17,7 +17,17 @@ from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.api import BadRequest
 from axis_ptz_ros2.web.auth import AuthThrottle, client_key
 from axis_ptz_ros2.web.panorama import cloud_in_base, look_target
-from axis_ptz_ros2.web.view import ConsoleModel, finite, keymap_json, move_text
+from axis_ptz_ros2.web.server import CommandResult
+from axis_ptz_ros2.web.view import (
+    ConsoleModel,
+    budget_answer,
+    finite,
+    in_turn,
+    keymap_json,
+    move_text,
+    service_answer,
+    video_answer,
+)
 
 pytestmark = pytest.mark.unit
 
@@ -235,3 +245,41 @@ def test_rotating_addresses_share_one_allowance_and_a_global_cap_holds() -> None
     assert t2.retry_after("192.0.2.2", now=0.0) == 0.0  # IPv4 sources are separate below the cap
     with pytest.raises(ValueError, match="global_cap"):
         AuthThrottle(max_failures=5, global_cap=4)
+
+
+# ---- answers to the operator's commands -------------------------------------------------------------------
+def test_service_answers_say_what_was_done_or_why_not():
+    assert service_answer(True, "", "going home").body() == {"ok": True, "message": "going home"}
+    assert service_answer(True, "clamped", "centring").message == "centring (clamped)"
+    refused = service_answer(False, "", "centring")
+    assert (refused.ok, refused.status, refused.message) == (False, 409, "centring: refused: no reason given")
+    assert service_answer(False, "outside the image", "centring").message == "centring: refused: outside the image"
+
+
+def test_video_and_budget_answers():
+    assert video_answer(True, "", "CIF at 5 fps, compression 30").message == "video CIF at 5 fps, compression 30"
+    assert video_answer(True, "nothing to change", "x").message == "video x (nothing to change)"
+    refused = video_answer(False, "", "x")
+    assert (refused.message, refused.status) == ("video parameters refused", 409)
+    assert video_answer(False, "not in the camera's list", "x").message == "not in the camera's list"
+    assert budget_answer(True, "", 500).message == "bandwidth budget 500 kbit/s"
+    assert budget_answer(True, "", 0).message == "bandwidth budget off"
+    assert budget_answer(False, "", 5).message == "bandwidth budget refused: no reason given"
+
+
+def test_the_steps_of_a_command_stop_at_the_first_refusal():
+    ran: list[str] = []
+
+    def step(name: str, ok: bool = True):
+        def run() -> CommandResult:
+            ran.append(name)
+            return CommandResult(ok, name, 200 if ok else 409)
+
+        return run
+
+    assert in_turn([step("a"), step("b")]).message == "a; b"
+    assert in_turn([]).body() == {"ok": True, "message": ""}
+    ran.clear()
+    result = in_turn([step("a"), step("b", ok=False), step("c")])
+    assert (result.ok, result.message, result.status) == (False, "b", 409)
+    assert ran == ["a", "b"]  # c never ran

@@ -1,9 +1,11 @@
 """The simulated camera's Motion-JPEG stream, ``video.cgi`` (vapix.md §5.1), with its stream faults (ROS-free).
 
-Paced at the requested ``fps`` (0: as fast as possible), ``duration`` and ``nbrofframes`` honoured, frames
-delivered ``latency_ms`` late, and the faults of :class:`~axis_ptz_ros2.sim.faults.FaultConfig` that act on the
-stream: stall, drop mid-part, truncated JPEGs, wrong ``Content-Length``, garbage between parts. Parts are written
-by :func:`axis_ptz_ros2.vapix.mjpeg.part_header`, the package's one part writer.
+Paced at the requested ``fps``, at most the persona's ``frame_rate`` (the PAL 214: 25 pictures a second; ``fps=0``:
+as fast as possible, the latest picture sent again between new ones, a test mode: see the README), ``duration`` and
+``nbrofframes`` honoured, frames delivered ``latency_ms`` late, and the faults of
+:class:`~axis_ptz_ros2.sim.faults.FaultConfig` that act on the stream: stall, drop mid-part, truncated JPEGs, wrong
+``Content-Length``, garbage between parts. Parts are written by :func:`axis_ptz_ros2.vapix.mjpeg.part_header`, the
+package's one part writer.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import time
 from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.sim.faults import FaultConfig
-from axis_ptz_ros2.sim.frames import MAX_FPS, stamp
+from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.http.vapix import ImageRequest, Reply, image_args
 from axis_ptz_ros2.vapix.mjpeg import multipart_content_type, part_header
 
@@ -59,7 +61,10 @@ def serve_video(handler: CameraRequestHandler, args: list[tuple[str, str]]) -> N
 def _stream(handler: CameraRequestHandler, req: ImageRequest) -> None:
     cam = handler.cam
     w, h, comp, overlay = req.width, req.height, req.compression, req.overlay
-    fps, duration, nframes = req.fps, req.duration, req.nbrofframes
+    duration, nframes = req.duration, req.nbrofframes
+    # the camera makes at most persona.frame_rate pictures a second (the PAL 214: 25): more asked, that many sent
+    rate = cam.persona.frame_rate
+    fps = min(req.fps, rate)
     period = 1.0 / fps if fps > 0 else 0.0
     start = time.monotonic()
     next_t = start
@@ -84,8 +89,8 @@ def _stream(handler: CameraRequestHandler, req: ImageRequest) -> None:
             (fps > 0 and now >= next_t) or (fps == 0 and not pending)
         )
         if produce:
-            if fps == 0 and last_jpeg is not None and now - last_render < 1.0 / MAX_FPS:
-                jpeg = last_jpeg  # as fast as possible: resend the latest encoded frame
+            if fps == 0 and last_jpeg is not None and now - last_render < 1.0 / rate:
+                jpeg = last_jpeg  # as fast as possible: resend the latest picture (new ones at the camera's rate)
             else:
                 text = time.strftime(overlay) if req.clock else overlay
                 jpeg = cam.frame_jpeg(w, h, comp, text)

@@ -29,8 +29,8 @@ from urllib.parse import parse_qsl
 
 from axis_ptz_ros2.sim import control
 from axis_ptz_ros2.sim.http.mjpeg import serve_video
+from axis_ptz_ros2.sim.http.pages import UNAUTHORIZED_HTML
 from axis_ptz_ros2.sim.http.vapix import ENDPOINTS, HANDLERS, HTML, Reply, error_page, not_found
-from axis_ptz_ros2.sim.persona import UNAUTHORIZED_HTML
 
 if TYPE_CHECKING:
     from axis_ptz_ros2.sim.camera import SimulatedCamera

@@ -14,8 +14,10 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.sim.frames import MAX_FPS, stamp
-from axis_ptz_ros2.sim.persona import ERROR_HTML, NOT_FOUND_HTML, READ_ONLY_PREFIXES, list_params
+from axis_ptz_ros2.sim.http.pages import ERROR_HTML, NOT_FOUND_HTML
+from axis_ptz_ros2.sim.params import READ_ONLY_PREFIXES, list_params
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
+from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.world import PtzLimits
 
 if TYPE_CHECKING:
@@ -81,29 +83,17 @@ def image_args(cam: SimulatedCamera, args: Args, video: bool) -> ImageRequest:
     """Validate image/video arguments (raises :class:`ValueError` with the camera's message)."""
     a = {k.lower(): v for k, v in args}
     p = cam.params
-
-    def integer(name: str, lo: int, hi: int, default: int) -> int:
-        if name not in a:
-            return default
-        try:
-            v = int(a[name])
-        except ValueError as err:
-            raise ValueError(f"Invalid {name}: {a[name]}") from err
-        if not lo <= v <= hi:
-            raise ValueError(f"Invalid {name}: {a[name]}")
-        return v
-
     if a.get("camera", "1") != "1":
         raise ValueError(f"Camera {a['camera']} not available")
-    squarepixel = integer("squarepixel", 0, 1, 0)
+    squarepixel = int_arg(a, "squarepixel", 0, 1, 0)
     w, h = cam.persona.parse_resolution(a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1)
-    compression = integer("compression", 0, 100, int(p["Image.I0.Appearance.Compression"]))
-    integer("rotation", 0, 0, 0)
+    compression = int_arg(a, "compression", 0, 100, int(p["Image.I0.Appearance.Compression"]))
+    int_arg(a, "rotation", 0, 0, 0)
     fps, duration, nbrofframes = cam.default_fps, 0, 0
     if video:
-        fps = integer("fps", 0, MAX_FPS, cam.default_fps)
-        duration = integer("duration", 0, 10**7, 0)
-        nbrofframes = integer("nbrofframes", 0, 10**9, 0)
+        fps = int_arg(a, "fps", 0, MAX_FPS, cam.default_fps)
+        duration = int_arg(a, "duration", 0, 10**7, 0)
+        nbrofframes = int_arg(a, "nbrofframes", 0, 10**9, 0)
     parts = []
     if a.get("date") == "1":
         parts.append("%Y-%m-%d")

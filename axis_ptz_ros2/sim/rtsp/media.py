@@ -1,11 +1,11 @@
 """What the simulated camera's RTSP server streams: the ``/axis-media/media.amp`` arguments, the SDP, the encoder.
 
-VAPIX RTSP API arguments (vapix.md §5.6, h264.md "Axis cameras"): ``videocodec`` (only ``h264`` is encoded
-here), ``resolution`` (the persona's list, as on ``video.cgi``), ``fps`` (0 = the camera's top rate),
-``videokeyframeinterval`` (default 32), ``videozgopmode`` (``fixed``/``dynamic``), ``videobitratemode``
-(``vbr``/``mbr``/``abr``/``cbr``) with ``videomaxbitrate`` (kbit/s; a rate option without the mode is refused),
-``h264profile``, ``adjustablelivestream``, ``camera``, ``compression``, ``audio``. A bad value is a
-:class:`MediaError` carrying the RTSP status the camera answers with.
+VAPIX RTSP API arguments (vapix.md §5.6, h264.md "Axis cameras"): ``videocodec`` (only ``h264`` is encoded here),
+``resolution`` (the persona's list, as on ``video.cgi``), ``fps`` (0 = the camera's top rate,
+``Persona.frame_rate``; more is served at that rate), ``videokeyframeinterval`` (default 32), ``videozgopmode``
+(``fixed``/``dynamic``), ``videobitratemode`` (``vbr``/``mbr``/``abr``/``cbr``) with ``videomaxbitrate`` (kbit/s; a
+rate option without the mode is refused), ``h264profile``, ``adjustablelivestream``, ``camera``, ``compression``,
+``audio``. A bad value is a :class:`MediaError` carrying the RTSP status the camera answers with.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Final
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, EncoderConfig, H264Encoder
 from axis_ptz_ros2.sim.frames import MAX_FPS
+from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
 
 if TYPE_CHECKING:
@@ -67,15 +68,10 @@ def parse_media_args(cam: SimulatedCamera, args: list[tuple[str, str]]) -> Media
     a = {k.lower(): v for k, v in args}
 
     def integer(name: str, lo: int, hi: int, default: int) -> int:
-        if name not in a:
-            return default
         try:
-            v = int(a[name])
+            return int_arg(a, name, lo, hi, default)
         except ValueError as err:
-            raise MediaError(400, f"Invalid {name}: {a[name]}") from err
-        if not lo <= v <= hi:
-            raise MediaError(400, f"Invalid {name}: {a[name]}")
-        return v
+            raise MediaError(400, str(err)) from err
 
     def choice(name: str, allowed: tuple[str, ...]) -> str | None:
         v = a.get(name)
@@ -93,7 +89,8 @@ def parse_media_args(cam: SimulatedCamera, args: list[tuple[str, str]]) -> Media
         w, h = cam.persona.parse_resolution(a.get("resolution", cam.params["Image.I0.Appearance.Resolution"]), False)
     except ValueError as err:
         raise MediaError(400, str(err)) from err
-    fps = integer("fps", 0, MAX_FPS, 0) or MAX_FPS
+    rate = cam.persona.frame_rate  # the most pictures a second the camera makes
+    fps = min(integer("fps", 0, MAX_FPS, 0) or rate, rate)
     kf = integer("videokeyframeinterval", 1, 1023, DEFAULT_KEYFRAME_INTERVAL)
     choice("videozgopmode", ("fixed", "dynamic"))
     choice("h264profile", H264_PROFILES)

@@ -1,0 +1,129 @@
+"""The stream node's parameters: one :class:`~axis_ptz_ros2.nodes.common.ParamSpec` table (names, defaults,
+ranges, descriptions; the README's table and ``config/*.yaml`` are checked against it).
+
+Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.controller.VideoSettings` and the
+reader's timings from :class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`, field for field; ranges come from the
+VAPIX models and the H.264 stage.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
+from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
+from axis_ptz_ros2.streaming import ReaderConfig
+from axis_ptz_ros2.streaming.controller import VideoSettings
+from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
+from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
+
+
+def _live(field: str, description: str, unit: str = "", **kw: Any) -> ParamSpec:
+    """A live video parameter: fills ``VideoSettings.<field>``, its default from there."""
+    return field_spec(VideoSettings, field, description, unit, **kw)
+
+
+def _timing(name: str, description: str, low: float, high: float) -> ParamSpec:
+    """A read-only timing of the reader [s]: the parameter ``name`` fills ``ReaderConfig.<name>_s``."""
+    return field_spec(ReaderConfig, f"{name}_s", description, "s", name=name, float_range=(low, high), read_only=True)
+
+
+PARAMS: tuple[ParamSpec, ...] = (
+    # -- video (live): defaults from VideoSettings, ranges from the VAPIX models --
+    _live("fps", "frames per second requested from the camera", "1/s", int_range=FPS_RANGE),
+    _live(
+        "resolution",
+        "image size 'WIDTHxHEIGHT' (or a CIF name), from the camera's list (Properties.Image.Resolution); "
+        "'' = the largest the camera lists",
+        "px",
+    ),
+    _live(
+        "compression",
+        "JPEG compression (0 = best quality, 100 = smallest)",
+        int_range=COMPRESSION_RANGE,
+    ),
+    _live(
+        "max_bitrate_kbps",
+        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off); "
+        "codec h264: caps the encoder's bitrate instead",
+        "kbit/s",
+        int_range=(0, 1_000_000),
+    ),
+    _live(
+        "budget_max_compression",
+        "highest compression the budget may choose before lowering fps",
+        int_range=COMPRESSION_RANGE,
+    ),
+    _live(
+        "budget_min_fps",
+        "the budget lowers fps only down to this before lowering the resolution (then below it)",
+        "1/s",
+        int_range=FPS_RANGE,
+    ),
+    _live(
+        "adapt_to_link",
+        "follow the consumers' video/feedback: a budget from what arrives at them (see README, Weak link)",
+    ),
+    _live(
+        "link_release",
+        "drop the feedback budget after this long without a report (held through shorter silences: link cuts)",
+        "s",
+        float_range=(2.0, 3600.0),
+    ),
+    _live(
+        "codec",
+        "'h264': image_raw/ffmpeg and image_raw/foxglove carry H.264: a camera that streams H.264 passes its own "
+        "through (RTSP), others are asked for compression 0 and encoded here; the budget drives the bitrate "
+        "instead of the MJPEG ladder",
+        choices=CODECS,
+    ),
+    _live(
+        "h264_bitrate_kbps",
+        "H.264 bitrate; applies as is without feedback, a lower budget (link or max_bitrate_kbps) lowers it",
+        "kbit/s",
+        int_range=BITRATE_RANGE_KBPS,
+    ),
+    _live(
+        "h264_keyframe_interval",
+        "frames between periodic IDRs (at most fps, one second, applies)",
+        "frames",
+        int_range=KEYFRAME_RANGE,
+    ),
+    _live("h264_preset", "libx264 preset (CPU against quality)", choices=H264_PRESETS),
+    ParamSpec(
+        "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
+    ),
+    ParamSpec(
+        "lazy",
+        True,
+        "stream only while someone subscribes to image_raw/compressed, camera_info or (codec h264) the H.264 topics",
+    ),
+    # -- frames and model (read-only) --
+    ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
+    ParamSpec(
+        "camera_model",
+        "",
+        "camera-model YAML ('' = chosen by the camera's reported model, else config/generic.yaml with the "
+        "camera's own optics)",
+        read_only=True,
+    ),
+    *CAMERA_INFO_PARAMS,  # camera_info_url, camera_name (read-only)
+    # -- connection (read-only) --
+    *CONNECTION_PARAMS,
+    ParamSpec(
+        "rtsp_port",
+        554,
+        "camera RTSP port (codec h264 from a camera that streams H.264)",
+        int_range=(1, 65535),
+        read_only=True,
+    ),
+    _timing("read_timeout", "socket read timeout of the stream", 0.05, 60.0),
+    # -- self-healing (read-only) --
+    _timing(
+        "stall_timeout", "reconnect when the newest frame is older than this (at least 3 frame periods)", 0.05, 60.0
+    ),
+    _timing("backoff_initial", "first reconnect delay", 0.001, 60.0),
+    _timing("backoff_max", "reconnect delay cap, counted from the start of the failed attempt", 0.001, 600.0),
+    _timing("auth_retry", "retry delay after a refused login (401/403)", 0.01, 3600.0),
+)
+SPECS = {s.name: s for s in PARAMS}
