@@ -19,6 +19,7 @@ from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
+    RATE_WINDOW,
     AccessUnitReceiver,
     H264Settings,
     H264Stage,
@@ -137,6 +138,27 @@ def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
     assert keys[0] is False
     assert keys[-1] is True
     assert h.stage.stats.idr_requests == 2
+
+
+def test_the_encoder_runs_at_the_rate_the_camera_makes(jpegs: list[bytes]) -> None:
+    """Asked for 30, the camera makes 10 (the harness feeds a JPEG every 100 ms): once RATE_WINDOW arrivals say so,
+    the encoder re-opens at 10 (x264 spends bitrate / fps on a picture) with an IDR; a rate within RATE_REOPEN_FPS
+    of it, or a stall, does not re-open it."""
+    h = Harness(H264Settings(bitrate_kbps=1000, keyframe_interval=30, fps=30))
+    h.stage.set_active(True)
+    frames = (jpegs * 3)[: RATE_WINDOW + 5]
+    out = h.feed(frames)
+    assert [c.fps for c in h.made] == [30, 10]
+    assert h.stage.input_fps == pytest.approx(10.0)
+    reopened = out[RATE_WINDOW - 1]
+    assert reopened is not None
+    assert reopened.keyframe
+    assert [f.pts for f in out if f is not None] == list(range(len(frames)))  # pts go on
+    # 11 pictures/s (within RATE_REOPEN_FPS) and one 5 s stall: no re-open
+    t0 = 10_000_000_000
+    for i, j in enumerate(jpegs[: RATE_WINDOW // 2]):
+        h.stage.on_jpeg(j, t0 + i * 90_909_091 + (5_000_000_000 if i > 5 else 0))
+    assert [c.fps for c in h.made] == [30, 10]
 
 
 def test_consumer_errors_ask_for_an_idr_only_when_they_grow(jpegs: list[bytes]) -> None:
