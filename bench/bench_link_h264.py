@@ -131,8 +131,8 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             out[name] = 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
         return out
 
-    def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int) -> None:
-        rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h}
+    def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int, pts: int = -1) -> None:
+        rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h, "pts": pts}
         count[0] += 1
         if count[0] % PSNR_EVERY == 1 and img is not None:
             rec["psnr"] = psnr(img)
@@ -158,10 +158,10 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
         if gap:
             emit({"t": "gap", "rx": rx0, "n": gap})
         if decoded is None:
-            emit({"t": "lost", "rx": rx0, "bytes": len(data)})
+            emit({"t": "lost", "rx": rx0, "bytes": len(data), "pts": pts})
             return
         h, w = decoded.image.shape[:2]
-        shown(rx, decoded.capture_ns or 0, len(data), decoded.image, w, h)
+        shown(rx, decoded.capture_ns or 0, len(data), decoded.image, w, h, pts)
 
     rclpy.init(args=["link_h264_viewer"])
     node: Node
@@ -379,6 +379,10 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:
     full = [r for r in steady if (r["w"], r["h"]) == (W, H)]
     out: dict[str, Any] = {"name": s.name}
     out["fps"] = len(steady) / span
+    pts = [r["pts"] for r in steady + lost if r.get("pts", -1) >= 0]
+    # H.264: access units the stream node sent in the window (its pts count every one): the camera's own rate
+    # (the simulated PAL 214 makes 25 pictures/s when asked for 30)
+    out["sent_fps"] = (max(pts) - min(pts) + 1) / span if pts else math.nan
     out["fps_full"] = len(full) / span
     out["kbps"] = (sum(r["bytes"] for r in steady) + sum(r["bytes"] for r in lost)) * 8 / 1000 / span
     out["age_p50"], out["age_p95"] = pct(ages, 0.5), pct(ages, 0.95)
@@ -439,6 +443,7 @@ def print_table(results: list[dict[str, Any]], seconds: float) -> None:
     print(f"{'':<50}" + "".join(f"{r['name']:>{col}}" for r in results))
     print(f"2 Mbit/s, 2 % loss each way, camera still, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
     row("  pictures shown [fps]", "{:.1f}", "fps")
+    row("  H.264 access units sent by the stream node [/s]", "{:.1f}", "sent_fps")
     row(f"  of which {W}x{H} [fps]", "{:.1f}", "fps_full", f">= 29 fps of {W}x{H}")
     row("  frame age p50 [ms]", "{:.0f}", "age_p50")
     row("  frame age p95 [ms]", "{:.0f}", "age_p95", "<= 100 ms (with feedback)")
@@ -572,7 +577,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264 + link monitor: {W}x{H} fps / age p95 / PSNR median, 5th pct "
             "(vs the camera's view before noise and compression, still)",
-            f"{h['fps_full']:.1f} fps / {h['age_p95']:.0f} ms / "
+            f"{h['fps_full']:.1f} fps (of {h['sent_fps']:.1f} sent) / {h['age_p95']:.0f} ms / "
             f"{h['psnr_soft_p50']:.1f}, {h['psnr_soft_p5']:.1f} dB{mj}",
             "≥ 29 fps / ≤ 100 ms / ≥ 37, ≥ 34 dB",
             bool(ok),
@@ -581,7 +586,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
     if n:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264, viewer without feedback: {W}x{H} fps / PSNR median",
-            f"{n['fps_full']:.1f} fps / {n['psnr_soft_p50']:.1f} dB",
+            f"{n['fps_full']:.1f} fps (of {n['sent_fps']:.1f} sent) / {n['psnr_soft_p50']:.1f} dB",
             "≥ 29 fps / ≥ 36 dB",
             bool(n["fps_full"] >= 29 and n["psnr_soft_p50"] >= 36),
         )
