@@ -9,7 +9,8 @@ another in one invocation (each on a fresh link, so they never share it):
   mjpeg           ``codec: mjpeg`` (compression 30, ``adapt_to_link``), ``axis_link_monitor`` on the operator side
   h264            ``codec: h264`` (the stream node transcodes the camera's MJPEG), ``axis_link_monitor`` with
                   ``codec: h264`` on the operator side (decodes, reports feedback and decode errors)
-  h264-nofb       ``codec: h264``, a viewer that sends no feedback (a plain subscription to ``image_raw/ffmpeg``)
+  h264-nofb       ``codec: h264``, a viewer that sends no feedback (a plain subscription to ``image_raw/ffmpeg``,
+                  reliable keep-last 10 as image_transport subscribes by default)
   mjpeg-nofb      ``codec: mjpeg``, a viewer that sends no feedback (plain subscription to ``image_raw/compressed``)
 
 The operator's measuring viewer is this script's ``--viewer`` mode: with feedback it *is* ``axis_link_monitor``
@@ -130,8 +131,8 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             out[name] = 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
         return out
 
-    def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int) -> None:
-        rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h}
+    def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int, pts: int = -1) -> None:
+        rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h, "pts": pts}
         count[0] += 1
         if count[0] % PSNR_EVERY == 1 and img is not None:
             rec["psnr"] = psnr(img)
@@ -148,13 +149,19 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
         shown(rx, st[1] if st else 0, len(data), img, size[0], size[1])
 
-    def on_au(data: bytes, decoded: Any | None, rx0: int) -> None:
+    last_pts = [-1]
+
+    def on_au(data: bytes, decoded: Any | None, rx0: int, pts: int) -> None:
         rx = time.time_ns()
+        gap = pts - last_pts[0] - 1 if 0 <= last_pts[0] < pts else 0  # access units lost on the way
+        last_pts[0] = pts
+        if gap:
+            emit({"t": "gap", "rx": rx0, "n": gap})
         if decoded is None:
-            emit({"t": "lost", "rx": rx0, "bytes": len(data)})
+            emit({"t": "lost", "rx": rx0, "bytes": len(data), "pts": pts})
             return
         h, w = decoded.image.shape[:2]
-        shown(rx, decoded.capture_ns or 0, len(data), decoded.image, w, h)
+        shown(rx, decoded.capture_ns or 0, len(data), decoded.image, w, h, pts)
 
     rclpy.init(args=["link_h264_viewer"])
     node: Node
@@ -162,8 +169,8 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
         from axis_ptz_ros2.nodes import link_monitor as lm
 
         class Recording(lm.FeedbackPublisher):
-            def add(self, msg: Any, nbytes: int | None = None) -> None:
-                super().add(msg, nbytes)
+            def add(self, msg: Any, nbytes: int | None = None, rx: float | None = None) -> None:
+                super().add(msg, nbytes, rx)
                 if codec == "mjpeg":
                     on_jpeg(bytes(msg.data), time.time_ns())
 
@@ -176,7 +183,7 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             def feed(self, data: bytes, pts: int | None = None) -> Any:
                 rx0 = time.time_ns()
                 out = self.inner.feed(data, pts)
-                on_au(data, out, rx0)
+                on_au(data, out, rx0, -1 if pts is None else int(pts))
                 return out
 
             def take_unusable(self) -> int:
@@ -192,6 +199,7 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
         node = Node("plain_viewer")
         if codec == "h264":
             from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+            from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
             from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
 
@@ -200,9 +208,12 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             def cb(msg: Any) -> None:
                 rx0 = time.time_ns()
                 data = bytes(msg.data)
-                on_au(data, rcv.feed(data, int(msg.pts)), rx0)
+                on_au(data, rcv.feed(data, int(msg.pts)), rx0, int(msg.pts))
 
-            node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", cb, STREAM_QOS)
+            # as a stock subscriber: image_transport (rqt_image_view, the ffmpeg plugin) subscribes with
+            # rmw_qos_profile_default, reliable keep-last 10
+            plain = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+            node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", cb, plain)
         else:
             from sensor_msgs.msg import CompressedImage
 
@@ -243,6 +254,7 @@ class Session:
     pics: list[dict[str, Any]] = field(default_factory=list)
     params: list[dict[str, Any]] = field(default_factory=list)
     lost: list[dict[str, Any]] = field(default_factory=list)
+    gaps: list[dict[str, Any]] = field(default_factory=list)
     first_s: list[float] = field(default_factory=list)  # viewer process start -> first picture (s), per start
     first_node_s: list[float] = field(default_factory=list)  # viewer node up -> first picture (s)
     pose_moved: bool = False
@@ -277,6 +289,8 @@ def first_picture(s: Session, reader: LineReader, spawned: int, timeout: float, 
         time.sleep(0.05)
     s.first_s.append(math.nan)
     s.first_node_s.append(math.nan)
+    got = reader.of("lost")
+    print(f"  {s.name}: no picture {timeout:.0f} s after a start; {len(got)} access units received", flush=True)
     return False
 
 
@@ -341,6 +355,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             time.sleep(0.1)
         s.pics = [r for r in reader.of("pic") if s.t0 <= r["rx"] < end]
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
+        s.gaps = [r for r in reader.of("gap") if s.t0 <= r["rx"] < end]
         s.params = reader.of("params")
         s.pose_moved = any(p["pose"] != pose0 for p in sim_log.of("pose"))
     finally:
@@ -364,6 +379,10 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:
     full = [r for r in steady if (r["w"], r["h"]) == (W, H)]
     out: dict[str, Any] = {"name": s.name}
     out["fps"] = len(steady) / span
+    pts = [r["pts"] for r in steady + lost if r.get("pts", -1) >= 0]
+    # H.264: access units the stream node sent in the window (its pts count every one): the camera's own rate
+    # (the simulated PAL 214 makes 25 pictures/s when asked for 30)
+    out["sent_fps"] = (max(pts) - min(pts) + 1) / span if pts else math.nan
     out["fps_full"] = len(full) / span
     out["kbps"] = (sum(r["bytes"] for r in steady) + sum(r["bytes"] for r in lost)) * 8 / 1000 / span
     out["age_p50"], out["age_p95"] = pct(ages, 0.5), pct(ages, 0.95)
@@ -378,6 +397,9 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:
         out[f"psnr_{ref}_p50"], out[f"psnr_{ref}_p5"] = pct(p, 0.5), pct(p, 0.05)
     out["psnr_n"] = sum(1 for r in steady if "psnr" in r)
     out["undecodable"] = len(lost)
+    gaps = [r for r in s.gaps if r["rx"] >= a]
+    out["gap_aus"] = sum(r["n"] for r in gaps)
+    out["gap_events"] = len(gaps)
     # a start that showed nothing is the worst
     out["first_s"] = math.inf if any(math.isnan(x) for x in s.first_s) else max(s.first_s, default=math.nan)
     out["first_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_s)
@@ -421,12 +443,15 @@ def print_table(results: list[dict[str, Any]], seconds: float) -> None:
     print(f"{'':<50}" + "".join(f"{r['name']:>{col}}" for r in results))
     print(f"2 Mbit/s, 2 % loss each way, camera still, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
     row("  pictures shown [fps]", "{:.1f}", "fps")
+    row("  H.264 access units sent by the stream node [/s]", "{:.1f}", "sent_fps")
     row(f"  of which {W}x{H} [fps]", "{:.1f}", "fps_full", f">= 29 fps of {W}x{H}")
     row("  frame age p50 [ms]", "{:.0f}", "age_p50")
     row("  frame age p95 [ms]", "{:.0f}", "age_p95", "<= 100 ms (with feedback)")
     row("  frame age max [ms]", "{:.0f}", "age_max")
     row("  received [kbit/s]", "{:.0f}", "kbps")
     row("  H.264 access units not shown (lost before/corrupt)", "{}", "undecodable")
+    row("  H.264 access units lost on the way (pts gaps)", "{}", "gap_aus")
+    row("  H.264 losses on the way (pts gaps)", "{}", "gap_events")
     row("  PSNR vs the camera's view before noise, median [dB]", "{:.1f}", "psnr_soft_p50", ">= 37 (nofb >= 36)")
     row("  PSNR vs the camera's view before noise, 5th pct [dB]", "{:.1f}", "psnr_soft_p5", ">= 34")
     row("  PSNR vs the unsoftened render, median [dB]", "{:.1f}", "psnr_render_p50")
@@ -552,7 +577,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264 + link monitor: {W}x{H} fps / age p95 / PSNR median, 5th pct "
             "(vs the camera's view before noise and compression, still)",
-            f"{h['fps_full']:.1f} fps / {h['age_p95']:.0f} ms / "
+            f"{h['fps_full']:.1f} fps (of {h['sent_fps']:.1f} sent) / {h['age_p95']:.0f} ms / "
             f"{h['psnr_soft_p50']:.1f}, {h['psnr_soft_p5']:.1f} dB{mj}",
             "≥ 29 fps / ≤ 100 ms / ≥ 37, ≥ 34 dB",
             bool(ok),
@@ -561,7 +586,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
     if n:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264, viewer without feedback: {W}x{H} fps / PSNR median",
-            f"{n['fps_full']:.1f} fps / {n['psnr_soft_p50']:.1f} dB",
+            f"{n['fps_full']:.1f} fps (of {n['sent_fps']:.1f} sent) / {n['psnr_soft_p50']:.1f} dB",
             "≥ 29 fps / ≥ 36 dB",
             bool(n["fps_full"] >= 29 and n["psnr_soft_p50"] >= 36),
         )

@@ -8,21 +8,29 @@ For the compressed→raw republisher and the link monitor. What it guarantees:
   IDR; it never raises for bad input and never hands out an older picture again.
 - An SPS with a new size (a resolution change) re-creates the decoder at that IDR.
 - No frame threading: a picture comes out of the same :meth:`~H264Decoder.decode` call as its access unit.
+- YUV 4:2:0 → BGR with the chroma interpolated to full resolution and exact rounding (swscale
+  ``FULL_CHR_H_INT | ACCURATE_RND``): swscale's default repeats each chroma sample (its fast path), which
+  alone cost 2.5 dB against the simulated camera's picture before noise and compression (38.4 instead of
+  41.5 dB for a picture that was never encoded) for about 1 ms more per 704x576 picture.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 import av
 import av.error
 import numpy as np
 import numpy.typing as npt
+from av.video.reformatter import Interpolation
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
 
 U8Array = npt.NDArray[np.uint8]
+#: swscale flags of the YUV → BGR conversion (see the module docstring)
+TO_BGR: Final = Interpolation.BILINEAR | Interpolation.FULL_CHR_H_INT | Interpolation.ACCURATE_RND
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,7 +118,7 @@ class H264Decoder:
             return None
         self._waiting = False
         self.stats.pictures += 1
-        image = frame.to_ndarray(format="bgr24")
+        image = frame.reformat(format="bgr24", interpolation=TO_BGR).to_ndarray()
         assert image.dtype == np.uint8
         return DecodedPicture(image.astype(np.uint8, copy=False), idr, stamp)
 

@@ -114,10 +114,11 @@ class H264Output:
         if self.transcode:
             self.stage.discontinuity()
 
-    def on_decode_errors(self) -> None:
-        """A consumer lost sync: a start point now, not at the next periodic IDR."""
+    def on_decode_errors(self, consumer: str, errors: int) -> None:
+        """A consumer's count of access units it could not show (its report's window): when it grew (new
+        losses), a start point now, not at the next periodic IDR (:meth:`H264Stage.consumer_errors`)."""
         if self.stage.active:
-            self.stage.request_idr()
+            self.stage.consumer_errors(consumer, errors)
 
     def _publish(self, frame: StagedFrame) -> None:
         """One access unit (reader or RTSP thread): the same bytes on both H.264 topics."""

@@ -270,8 +270,7 @@ class StreamNode(Node):
             gap_s=float(msg.gap_s),
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
         )
-        if msg.decode_errors > 0:
-            self._h264.on_decode_errors()
+        self._h264.on_decode_errors(str(msg.consumer), int(msg.decode_errors))
         judgement = self._video.feedback(report, self._subscribed)
         if judgement is not None:
             self.get_logger().debug(str(judgement))

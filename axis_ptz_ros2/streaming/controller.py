@@ -32,7 +32,7 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
-from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE, H264Settings
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
 from axis_ptz_ros2.vapix.errors import InvalidArgument
@@ -163,7 +163,7 @@ class VideoController:
             raise ValueError(reason)
         self._settings = settings
         self._h264_meter = BitrateMeter(meter.window_s)  # the H.264 bytes sent, in h264 mode
-        self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
+        self._link = LinkAdapter(_adapter_config(settings))
         self._budget = BandwidthController(
             self._request(settings),
             self._effective_budget(),
@@ -256,7 +256,7 @@ class VideoController:
             self._settings = settings
             if LINK_FIELDS & names or settings.codec != old_codec:
                 # a new codec: what was learned of the link was in another unit (JPEG bytes vs H.264 bytes)
-                self._link = LinkAdapter(AdapterConfig(release_s=float(settings.link_release)))
+                self._link = LinkAdapter(_adapter_config(settings))
                 self._budget.set_budget(self._effective_budget(), now)
             if video:
                 requested = self._request(settings)
@@ -407,6 +407,13 @@ class VideoController:
             return
         with self._notify_lock:
             self._on_change()
+
+
+def _adapter_config(settings: VideoSettings) -> AdapterConfig:
+    """The link adapter's tuning for the codec asked for (H.264 is judged by bytes, with a lossy link's repair
+    delays allowed for: :func:`~.feedback.h264_adapter_config`)."""
+    release = float(settings.link_release)
+    return h264_adapter_config(release) if settings.codec == "h264" else AdapterConfig(release_s=release)
 
 
 def requested_changes(fps: int, resolution: str, compression: int) -> dict[str, int | str]:

@@ -31,7 +31,7 @@ from sensor_msgs.msg import CompressedImage, Image  # noqa: E402
 from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
 from axis_ptz_ros2.media import annexb  # noqa: E402
 from axis_ptz_ros2.media.annexb import NalType  # noqa: E402
-from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, VIDEO_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.nodes.republish import RepublishNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
@@ -307,7 +307,7 @@ def test_resolution_change_mid_stream_starts_with_an_idr_of_the_new_size(
     before = packets[packets.index(first_small) - 1]
     if first_small.pts == before.pts + 1:  # nothing lost in between: the new size's first access unit is an IDR
         assert first_small.key
-    else:  # its IDR was replaced in the depth-2 history before delivery (a loaded host): judge the next one
+    else:  # its IDR was replaced in the keep-last history before delivery (a loaded host): judge the next one
         assert before.width == 704, "a lost access unit, but the last one received before it was not the old size"
         first_small = next(p for p in packets if p.width == 352 and p.key)
     sps = annexb.find_sps(first_small.data)
@@ -426,6 +426,51 @@ def test_link_monitor_decodes_and_its_loss_report_brings_an_idr(ros: RosHarness,
     pub.publish(msg)
     ros.wait_for(lambda: node._stage.stats.idr_requests > before, timeout=2)
     ros.wait_for(lambda: any(p.key for p in rec.since(t)), timeout=1)
+
+
+def test_link_monitor_reports_a_loss_at_once_not_at_its_period(ros: RosHarness, camera: SimulatedCamera) -> None:
+    """The stream node's own access units replayed to a monitor (report period 5 s) over DDS, one left out: the
+    monitor reports the loss within a fraction of a second (the stream node answers with an IDR), not 5 s later."""
+    make_node(ros, camera, **{**H264, "fps": 30}, h264_keyframe_interval=600)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: sum(1 for p in rec.since(0) if p.key) >= 1 and len(rec.since(0)) >= 12, timeout=10)
+    packets = rec.since(0)
+    first = next(i for i, p in enumerate(packets) if p.key)
+    packets = packets[first : first + 10]
+    assert len(packets) == 10
+    overrides = {"codec": "h264", "h264_topic": "lossy/ffmpeg", "feedback_topic": "lossy/feedback", "period": 5.0}
+    monitor = ros.add(
+        LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    )
+    reports: list[tuple[float, LinkFeedback]] = []
+    probe.create_subscription(
+        LinkFeedback, "lossy/feedback", lambda m: reports.append((time.monotonic(), m)), FEEDBACK_QOS
+    )
+    pub = probe.create_publisher(FFMPEGPacket, "lossy/ffmpeg", VIDEO_QOS)
+    ros.wait_for(lambda: pub.get_subscription_count() >= 1, timeout=10)
+
+    receiver = monitor.receiver
+    assert receiver is not None
+
+    def send(p: Packet) -> None:  # one at a time, as a camera would
+        n = receiver.stats.access_units
+        msg = FFMPEGPacket(encoding=p.encoding, width=p.width, height=p.height, pts=p.pts, flags=int(p.key))
+        msg.data = p.data
+        pub.publish(msg)
+        ros.wait_for(lambda: receiver.stats.access_units > n, timeout=5)
+
+    for p in packets[:6]:
+        send(p)
+    assert receiver.stats.pictures >= 5  # (the first IDR's picture may come out with the next one)
+    ros.wait_for(lambda: len(reports) >= 1, timeout=7)  # a periodic report: the next one is 5 s away
+    assert all(m.decode_errors == 0 for _t, m in reports)
+    t = time.monotonic()
+    send(packets[7])  # packets[6] lost on the way
+    ros.wait_for(lambda: any(m.decode_errors > 0 for _t, m in reports), timeout=2)
+    first_loss = next(tr for tr, m in reports if m.decode_errors > 0)
+    assert first_loss - t < 1.0, f"loss reported {first_loss - t:.2f} s after it (period 5 s)"
+    assert receiver.stats.lost == 1
 
 
 def test_link_monitor_reports_no_decode_errors_on_a_clean_stream(ros: RosHarness, camera: SimulatedCamera) -> None:

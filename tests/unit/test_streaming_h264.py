@@ -19,6 +19,7 @@ from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
+    RATE_WINDOW,
     AccessUnitReceiver,
     H264Settings,
     H264Stage,
@@ -137,6 +138,47 @@ def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
     assert keys[0] is False
     assert keys[-1] is True
     assert h.stage.stats.idr_requests == 2
+
+
+def test_the_encoder_runs_at_the_rate_the_camera_makes(jpegs: list[bytes]) -> None:
+    """Asked for 30, the camera makes 10 (the harness feeds a JPEG every 100 ms): once RATE_WINDOW arrivals say so,
+    the encoder re-opens at 10 (x264 spends bitrate / fps on a picture) with an IDR; a rate within RATE_REOPEN_FPS
+    of it, or a stall, does not re-open it."""
+    h = Harness(H264Settings(bitrate_kbps=1000, keyframe_interval=30, fps=30))
+    h.stage.set_active(True)
+    frames = (jpegs * 3)[: RATE_WINDOW + 5]
+    out = h.feed(frames)
+    assert [c.fps for c in h.made] == [30, 10]
+    assert h.stage.input_fps == pytest.approx(10.0)
+    reopened = out[RATE_WINDOW - 1]
+    assert reopened is not None
+    assert reopened.keyframe
+    assert [f.pts for f in out if f is not None] == list(range(len(frames)))  # pts go on
+    # 11 pictures/s (within RATE_REOPEN_FPS) and one 5 s stall: no re-open
+    t0 = 10_000_000_000
+    for i, j in enumerate(jpegs[: RATE_WINDOW // 2]):
+        h.stage.on_jpeg(j, t0 + i * 90_909_091 + (5_000_000_000 if i > 5 else 0))
+    assert [c.fps for c in h.made] == [30, 10]
+
+
+def test_consumer_errors_ask_for_an_idr_only_when_they_grow(jpegs: list[bytes]) -> None:
+    h = Harness()
+    h.stage.set_active(True)
+    h.feed(jpegs[:10])  # clock advances 1.0 s
+    assert h.stage.consumer_errors("/op/monitor", 3)  # new losses: an IDR
+    f = h.feed(jpegs[10:11])[0]
+    assert f is not None
+    assert f.keyframe
+    h.clock.t += 1.0
+    # the consumer recovered: its window still holds the 3 errors, then fewer as they leave it: no new IDR
+    assert not h.stage.consumer_errors("/op/monitor", 3)
+    assert not h.stage.consumer_errors("/op/monitor", 2)
+    assert not any(x is not None and x.keyframe for x in h.feed(jpegs[11:14]))
+    assert h.stage.consumer_errors("/op/monitor", 5)  # new losses again
+    assert h.stage.consumer_errors("/op/other", 1)  # each consumer on its own
+    assert not h.stage.consumer_errors("/op/monitor", 0)
+    assert h.stage.consumer_errors("/op/monitor", 1)  # after a clean report, any error is new
+    assert h.stage.stats.idr_requests == 1
 
 
 def test_deactivation_drops_the_encoder_and_reactivation_starts_with_an_idr(jpegs: list[bytes]) -> None:
