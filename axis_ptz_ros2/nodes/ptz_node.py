@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -177,6 +178,7 @@ class PtzNode(Node):
 
         # ptz/state, joint_states, ptz/transform, ptz/mount, /tf, /tf_static; /diagnostics
         drive = self._drive
+        self._zoom_listeners: list[Callable[[float], None]] = []
         self._out = PtzStatePublisher(
             self,
             self._model,
@@ -280,6 +282,13 @@ class PtzNode(Node):
                 "head settled away from the commanded target; relative moves now start from the measured pose"
             )
         self._out.publish(sample)
+        for listener in self._zoom_listeners:
+            listener(sample.reading.zoom)
+
+    def add_zoom_listener(self, listener: Callable[[float], None]) -> None:
+        """Call ``listener`` with every polled zoom (VAPIX units, the state poll's thread): a stream node in this
+        process (``axis_camera``) takes its ``camera_info`` zoom from here rather than from ``ptz/state``."""
+        self._zoom_listeners.append(listener)
 
     def health(self) -> Health:
         """The state polling's diagnostic verdict (age, staleness, camera answering)."""
