@@ -37,6 +37,7 @@ from axis_ptz_ros2.nodes.common import (
     COMMAND_QOS,
     CONNECTION_PARAMS,
     LATCHED_QOS,
+    RELATIVE_QOS,
     ParamSpec,
     camera_config_from_params,
     check_params,
@@ -211,7 +212,7 @@ class PtzNode(Node):
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics, callback_group=g)
 
         self.create_subscription(PtzCommand, "ptz/cmd/absolute", self._on_absolute, COMMAND_QOS, callback_group=g)
-        self.create_subscription(PtzCommand, "ptz/cmd/relative", self._on_relative, COMMAND_QOS, callback_group=g)
+        self.create_subscription(PtzCommand, "ptz/cmd/relative", self._on_relative, RELATIVE_QOS, callback_group=g)
         self.create_subscription(PtzVelocity, "ptz/cmd/velocity", self._on_velocity, COMMAND_QOS, callback_group=g)
         self.create_subscription(PixelTarget, "ptz/cmd/center", self._on_center, COMMAND_QOS, callback_group=g)
         self.create_subscription(PointStamped, "ptz/cmd/look_at", self._on_look_at, COMMAND_QOS, callback_group=g)
