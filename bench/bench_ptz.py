@@ -38,7 +38,7 @@ from rclpy.node import Node  # noqa: E402
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState  # noqa: E402
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, RELATIVE_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.counts import PtzLogEntry  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
@@ -113,7 +113,7 @@ def main() -> int:
     states: list[float] = []
     probe.create_subscription(PtzState, "ptz/state", lambda _m: states.append(time.monotonic()), STREAM_QOS)
     pub_abs = probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS)
-    pub_rel = probe.create_publisher(PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
+    pub_rel = probe.create_publisher(PtzCommand, "ptz/cmd/relative", RELATIVE_QOS)
 
     def spin_for(seconds: float) -> None:
         end = time.monotonic() + seconds

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from rclpy.node import Node
 
@@ -45,18 +46,36 @@ def camera_namespaces(argv: Sequence[str]) -> list[str]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the stream node and the PTZ node of each camera together until Ctrl-C."""
+    argv = args if args is not None else sys.argv
+    cameras: list[str | None] = [*camera_namespaces(argv)] or [None]  # None: the command line's namespace
+    factories: list[Callable[[], Node]] = []
+    for ns in cameras:
+        factories += camera_pair(ns)
+    return run_nodes(factories, argv)
+
+
+def camera_pair(namespace: str | None, **node_kwargs: Any) -> list[Callable[[], Node]]:
+    """The factories of one camera's stream and PTZ nodes (in that order), wired in-process: the stream node's
+    ``camera_info`` takes the PTZ node's polled zoom directly instead of deserialising ``ptz/state`` at 20 Hz
+    (the composed process then costs about what its two nodes cost alone; bench/bench_cpu.py). ``node_kwargs`` go
+    to both nodes (``context=``, ``parameter_overrides=``)."""
     from axis_ptz_ros2.nodes.ptz_node import PtzNode
     from axis_ptz_ros2.nodes.stream_node import StreamNode
 
-    argv = args if args is not None else sys.argv
-    namespaces = camera_namespaces(argv)
-    factories: list[Callable[[], Node]] = []
-    if not namespaces:
-        factories = [StreamNode, PtzNode]
-    for ns in namespaces:
-        factories.append(lambda ns=ns: StreamNode(namespace=ns))  # type: ignore[misc]
-        factories.append(lambda ns=ns: PtzNode(namespace=ns))  # type: ignore[misc]
-    return run_nodes(factories, argv)
+    kwargs: dict[str, Any] = dict(node_kwargs) if namespace is None else {**node_kwargs, "namespace": namespace}
+    made: list[StreamNode] = []
+
+    def stream() -> Node:
+        node = StreamNode(**kwargs)
+        made.append(node)
+        return node
+
+    def ptz() -> Node:
+        node = PtzNode(**kwargs)
+        node.add_zoom_listener(made[-1].zoom_sink())
+        return node
+
+    return [stream, ptz]
 
 
 if __name__ == "__main__":

@@ -47,6 +47,9 @@ STREAM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=Re
 VIDEO_QOS = QoSProfile(depth=4, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Commands: the newest wins; a small queue absorbs bursts.
 COMMAND_QOS = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: Relative commands: each one is an offset, so none may be dropped: a queue deep enough for ~3 s of 30 Hz
+#: steps while the node is busy (KEEP_LAST 5 dropped steps: a 300-step burst ended 7.5 degrees off).
+RELATIVE_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Consumer feedback (video/feedback): periodic reports, only the newest matters, never repaired late.
 FEEDBACK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Latched values (video/params): late joiners get the value in effect.

@@ -34,7 +34,15 @@ from std_srvs.srv import Trigger
 
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, PtzVelocity, VideoParams
 from axis_ptz_interfaces.srv import SetVideoParams
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.common import (
+    COMMAND_QOS,
+    LATCHED_QOS,
+    RELATIVE_QOS,
+    STREAM_QOS,
+    ParamSpec,
+    declare_params,
+    publisher,
+)
 from axis_ptz_ros2.teleop import keymap as km
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -66,7 +74,7 @@ class KeyboardTeleop(Node):
         self._status_dirty = True
         self._drawn = ""
         self._pending: list[tuple[float, str, Future]] = []
-        self._rel_pub = publisher(self, PtzCommand, "ptz/cmd/relative", COMMAND_QOS)
+        self._rel_pub = publisher(self, PtzCommand, "ptz/cmd/relative", RELATIVE_QOS)
         self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         self._home = self.create_client(Trigger, "ptz/home")
         self._video_srv = self.create_client(SetVideoParams, "video/set_params")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -36,6 +37,7 @@ from axis_ptz_ros2.nodes.common import (
     COMMAND_QOS,
     CONNECTION_PARAMS,
     LATCHED_QOS,
+    RELATIVE_QOS,
     ParamSpec,
     camera_config_from_params,
     check_params,
@@ -177,6 +179,7 @@ class PtzNode(Node):
 
         # ptz/state, joint_states, ptz/transform, ptz/mount, /tf, /tf_static; /diagnostics
         drive = self._drive
+        self._zoom_listeners: list[Callable[[float], None]] = []
         self._out = PtzStatePublisher(
             self,
             self._model,
@@ -209,7 +212,7 @@ class PtzNode(Node):
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics, callback_group=g)
 
         self.create_subscription(PtzCommand, "ptz/cmd/absolute", self._on_absolute, COMMAND_QOS, callback_group=g)
-        self.create_subscription(PtzCommand, "ptz/cmd/relative", self._on_relative, COMMAND_QOS, callback_group=g)
+        self.create_subscription(PtzCommand, "ptz/cmd/relative", self._on_relative, RELATIVE_QOS, callback_group=g)
         self.create_subscription(PtzVelocity, "ptz/cmd/velocity", self._on_velocity, COMMAND_QOS, callback_group=g)
         self.create_subscription(PixelTarget, "ptz/cmd/center", self._on_center, COMMAND_QOS, callback_group=g)
         self.create_subscription(PointStamped, "ptz/cmd/look_at", self._on_look_at, COMMAND_QOS, callback_group=g)
@@ -280,6 +283,13 @@ class PtzNode(Node):
                 "head settled away from the commanded target; relative moves now start from the measured pose"
             )
         self._out.publish(sample)
+        for listener in self._zoom_listeners:
+            listener(sample.reading.zoom)
+
+    def add_zoom_listener(self, listener: Callable[[float], None]) -> None:
+        """Call ``listener`` with every polled zoom (VAPIX units, the state poll's thread): a stream node in this
+        process (``axis_camera``) takes its ``camera_info`` zoom from here rather than from ``ptz/state``."""
+        self._zoom_listeners.append(listener)
 
     def health(self) -> Health:
         """The state polling's diagnostic verdict (age, staleness, camera answering)."""

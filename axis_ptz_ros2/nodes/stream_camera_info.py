@@ -14,6 +14,7 @@ from builtin_interfaces.msg import Time
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo
 
 from axis_ptz_interfaces.msg import PtzState
@@ -50,7 +51,10 @@ class CameraInfoOutput:
             node, calibration[0], calibration[1], stream_size, self.zoom, self._cache.clear
         )
         self.pub: Publisher = publisher(node, CameraInfo, "camera_info", STREAM_QOS, event_callbacks=events)
-        node.create_subscription(PtzState, "ptz/state", self._on_ptz_state, STREAM_QOS)
+        self._node = node
+        self._ptz_sub: Subscription | None = node.create_subscription(
+            PtzState, "ptz/state", self._on_ptz_state, STREAM_QOS
+        )
 
     @property
     def model(self) -> CameraModel:
@@ -72,6 +76,19 @@ class CameraInfoOutput:
 
     def _on_ptz_state(self, msg: PtzState) -> None:
         self._zoom_ptz = float(msg.zoom)
+
+    def direct_zoom(self) -> Callable[[float], None]:
+        """For a PTZ node in the same process (``axis_camera``): drop the ``ptz/state`` subscription and return
+        the function that PTZ node calls with each polled zoom (VAPIX units) instead. The subscription
+        deserialised 20 messages a second for one number: most of what the composed process cost over its two
+        nodes alone (bench/bench_cpu.py)."""
+        if self._ptz_sub is not None:
+            self._node.destroy_subscription(self._ptz_sub)
+            self._ptz_sub = None
+        return self._set_zoom_ptz
+
+    def _set_zoom_ptz(self, zoom: float) -> None:
+        self._zoom_ptz = float(zoom)  # one attribute store: safe from the PTZ node's poll thread
 
     def publish(self, width: int, height: int, stamp: Time) -> None:
         """Hot path (reader thread): the camera_info of a ``width`` x ``height`` frame, restamped."""

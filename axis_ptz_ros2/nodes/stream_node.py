@@ -30,6 +30,7 @@ consumer's report of decode errors on ``video/feedback`` asks for an IDR (from t
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -160,6 +161,10 @@ class StreamNode(Node):
     def camera_model(self) -> CameraModel:
         """The camera model in use (the configured or generic one until the camera has said what it is)."""
         return self._camera_info.model
+
+    def zoom_sink(self) -> Callable[[float], None]:
+        """``camera_info``'s zoom fed by a PTZ node in this process instead of ``ptz/state`` (``axis_camera``)."""
+        return self._camera_info.direct_zoom()
 
     # -- parameters ------------------------------------------------------------------------------------------
     def _settings_with(self, params: list[Parameter]) -> VideoSettings:

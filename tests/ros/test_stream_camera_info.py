@@ -77,3 +77,47 @@ def test_stream_publishes_the_measured_camera_info(ros, tmp_path):
         assert list(z.d) == pytest.approx(list(measured.D))
     finally:
         cam.stop()
+
+
+def test_axis_camera_feeds_camera_info_the_ptz_nodes_zoom_in_process(ros):
+    # axis_camera's pair: the stream node has no ptz/state subscription (20 Hz deserialised for one number); its
+    # camera_info still follows the zoom the PTZ node polls from the camera
+    from axis_ptz_interfaces.msg import PtzCommand
+    from axis_ptz_ros2.nodes.camera_main import camera_pair
+    from axis_ptz_ros2.nodes.common import COMMAND_QOS
+
+    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
+    try:
+        params = {"port": cam.port, "fps": 10, "resolution": "704x576", "zoom": 1.0}
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        make_stream, make_ptz = camera_pair(None, context=ros.context, parameter_overrides=overrides)
+        stream = ros.add(make_stream())
+        ros.add(make_ptz())
+        probe = ros.probe()
+        infos: list[CameraInfo] = []
+        lock = threading.Lock()
+
+        def on_info(msg: CameraInfo) -> None:
+            with lock:
+                infos.append(msg)
+
+        probe.create_subscription(CameraInfo, "camera_info", on_info, STREAM_QOS)
+        ros.wait_for(lambda: len(infos) >= 2, timeout=10)
+        readers = {i.node_name for i in probe.get_subscriptions_info_by_topic("/ptz/state")}
+        assert stream.get_name() not in readers, readers
+        model = stream.camera_model
+        fx = {z: model.camera_info_at(z, 704, 576).intrinsics().fx for z in (1.0, 4000.0)}
+        assert fx[4000.0] > 1.5 * fx[1.0]
+        with lock:
+            assert infos[-1].k[0] == pytest.approx(fx[1.0])
+        pub = probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS)
+        nan = float("nan")
+
+        def zoomed() -> bool:
+            pub.publish(PtzCommand(pan=nan, tilt=nan, zoom=4000.0, speed=nan))
+            with lock:
+                return infos[-1].k[0] == pytest.approx(fx[4000.0], rel=1e-3)
+
+        ros.wait_for(zoomed, timeout=15, period=0.2)
+    finally:
+        cam.stop()
