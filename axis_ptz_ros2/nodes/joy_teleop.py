@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 from axis_ptz_interfaces.msg import PtzVelocity
 from axis_ptz_interfaces.srv import Preset
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.runner import close_own_loop
 from axis_ptz_ros2.teleop.joy import Command, GotoPreset, Home, JoyMap, JoyTeleop, Stop, Velocity
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -220,15 +221,11 @@ def main(args: list[str] | None = None) -> int:
     finally:
         for s in old:  # not the old handlers: Python's would turn a late second signal into a traceback
             signal.signal(s, signal.SIG_IGN)
-        if node is not None:
-            try:
-                if node.stop_motion():
-                    node.get_logger().info("stopped the head on exit")
-            finally:
-                executor.remove_node(node)
-                node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()
+        try:
+            if node is not None and node.stop_motion():
+                node.get_logger().info("stopped the head on exit")
+        finally:
+            close_own_loop(executor, node)
     return code
 
 

@@ -43,6 +43,7 @@ from axis_ptz_ros2.nodes.common import (
     declare_params,
     publisher,
 )
+from axis_ptz_ros2.nodes.runner import close_own_loop
 from axis_ptz_ros2.teleop import keymap as km
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -276,19 +277,17 @@ def main(args: list[str] | None = None) -> int:
             signal.signal(s, signal.SIG_IGN)
         if term is not None:
             term.restore()
-        if node is not None:
-            try:
+        try:
+            if node is not None:
                 node.stop()  # never leave the head turning
                 deadline = time.monotonic() + 0.2
                 while time.monotonic() < deadline:  # let the stop go out on the wire
                     executor.spin_once(timeout_sec=0.02)
-            finally:
+        finally:
+            if node is not None:
                 out.write("\r\n")
                 out.flush()
-                executor.remove_node(node)
-                node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()
+            close_own_loop(executor, node)
     return code
 
 

@@ -342,3 +342,13 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
             faulthandler.cancel_dump_traceback_later()
             signals.restore()
     return code
+
+
+def close_own_loop(executor: Executor, node: Node | None) -> None:
+    """The end of a node that spins its own loop (the teleops): off its executor and destroyed (if it was made),
+    then the executor and the context shut down."""
+    if node is not None:
+        executor.remove_node(node)
+        node.destroy_node()
+    executor.shutdown(timeout_sec=1.0)
+    rclpy.try_shutdown()
