@@ -62,6 +62,25 @@ _NO_SUPPORT = [
 READ_ONLY_PREFIXES = ("Properties.", "Brand.")
 
 
+def _limit_l1(limits: PtzLimits, zoom: ZoomModel, narrowest: float, floor: int) -> dict[str, str]:
+    """The ``PTZ.Limit.L1`` group both personas list: ranges in VAPIX units, field angles in tenths of a degree
+    (the narrowest at zoom ``narrowest``, at least ``floor``)."""
+    return {
+        "PTZ.Limit.L1.MinPan": f"{limits.min_pan:g}",
+        "PTZ.Limit.L1.MaxPan": f"{limits.max_pan:g}",
+        "PTZ.Limit.L1.MinTilt": f"{limits.min_tilt:g}",
+        "PTZ.Limit.L1.MaxTilt": f"{limits.max_tilt:g}",
+        "PTZ.Limit.L1.MinZoom": str(limits.min_zoom),
+        "PTZ.Limit.L1.MaxZoom": str(limits.max_zoom),
+        "PTZ.Limit.L1.MinFocus": "1",
+        "PTZ.Limit.L1.MaxFocus": "9999",
+        "PTZ.Limit.L1.MinIris": "1",
+        "PTZ.Limit.L1.MaxIris": "9999",
+        "PTZ.Limit.L1.MinFieldAngle": str(max(floor, int(round(math.degrees(zoom.hfov(narrowest)) * 10)))),
+        "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
+    }
+
+
 def axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
     """The 214's parameters (names without the ``root.`` prefix) in listing order."""
     p: dict[str, str] = {
@@ -96,18 +115,7 @@ def axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str,
         "PTZ.CameraDefault": "1",
         "PTZ.NbrOfCameras": "1",
         "PTZ.NbrOfSerPorts": "1",
-        "PTZ.Limit.L1.MinPan": f"{limits.min_pan:g}",
-        "PTZ.Limit.L1.MaxPan": f"{limits.max_pan:g}",
-        "PTZ.Limit.L1.MinTilt": f"{limits.min_tilt:g}",
-        "PTZ.Limit.L1.MaxTilt": f"{limits.max_tilt:g}",
-        "PTZ.Limit.L1.MinZoom": str(limits.min_zoom),
-        "PTZ.Limit.L1.MaxZoom": str(limits.max_zoom),
-        "PTZ.Limit.L1.MinFocus": "1",
-        "PTZ.Limit.L1.MaxFocus": "9999",
-        "PTZ.Limit.L1.MinIris": "1",
-        "PTZ.Limit.L1.MaxIris": "9999",
-        "PTZ.Limit.L1.MinFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.max_zoom)) * 10))),
-        "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
+        **_limit_l1(limits, zoom, limits.max_zoom, floor=0),
     }
     p.update(real_listing_ptz_keys())
     for cap in _SUPPORT:
@@ -263,18 +271,7 @@ def modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, 
         "PTZ.ImageSource.I0.PTZEnabled": "true",
         "PTZ.NbrOfCameras": "1",
         "PTZ.NbrOfSerPorts": "0",
-        "PTZ.Limit.L1.MinPan": f"{limits.min_pan:g}",
-        "PTZ.Limit.L1.MaxPan": f"{limits.max_pan:g}",
-        "PTZ.Limit.L1.MinTilt": f"{limits.min_tilt:g}",
-        "PTZ.Limit.L1.MaxTilt": f"{limits.max_tilt:g}",
-        "PTZ.Limit.L1.MinZoom": str(limits.min_zoom),
-        "PTZ.Limit.L1.MaxZoom": str(limits.max_zoom),
-        "PTZ.Limit.L1.MinFocus": "1",
-        "PTZ.Limit.L1.MaxFocus": "9999",
-        "PTZ.Limit.L1.MinIris": "1",
-        "PTZ.Limit.L1.MaxIris": "9999",
-        "PTZ.Limit.L1.MinFieldAngle": str(max(1, int(round(math.degrees(zoom.hfov(optical_end)) * 10)))),
-        "PTZ.Limit.L1.MaxFieldAngle": str(int(round(math.degrees(zoom.hfov(limits.min_zoom)) * 10))),
+        **_limit_l1(limits, zoom, optical_end, floor=1),
     }
     p.update(real_listing_ptz_keys())
     for cap, on in _Q6075_SUPPORT.items():

@@ -29,6 +29,19 @@ from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
+def collect_camera_info(probe) -> tuple[list[CameraInfo], threading.Lock]:  # noqa: ANN001
+    """Every ``camera_info`` the probe receives, in order, and the lock to read them under."""
+    infos: list[CameraInfo] = []
+    lock = threading.Lock()
+
+    def on_info(msg: CameraInfo) -> None:
+        with lock:
+            infos.append(msg)
+
+    probe.create_subscription(CameraInfo, "camera_info", on_info, STREAM_QOS)
+    return infos, lock
+
+
 def test_stream_publishes_the_measured_camera_info(ros, tmp_path):
     measured = real_like_camera_info("plumb_bob", 704, 576)
     save_camera_info(measured, tmp_path / "ost.yaml")
@@ -41,14 +54,7 @@ def test_stream_publishes_the_measured_camera_info(ros, tmp_path):
         params = {"port": cam.port, "fps": 10, "resolution": "704x576", "zoom": 1.0, "camera_model": str(model)}
         ros.add(StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
         probe = ros.probe()
-        infos: list[CameraInfo] = []
-        lock = threading.Lock()
-
-        def on_info(msg: CameraInfo) -> None:
-            with lock:
-                infos.append(msg)
-
-        probe.create_subscription(CameraInfo, "camera_info", on_info, STREAM_QOS)
+        infos, lock = collect_camera_info(probe)
         ros.wait_for(lambda: len(infos) >= 2, timeout=10)
         with lock:
             info = infos[-1]
@@ -94,14 +100,7 @@ def test_axis_camera_feeds_camera_info_the_ptz_nodes_zoom_in_process(ros):
         stream = ros.add(make_stream())
         ros.add(make_ptz())
         probe = ros.probe()
-        infos: list[CameraInfo] = []
-        lock = threading.Lock()
-
-        def on_info(msg: CameraInfo) -> None:
-            with lock:
-                infos.append(msg)
-
-        probe.create_subscription(CameraInfo, "camera_info", on_info, STREAM_QOS)
+        infos, lock = collect_camera_info(probe)
         ros.wait_for(lambda: len(infos) >= 2, timeout=10)
         readers = {i.node_name for i in probe.get_subscriptions_info_by_topic("/ptz/state")}
         assert stream.get_name() not in readers, readers
