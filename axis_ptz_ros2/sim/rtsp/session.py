@@ -126,7 +126,13 @@ class RtspSession:
             if max_bitrate_kbps is not None:
                 self._bitrate_bps = max_bitrate_kbps * 1000
 
-    _bitrate_bps: int | None = None
+    _bitrate_bps: int | None = None  # a bitrate asked for and not yet applied (the stream loop takes it)
+
+    @property
+    def bitrate_bps(self) -> int | None:
+        """The bitrate the session's encoder runs at now (None before its first frame)."""
+        enc = self._encoder
+        return None if enc is None else enc.config.bitrate_bps
 
     # ---- the stream ------------------------------------------------------------------------------------
     def _run(self) -> None:
