@@ -44,7 +44,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "max_bitrate_kbps",
-        "bandwidth budget: step compression, then fps, then resolution down to stay under it (0 = off); "
+        "bandwidth budget: step compression, then fps, then resolution (keeping the requested shape) down to stay "
+        "under it (0 = off); "
         "codec h264: caps the encoder's bitrate instead",
         "kbit/s",
         int_range=(0, 1_000_000),
