@@ -70,7 +70,7 @@ def read_params(ros: Any, probe: Any, proc: subprocess.Popen[bytes], node: str, 
         if proc.poll() is not None:
             out = proc.stdout.read().decode(errors="replace") if proc.stdout else ""
             raise AssertionError(f"{node}: process exited with {proc.returncode}:\n{out[-3000:]}")
-        resp = ros.call(client, GetParameters.Request(names=names), timeout=20.0)
+        resp = ros.query(client, GetParameters.Request(names=names), timeout=20.0)
     finally:
         probe.destroy_client(client)
     assert len(resp.values) == len(names)

@@ -168,7 +168,7 @@ def get_params(ros: RosHarness, probe, *names: str) -> list:
     client = probe.create_client(GetParameters, "/axis_stream/get_parameters")
     req = GetParameters.Request()
     req.names = list(names)
-    return ros.call(client, req).values
+    return ros.query(client, req).values
 
 
 def video_count(camera: SimulatedCamera) -> int:

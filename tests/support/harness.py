@@ -62,6 +62,28 @@ class RosHarness:
         self.wait_for(fut.done, timeout)
         return fut.result()
 
+    def query(self, client: Any, request: Any, timeout: float = 10.0, attempt: float = 5.0) -> Any:
+        """Call a service that only reads (``get_parameters``, ``list_parameters``), sending the request again
+        every ``attempt`` s until a response comes or ``timeout`` (scaled as :meth:`wait_for`) ends.
+
+        Why: a client's ``service_is_ready()`` turns true when the server's request reader has matched it, but the
+        server's response writer may not have matched the client's response reader yet. rmw_fastrtps then waits
+        a short while, drops the response with a "failed to send response (timeout)" warning, and the future never
+        completes (a fresh-clone CI run waited 80 s on ``get_parameters`` of a node that had just started). A
+        request that changes nothing may simply be asked again; never use this for a command."""
+        assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
+        deadline = time.monotonic() + timeout * DEADLINE_SCALE
+        while True:
+            fut = client.call_async(request)
+            until = min(deadline, time.monotonic() + attempt)
+            while not fut.done() and time.monotonic() < until:
+                time.sleep(0.01)
+            if fut.done():
+                return fut.result()
+            client.remove_pending_request(fut)
+            if time.monotonic() >= deadline:
+                raise AssertionError(f"no response from {client.srv_name} in {timeout * DEADLINE_SCALE:.1f} s")
+
     def close(self) -> None:
         # stop spinning before anything is destroyed (no callback on a destroyed handle): the executor's shutdown
         # wakes the blocking spin, which ends
