@@ -98,7 +98,7 @@ class PtzStatePublisher:
         return m
 
     def publish(self, sample: StateSample) -> None:
-        """ptz/state, joint_states, ptz/transform (each only when someone listens) and /tf when available."""
+        """ptz/state, joint_states, ptz/transform and /tf (with ``publish_tf``), each only while someone listens."""
         r = self._offsets.from_head(sample.reading)
         stamp = stamp_from_ns(r.stamp_ns)
         frames = self._frames
@@ -112,10 +112,13 @@ class PtzStatePublisher:
             js.velocity = [float(sample.pan_rate), float(sample.tilt_rate)]
             self._joint_pub.publish(js)
         want_tf = self._tf_pub.get_subscription_count() > 0
-        if want_tf or self._tf is not None:
+        # /tf is volatile (a listener gets what is sent after it joined), so nobody misses what is not sent
+        # while nobody listens; building and publishing it anyway was a third of the idle node's CPU
+        want_head = self._tf is not None and self._tf.get_subscription_count() > 0
+        if want_tf or want_head:
             T_opt = self._model.head.optical_in_ptz_base(r.pan, r.tilt)
             if want_tf:
                 T = self._mount.transform @ T_opt
                 self._tf_pub.publish(transform_msg(T, frames.base, frames.optical, stamp))
-            if self._tf is not None:
+            if want_head and self._tf is not None:
                 self._tf.sendTransform(transform_msg(T_opt, frames.ptz_base, frames.optical, stamp))
