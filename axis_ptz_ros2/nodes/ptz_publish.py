@@ -99,22 +99,25 @@ class PtzStatePublisher:
 
     def publish(self, sample: StateSample) -> None:
         """ptz/state, joint_states, ptz/transform and /tf (with ``publish_tf``), each only while someone listens."""
+        if self._state_pub.get_subscription_count() > 0:
+            self._state_pub.publish(self.state_msg(sample))
+        want_joints = self._joint_pub.get_subscription_count() > 0
+        want_tf = self._tf_pub.get_subscription_count() > 0
+        # /tf is volatile (a listener gets what is sent after it joined), so nobody misses what is not sent
+        # while nobody listens; building and publishing it anyway was a third of the idle node's CPU
+        want_head = self._tf is not None and self._tf.get_subscription_count() > 0
+        if not (want_joints or want_tf or want_head):
+            return  # nothing built: the stamp message alone costs what the three counts cost
         r = self._offsets.from_head(sample.reading)
         stamp = stamp_from_ns(r.stamp_ns)
         frames = self._frames
-        if self._state_pub.get_subscription_count() > 0:
-            self._state_pub.publish(self.state_msg(sample))
-        if self._joint_pub.get_subscription_count() > 0:
+        if want_joints:
             js = JointState()
             js.header.stamp = stamp
             js.name = [frames.pan_joint, frames.tilt_joint]
             js.position = [float(r.pan), float(r.tilt)]
             js.velocity = [float(sample.pan_rate), float(sample.tilt_rate)]
             self._joint_pub.publish(js)
-        want_tf = self._tf_pub.get_subscription_count() > 0
-        # /tf is volatile (a listener gets what is sent after it joined), so nobody misses what is not sent
-        # while nobody listens; building and publishing it anyway was a third of the idle node's CPU
-        want_head = self._tf is not None and self._tf.get_subscription_count() > 0
         if want_tf or want_head:
             T_opt = self._model.head.optical_in_ptz_base(r.pan, r.tilt)
             if want_tf:
