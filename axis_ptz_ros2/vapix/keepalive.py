@@ -21,9 +21,10 @@ Not supported (not needed by VAPIX requests): request bodies other than empty, H
 The quick path (:meth:`KeepAliveTransport.quick_get`, taken by :class:`~axis_ptz_ros2.vapix.client.VapixClient`'s
 queries over this transport): the request head is written and the reply read straight off the kept-alive
 connection's socket, without ``http.client``'s reply parsing (the ``email`` package) and without ``httpx``'s request,
-response and auth-flow objects. Why: measured against the simulated camera, polling at 20 Hz as the node does
-(cold caches), ``query=position`` cost 0.90 ms of thread CPU through ``httpx`` over ``http.client``, 0.65 ms for a
-bare ``http.client`` request and 0.21 ms read off the socket; the idle PTZ node went from 3.7 to 1.7 % of a core.
+response and auth-flow objects. Why: thread CPU per ``query=position`` polled at 20 Hz from the simulated camera
+(median, no auth / Digest; ``bench/bench_ptz_poll.py``): 0.80 / 1.00 ms through ``httpx`` over ``http.client``,
+0.46 ms for a bare ``http.client`` request (no auth; its reply parsing is the ``email`` package), 0.33 / 0.49 ms
+here; the idle PTZ node went from 3.7 to 1.5 % of a core.
 It reads only the plain case: ``Content-Length`` framing, no content coding, not ``multipart/*``. The client sends
 what the auth flow would send first (:meth:`~axis_ptz_ros2.vapix.auth.NegotiatingAuth.preemptive`) and takes
 anything but a plain 2xx reply (a 401 to re-challenge, an error status, an ``Error:`` body) through the full path
