@@ -37,8 +37,6 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from axis_ptz_ros2.memory import TRIM_PERIOD_S, release_free_memory
-
 
 def wait_for_running_callbacks(executor: Executor, timeout: float) -> bool:
     """After ``executor.shutdown()``: wait (at most ``timeout`` s) until no callback is still running.
@@ -315,12 +313,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
         signals.spinning = True
         for s in spinners:
             s.start()
-        next_trim = time.monotonic() + TRIM_PERIOD_S
         while rclpy.ok() and not signals.stop.is_set() and all(s.alive() for s in spinners):
             spinners[0].thread.join(0.1)  # wakes this thread only; a signal's flag is seen within 0.1 s
-            if time.monotonic() >= next_trim:  # free heap pages back to the system (memory.py says why)
-                release_free_memory()
-                next_trim = time.monotonic() + TRIM_PERIOD_S
         for s in spinners:
             if s.error is not None:
                 raise s.error
