@@ -127,6 +127,7 @@ class StageStats:
     idr_requests: int = 0  # on-demand requests honoured
     bad_inputs: int = 0  # JPEGs that did not decode, malformed access units
     encoder_opens: int = 0  # transcoders (encoders) made
+    fps_reopens: int = 0  # of those, re-made for a new picture rate (asked, or measured at the camera)
     skipped_inactive: int = 0  # frames not encoded because nobody subscribes
 
 
@@ -339,12 +340,14 @@ class H264Stage:
             or (have.preset, have.fps) != (want.preset, want.fps)
             or want.ceiling_kbps > self._opened_kbps  # (a target above the VBV maxrate: re-opened once, at the ceiling)
         ):
+            for_fps = t is not None and have is not None and have.preset == want.preset and have.fps != want.fps
             config = want.transcoder_config()
             t = self._factory(config)
             self._transcoder = t
             self._applied_kbps = config.bitrate_bps // 1000  # opened at the ceiling; lowered after the first frame
             self._opened_kbps = self._applied_kbps
             self.stats.encoder_opens += 1
+            self.stats.fps_reopens += int(for_fps)
             self._idr_pending = False  # a new encoder starts with an IDR
             self._last_idr_request = self._clock()
         else:

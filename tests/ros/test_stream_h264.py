@@ -215,7 +215,10 @@ def test_h264_frames_decode_at_full_size_and_quality(ros: RosHarness, camera: Si
         assert data == by_stamp[s]
         assert fmt == "h264"
         assert fid == "axis_ptz_optical_frame"
-    assert node._stage.stats.encoder_opens == 1
+    # one encoder for both messages; made again only for the picture rate the camera really delivers (a loaded
+    # machine's simulator makes fewer than the 15/s asked, and the encoder follows it: a fresh-clone CI run did)
+    stats = node._stage.stats
+    assert stats.encoder_opens == 1 + stats.fps_reopens, stats
 
 
 def test_lazy_no_encoder_without_h264_subscriber_mjpeg_unaffected(ros: RosHarness, camera: SimulatedCamera) -> None:

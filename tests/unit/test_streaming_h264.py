@@ -150,6 +150,7 @@ def test_the_encoder_runs_at_the_rate_the_camera_makes(jpegs: list[bytes]) -> No
     out = h.feed(frames)
     assert [c.fps for c in h.made] == [30, 10]
     assert h.stage.input_fps == pytest.approx(10.0)
+    assert (h.stage.stats.encoder_opens, h.stage.stats.fps_reopens) == (2, 1)
     reopened = out[RATE_WINDOW - 1]
     assert reopened is not None
     assert reopened.keyframe
@@ -212,11 +213,13 @@ def test_bitrate_live_preset_and_fps_reopen(jpegs: list[bytes]) -> None:
     assert f.keyframe
     assert len(h.made) == 2
     assert h.made[-1].preset == "ultrafast"
+    assert h.stage.stats.fps_reopens == 0  # a new preset is not a new rate
     h.settings = H264Settings(bitrate_kbps=150, fps=20, preset="ultrafast")
     f = h.feed(jpegs[1:2])[0]
     assert f is not None
     assert f.keyframe
     assert h.made[-1].fps == 20
+    assert (h.stage.stats.encoder_opens, h.stage.stats.fps_reopens) == (3, 1)
 
 
 def test_encoder_opens_at_the_ceiling_so_the_budget_moves_the_bitrate_live(jpegs: list[bytes]) -> None:
@@ -482,6 +485,7 @@ def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: 
     h.settings = H264Settings(bitrate_kbps=1080, fps=30, ceiling_kbps=1500)
     out = h.feed(jpegs[3:5])
     assert [m.bitrate_bps for m in h.made] == [1_000_000, 1_500_000]
+    assert h.stage.stats.fps_reopens == 0  # re-made for the ceiling, not for a new picture rate
     assert out[0] is not None
     assert out[0].keyframe
     for kbps, top in ((1200, 1500), (1500, 1500), (800, 1000), (1300, 1500)):
