@@ -267,7 +267,8 @@ def test_frames_resume_after_a_reboot_without_an_old_frame(ros: RosHarness, came
     assert len({p.pts for p in rec.since(0.0)}) == rec.count()
     assert node._rtsp.stats.reconnects >= 1  # noqa: SLF001
     ros.wait_for(lambda: len(rec.since(t_back)) >= 10, timeout=5)
-    assert decodes_one_picture_each(rec.since(t_back)) == len(rec.since(t_back))
+    resumed_packets = rec.since(t_back)  # one snapshot: more arrive while it decodes
+    assert decodes_one_picture_each(resumed_packets) == len(resumed_packets)
 
 
 def test_a_camera_without_h264_is_transcoded(ros: RosHarness, cred: str) -> None:
