@@ -15,6 +15,9 @@ kB/s (``camera_model.THESIS_UNIT_BYTES``; the README says why) and, for referenc
   per compression (the same sensor noise in each): "almost indistinguishable from 0" = luma SSIM against the
   compression-0 frame ≥ 0.95 at compression 30; "usable" = luma SSIM ≥ 0.90 and PSNR ≥ 30 dB against the
   noise-free (softened) view at 60; "not usable" = SSIM < 0.90 or PSNR < 30 dB against it at 100;
+* per resolution, the largest frame of the home view that the measure calls not usable (a sweep of IJG quality,
+  ``tests/support/picture.unusable_headroom``) beside the smallest compression-100 frame the tables allow (0.5×
+  their largest per-frame figure): the two targets can hold together only where the first is not smaller;
 * the current-Axis persona's 1920×1080 MJPEG bytes per frame at compression 0, 30, 60 and 100.
 """
 
@@ -35,7 +38,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.camera_model import THESIS_FPS, THESIS_TABLES, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
 from axis_ptz_ros2.sim.world import load_world
-from tests.support.picture import Figure64, figure_6_4
+from tests.support.picture import Figure64, Headroom, figure_6_4, unusable_headroom
 from tests.support.sim import parts, read_stream
 
 COMPRESSIONS = (0, 30, 100)
@@ -171,6 +174,20 @@ def main() -> int:
             f"  30 like 0: {fig.up_to_30_like_0}; 60 usable: {fig.at_60_usable}; 100 not usable: "
             f"{fig.at_100_not_usable}; statement holds by the measure: {fig.holds}"
         )
+    heads: dict[str, tuple[Headroom, float]] = {}
+    print("\nlargest home-view frame the Figure 6.4 measure calls not usable vs the tables' compression-100 frames:")
+    for res in THESIS_TABLES:
+        w, h = (int(v) for v in res.split("x"))
+        head = unusable_headroom(AXIS_214.picture, w, h)
+        per_frame = [thesis_kbit_s(res, 100, fps) * 1000.0 / 8.0 / min(fps, AXIS_214.frame_rate) for fps in THESIS_FPS]
+        need = 0.5 * max(per_frame)
+        heads[res] = (head, need)
+        print(
+            f"  {res:>8}: IJG quality {head.quality:>3} ({head.psnr_db:4.1f} dB, SSIM {head.ssim:.3f}): "
+            f"{head.nbytes / 1000:5.1f} kB; the tables' frames {' / '.join(f'{b / 1000:.1f}' for b in per_frame)} kB "
+            f"(1 / 15 / 30 fps), 0.5× the largest: {need / 1000:.1f} kB -> "
+            f"{'room for both' if head.nbytes >= need else 'no setting meets both'}"
+        )
     modern = modern_1080p()
     print("\ncurrent-Axis persona, 1920×1080, home view, camera still:")
     for comp, (mean, cv) in modern.items():
@@ -206,6 +223,13 @@ def main() -> int:
             "≥ 0.95 / ≥ 30 dB and ≥ 0.90 / < 30 dB or < 0.90",
             fig.holds,
         )
+    row(
+        "Fig. 6.4 and the tables together: largest home-view frame the measure calls not usable, 704 / 352 / 176 px "
+        "wide, vs the smallest compression-100 frame the tables allow (0.5×)",
+        " / ".join(f"{heads[r][0].nbytes / 1000:.1f} kB vs {heads[r][1] / 1000:.1f} kB" for r in THESIS_TABLES),
+        "not smaller",
+        all(hd.nbytes >= need for hd, need in heads.values()),
+    )
     row(
         "current-Axis persona 1920×1080 MJPEG, bytes per frame at compression 0 / 30 / 60 / 100",
         " / ".join(f"{modern[c][0] / 1000:.0f} kB" for c in (0, 30, 60, 100)),

@@ -15,7 +15,7 @@ SSIM is Wang et al. 2004 (11×11 Gaussian window, σ 1.5); 30 dB and 0.90 are th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -105,3 +105,33 @@ def figure_6_4(model: CameraModel, width: int, height: int, renderer: PtzRendere
             for comp, (y, n) in frames.items()
         }
     )
+
+
+@dataclass(frozen=True)
+class Headroom:
+    """How far the measure's "not usable" reaches at one size: the best IJG quality whose frame of the home view
+    (with the same sensor noise as :func:`figure_6_4`'s) the measure calls not usable, and that frame's size."""
+
+    quality: int  #: 0 if every quality 1…100 is usable
+    nbytes: int
+    psnr_db: float
+    ssim: float
+
+
+def unusable_headroom(model: CameraModel, width: int, height: int, renderer: PtzRenderer | None = None) -> Headroom:
+    """The largest frame the measure calls "not usable" (:class:`Headroom`), by a sweep of IJG quality 100…1 on
+    ``model`` with its quality curve replaced by a constant (everything else of the chain unchanged).
+
+    Figure 6.4 and the thesis's tables can hold together at this size only if this frame is at least the smallest
+    compression-100 frame the tables allow (0.5× theirs)."""
+    renderer = renderer if renderer is not None else PtzRenderer(load_world())
+    view = renderer.render(0.0, 0.0, 1.0, width, height)
+    ref = luma(model.soften(view, 1.0))
+    for q in range(100, 0, -1):
+        flat = replace(model, quality_at_0=float(q), quality_at_100=float(q), quality_drop_per_halving=0.0)
+        jpeg = PicturePool(flat).jpeg("home", lambda: view, 1.0, 0)
+        y = luma(cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR))
+        grade = Grade(1.0, float(cv2.PSNR(ref, y)), ssim(ref, y), len(jpeg), q)
+        if not grade.usable:
+            return Headroom(q, len(jpeg), grade.psnr_db, grade.ssim)
+    return Headroom(0, 0, float("nan"), float("nan"))

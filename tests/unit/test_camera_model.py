@@ -7,7 +7,7 @@ import pytest
 
 from axis_ptz_ros2.sim.camera_model import CameraModel, PicturePool, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075
-from tests.support.picture import figure_6_4
+from tests.support.picture import figure_6_4, unusable_headroom
 from tests.support.sim import decode
 
 
@@ -125,3 +125,14 @@ def test_thesis_figure_6_4_bands(width: int, height: int) -> None:
         assert fig.holds
     else:  # the known deviation: still usable, and the bytes the tables ask for are why
         assert not fig.at_100_not_usable, "704x576 reproduces the statement now: update the test and the README"
+
+
+def test_unusable_headroom_is_the_best_quality_the_measure_calls_not_usable() -> None:
+    """The bench's "Fig. 6.4 and the tables together" row: at 176x144 the largest not-usable frame is bigger than
+    the smallest compression-100 frame the tables allow (0.5 x 1.3 kB), and it is smaller than compression 60's
+    frame (which the measure calls usable)."""
+    head = unusable_headroom(AXIS_214.picture, 176, 144)
+    assert 1 <= head.quality < AXIS_214.picture.quality(60, 176)
+    assert head.psnr_db < 30.0 or head.ssim < 0.90
+    fig = figure_6_4(AXIS_214.picture, 176, 144)
+    assert 650 <= head.nbytes < fig.grades[60].nbytes
