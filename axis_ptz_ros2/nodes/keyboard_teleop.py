@@ -6,7 +6,9 @@ with the pure :mod:`axis_ptz_ros2.teleop.keymap`, and talks only through ROS int
 * publishes ``ptz/cmd/relative`` (PtzCommand: REP-103 radians, NaN = axis unchanged) and ``ptz/cmd/velocity``
   (PtzVelocity zeros = stop: on ``x``/ESC and on exit);
 * calls ``ptz/home`` (std_srvs/Trigger) and the stream node's ``video/set_params`` (SetVideoParams);
-* subscribes ``ptz/state`` and ``video/params`` (latched) for the live status line.
+* subscribes ``ptz/state`` and ``video/params`` (latched) for the live status line; its ``codec`` decides what
+  the quality keys Y/H act on: the JPEG compression (MJPEG) or the H.264 bitrates (``h264_bitrate_kbps`` and
+  ``h264_max_bitrate_kbps``, set together through ``video/set_params``).
 
 The terminal is restored in ``finally`` — also on SIGTERM/SIGHUP, which are turned into a normal exit.
 Namespaces and remaps: ``axis_keyboard_teleop --ros-args -r __ns:=/robot`` (or ``-r ptz/state:=…``).
@@ -97,6 +99,9 @@ class KeyboardTeleop(Node):
             resolution=str(msg.resolution) or f"{msg.width}x{msg.height}",
             compression=int(msg.compression),
             resolutions=listed or self.state.resolutions,
+            codec="h264" if msg.codec == "h264" else "mjpeg",
+            h264_bitrate_kbps=int(msg.h264_bitrate_kbps) or None,
+            h264_max_bitrate_kbps=int(msg.h264_max_bitrate_kbps) or None,
         )
         self._status_dirty = True
 
@@ -123,7 +128,13 @@ class KeyboardTeleop(Node):
             if not self._video_srv.service_is_ready():
                 self.say("video/set_params is not available (is the stream node running?)")
                 return
-            req = SetVideoParams.Request(fps=c.fps, resolution=c.resolution, compression=c.compression)
+            req = SetVideoParams.Request(
+                fps=c.fps,
+                resolution=c.resolution,
+                compression=c.compression,
+                h264_bitrate_kbps=c.h264_bitrate_kbps,
+                h264_max_bitrate_kbps=c.h264_max_bitrate_kbps,
+            )
             self._track("video", self._video_srv.call_async(req))
         elif isinstance(c, km.ToggleHelp):
             self.show_help = not self.show_help
@@ -176,6 +187,8 @@ class KeyboardTeleop(Node):
         self.out.write(CSI_CLEAR_LINE + "axis_keyboard_teleop keys (x = step size):\r\n")
         for line in km.help_lines():
             self.out.write(line + "\r\n")
+        mode = "H.264 bitrate" if self.state.codec == "h264" else "MJPEG compression"
+        self.out.write(f"  (the stream is {self.state.codec}: Y/H act on the {mode})\r\n")
         self._drawn = ""
 
     def status_line(self) -> str:
@@ -190,7 +203,15 @@ class KeyboardTeleop(Node):
                 + ("  moving" if s.moving else "")
             )
         v = self.video
-        video = "video: waiting" if v is None else f"video: {v.fps} fps {v.resolution} compression {v.compression}"
+        if v is None:
+            video = "video: waiting"
+        elif v.codec == "h264":
+            video = (
+                f"video: {v.fps} fps {v.resolution} h264 {v.h264_bitrate_kbps} kbit/s"
+                f" (up to {v.h264_max_bitrate_kbps} with feedback)"
+            )
+        else:
+            video = f"video: {v.fps} fps {v.resolution} compression {v.compression}"
         return f"{ptz} | {video} | step {self.state.step} | ? help"
 
     def draw_status(self, force: bool = False) -> None:

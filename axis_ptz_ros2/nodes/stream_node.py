@@ -196,7 +196,13 @@ class StreamNode(Node):
         self, request: SetVideoParams.Request, response: SetVideoParams.Response
     ) -> SetVideoParams.Response:
         """Set several video parameters at once: all or nothing (the parameter callbacks validate)."""
-        changes = requested_changes(request.fps, request.resolution, request.compression)
+        changes = requested_changes(
+            request.fps,
+            request.resolution,
+            request.compression,
+            request.h264_bitrate_kbps,
+            request.h264_max_bitrate_kbps,
+        )
         if changes:
             self._pending_source = "service"
             try:
@@ -225,6 +231,10 @@ class StreamNode(Node):
         msg.max_bitrate_kbps = int(state.budget_kbps)
         msg.source = source or state.source
         msg.available_resolutions = [str(r) for r in state.resolutions]
+        settings = self._video.settings
+        msg.codec = str(settings.codec)
+        msg.h264_bitrate_kbps = int(settings.h264_bitrate_kbps)
+        msg.h264_max_bitrate_kbps = int(settings.h264_max_bitrate_kbps)
         return msg
 
     def _publish_params(self) -> None:

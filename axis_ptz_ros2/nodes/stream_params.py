@@ -13,7 +13,7 @@ from typing import Any
 from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
 from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
-from axis_ptz_ros2.streaming.controller import VideoSettings
+from axis_ptz_ros2.streaming.controller import H264_BUDGET_FRACTION, VideoSettings
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
 
@@ -80,7 +80,16 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "h264_bitrate_kbps",
-        "H.264 bitrate; applies as is without feedback, a lower budget (link or max_bitrate_kbps) lowers it",
+        "H.264 bitrate; applies as is without feedback (the safe default), a lower budget (link or "
+        "max_bitrate_kbps) lowers it",
+        "kbit/s",
+        int_range=BITRATE_RANGE_KBPS,
+    ),
+    _live(
+        "h264_max_bitrate_kbps",
+        "H.264 bitrate ceiling: consumers' feedback of a clear link (adapt_to_link) may raise the bitrate up to "
+        f"this, at most {H264_BUDGET_FRACTION:g} × the link's budget; at least h264_bitrate_kbps (equal: never "
+        "above it)",
         "kbit/s",
         int_range=BITRATE_RANGE_KBPS,
     ),

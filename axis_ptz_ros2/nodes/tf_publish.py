@@ -49,6 +49,11 @@ class TfBroadcaster:
         """Publish one or several transforms in one message."""
         self._pub.publish(TFMessage(transforms=_as_list(transforms)))
 
+    def get_subscription_count(self) -> int:
+        """Subscriptions matched with ``/tf`` now (``/tf`` is volatile: a listener that joins later gets only
+        what is sent after it joined, so a sender may skip the work while this is 0)."""
+        return self._pub.get_subscription_count()
+
 
 class StaticTfBroadcaster:
     """Static transforms on ``/tf_static``, latched (``sendTransform`` as ``tf2_ros.StaticTransformBroadcaster``:

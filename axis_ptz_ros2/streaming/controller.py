@@ -18,10 +18,12 @@ Policy that lives here:
 
 The codec (``codec``: ``mjpeg`` | ``h264``) is policy here too. In ``h264`` mode the camera is asked for its best
 quality (compression 0) at the requested size and rate, the MJPEG budget ladder stands still, and the budget in
-force drives the encoder's bitrate instead (:meth:`VideoController.h264_settings`: the requested
-``h264_bitrate_kbps``, lowered to the budget when there is one; without any feedback the request applies, so a
-viewer that reports nothing still gets the full picture). Consumers' reports are then judged against the H.264
-bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs.
+force drives the encoder's bitrate instead (:meth:`VideoController.h264_settings`, :func:`h264_target_kbps`):
+without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports nothing still gets the full picture;
+a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up to the
+ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under what the
+link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it. Consumers' reports are
+then judged against the H.264 bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs.
 """
 
 from __future__ import annotations
@@ -54,7 +56,10 @@ VIDEO_FIELDS = frozenset(
 )
 LINK_FIELDS = frozenset({"adapt_to_link", "link_release"})
 #: the encoder's own fields (they do not change what the camera is asked for)
-H264_FIELDS = frozenset({"h264_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
+H264_FIELDS = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
+#: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
+#: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
+H264_BUDGET_FRACTION = BudgetConfig().down_fraction
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,7 +76,8 @@ class VideoSettings:
     adapt_to_link: bool = True
     link_release: float = 30.0  # s
     codec: str = "mjpeg"  # mjpeg | h264 (see the module docstring)
-    h264_bitrate_kbps: int = 1000  # kbit/s: the encoder's bitrate (the link's budget lowers it)
+    h264_bitrate_kbps: int = 1000  # kbit/s: the encoder's bitrate without feedback (a budget lowers it)
+    h264_max_bitrate_kbps: int = 1500  # kbit/s: the most a clear link (consumers' feedback) may raise it to
     h264_keyframe_interval: int = 30  # frames between periodic IDRs (at most one second's worth applies)
     h264_preset: str = "superfast"  # libx264 preset
 
@@ -198,17 +204,15 @@ class VideoController:
         return self._settings.codec == "h264"
 
     def h264_settings(self) -> H264Settings:
-        """What the H.264 encoder is to do now: the requested bitrate, lowered to the budget in force (the
-        hand-set one and the link's) when there is one."""
+        """What the H.264 encoder (or the camera, passed through) is to do now: :func:`h264_target_kbps` of the
+        budgets in force (the hand-set one and the link's)."""
         s = self._settings
         with self._lock:
-            budget = self._budget_kbps()
-        kbps = int(s.h264_bitrate_kbps)
-        if budget > 0:
-            kbps = max(BITRATE_RANGE_KBPS[0], min(kbps, int(budget)))
-        return H264Settings(
-            kbps, int(s.h264_keyframe_interval), str(s.h264_preset), self._current.fps, int(s.h264_bitrate_kbps)
+            link = self._link.budget_kbps if s.adapt_to_link else 0.0
+        kbps, ceiling = h264_target_kbps(
+            int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
         )
+        return H264Settings(kbps, int(s.h264_keyframe_interval), str(s.h264_preset), self._current.fps, ceiling)
 
     def state(self) -> VideoState:
         """A consistent snapshot of what is in effect."""
@@ -247,7 +251,7 @@ class VideoController:
     def apply(self, settings: VideoSettings, changed: Collection[str], source: str = "parameter") -> VideoParams:
         """Take checked ``settings`` (``changed`` = the names that were set, even to the same value: a set
         restarts the ladder from the request); ``source`` becomes the cause of the parameters in effect, announced,
-        when the video fields were touched."""
+        when the video fields were touched (the encoder's fields are announced too, the cause left as it was)."""
         now = self._clock()
         names = set(changed)
         video = bool(VIDEO_FIELDS & names)
@@ -269,7 +273,7 @@ class VideoController:
                 self._stepped_up = False  # the user's change, not a step the link must prove
                 self._current = self._budget.current
                 self._source = source
-        if video:
+        if video or H264_FIELDS & names:  # (the encoder's settings are announced with the rest)
             self._announce()
         return self._current
 
@@ -330,11 +334,15 @@ class VideoController:
                 self._link.heard(now)
                 return None
             level = self._budget.level
-            if self.h264:  # room to grow back to the requested bitrate, not past it
-                step_up = float(self._settings.h264_bitrate_kbps)
+            grow_from = 0.0
+            if self.h264:  # room to grow to the ceiling (back to the start bitrate when that is the ceiling)
+                start, top = float(self._settings.h264_bitrate_kbps), float(self._settings.h264_max_bitrate_kbps)
+                step_up = start
+                if top > start:  # the budget at which the encoder reaches the ceiling; a clear link starts one
+                    step_up, grow_from = top / H264_BUDGET_FRACTION, start
             else:
                 step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
-            decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up)
+            decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up, grow_from)
             self._decision = decision
             self._budget.set_budget(self._effective_budget(), now)
         return LinkJudgement(decision, judged, sent, level)
@@ -416,9 +424,11 @@ def _adapter_config(settings: VideoSettings) -> AdapterConfig:
     return h264_adapter_config(release) if settings.codec == "h264" else AdapterConfig(release_s=release)
 
 
-def requested_changes(fps: int, resolution: str, compression: int) -> dict[str, int | str]:
-    """The live parameters a ``video/set_params`` request changes: ``fps`` 0, ``resolution`` '' and
-    ``compression`` -1 leave theirs as they are."""
+def requested_changes(
+    fps: int, resolution: str, compression: int, h264_bitrate_kbps: int = 0, h264_max_bitrate_kbps: int = 0
+) -> dict[str, int | str]:
+    """The live parameters a ``video/set_params`` request changes: ``fps`` 0, ``resolution`` '',
+    ``compression`` -1 and the H.264 bitrates 0 leave theirs as they are."""
     changes: dict[str, int | str] = {}
     if fps != 0:
         changes["fps"] = int(fps)
@@ -426,6 +436,10 @@ def requested_changes(fps: int, resolution: str, compression: int) -> dict[str, 
         changes["resolution"] = str(resolution)
     if compression != -1:
         changes["compression"] = int(compression)
+    if h264_bitrate_kbps != 0:
+        changes["h264_bitrate_kbps"] = int(h264_bitrate_kbps)
+    if h264_max_bitrate_kbps != 0:
+        changes["h264_max_bitrate_kbps"] = int(h264_max_bitrate_kbps)
     return changes
 
 
@@ -438,7 +452,36 @@ def _check_h264(settings: VideoSettings) -> str | None:
     low, high = BITRATE_RANGE_KBPS
     if not low <= int(settings.h264_bitrate_kbps) <= high:
         return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"
+    if not low <= int(settings.h264_max_bitrate_kbps) <= high:
+        return f"h264_max_bitrate_kbps={settings.h264_max_bitrate_kbps} is outside {low}…{high} kbit/s"
+    if int(settings.h264_max_bitrate_kbps) < int(settings.h264_bitrate_kbps):
+        return (
+            f"h264_max_bitrate_kbps={settings.h264_max_bitrate_kbps} is below h264_bitrate_kbps="
+            f"{settings.h264_bitrate_kbps} (the bitrate without feedback, where the link adaptation starts): the "
+            "ceiling must be at least the start; set both at once (video/set_params, set_parameters_atomically) "
+            "to move them past each other"
+        )
     low, high = KEYFRAME_RANGE
     if not low <= int(settings.h264_keyframe_interval) <= high:
         return f"h264_keyframe_interval={settings.h264_keyframe_interval} is outside {low}…{high} frames"
     return None
+
+
+def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: float = 0.0) -> tuple[int, int]:
+    """The H.264 bitrate to target now and the highest one to expect (what an encoder opens with as its VBV
+    ``maxrate``, so a live change up to it needs no re-open), in kbit/s.
+
+    ``start`` (``h264_bitrate_kbps``) applies without any budget; the link adapter's budget ``link_kbps`` (0 = no
+    feedback) lowers it when under it and, above it, raises it to :data:`H264_BUDGET_FRACTION` of the budget, up to
+    ``ceiling`` (``h264_max_bitrate_kbps`` >= ``start``; equal: never above ``start``); the hand-set budget
+    ``hand_kbps`` (``max_bitrate_kbps``, 0 = off) caps it. Never below the encoder's floor."""
+    kbps = start
+    if link_kbps > 0:
+        kbps = max(min(start, int(link_kbps)), min(ceiling, int(link_kbps * H264_BUDGET_FRACTION)))
+    if hand_kbps > 0:
+        kbps = min(kbps, int(hand_kbps))
+    kbps = max(BITRATE_RANGE_KBPS[0], kbps)
+    # the ceiling is announced only once the link lets the target past the start: an encoder re-opened for it
+    # (an IDR) once, when it is needed, not on every budget that merely lowers the bitrate
+    top = ceiling if link_kbps * H264_BUDGET_FRACTION > start else start
+    return kbps, max(top, kbps)

@@ -16,7 +16,8 @@ delivers:
   (a 2 Mbit/s link swamped at 1.9 Mbit/s delivered 0.4 Mbit/s of whole frames), and the rate just below
   was measured to work. One return per clean rate: if it congests too, the received rate decides;
 - **clear** — the queueing delay is under ``delay_low_s`` and at least ``delivery_clear`` of the frames
-  arrive: the budget grows
+  arrive: the budget (if there is one, or one started from ``grow_from_kbps`` where the sender can go past its
+  start: H.264 with ``h264_max_bitrate_kbps`` above ``h264_bitrate_kbps``) grows
   by ``increase`` per report, but never past ``headroom`` × what is sent now or ``step_margin`` × the next
   better setting's predicted rate, so the stream climbs one step at a time and each step is judged; for
   ``probe_backoff_s`` after a congestion it stays under the rate that congested (doubling, up to
@@ -136,6 +137,7 @@ class AdapterConfig:
     silence_s: float = 2.0
     release_s: float = 30.0
     delivery_by_bytes: bool = False  # delivery = kbit/s received / sent (H.264) instead of frames
+    climb_hold_s: float = 2.0  # past ``grow_from_kbps`` the budget grows at most once per this (a report window)
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -147,6 +149,8 @@ class AdapterConfig:
             raise ValueError("need 0 < delivery_low <= delivery_clear <= 1")
         if self.good_memory_s < 0 or self.good_margin < 1.0:
             raise ValueError("need good_memory_s >= 0 and good_margin >= 1")
+        if self.climb_hold_s < 0:
+            raise ValueError("need climb_hold_s >= 0")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -176,6 +180,7 @@ class LinkAdapter:
         self._backoff = self.config.probe_backoff_s
         self._good: deque[tuple[float, float]] = deque()  # (when, what was sent) of the recent clear reports
         self._sent_kbps = 0.0  # what was sent at the last report
+        self._last_climb = -1e18  # when the budget last grew past ``grow_from_kbps``
         self.state = "off"
 
     @property
@@ -197,11 +202,22 @@ class LinkAdapter:
         self._last_report = max(self._last_report, now)
 
     def report(
-        self, now: float, report: FeedbackReport, sent_fps: float, sent_kbps: float, step_up_kbps: float = 0.0
+        self,
+        now: float,
+        report: FeedbackReport,
+        sent_fps: float,
+        sent_kbps: float,
+        step_up_kbps: float = 0.0,
+        grow_from_kbps: float = 0.0,
     ) -> Decision:
         """Take one consumer's report (``now`` = monotonic seconds at the sender, ``sent_*`` = what the
         sender measured over about the same window, ``step_up_kbps`` = the predicted rate of the next better
-        setting, 0 if none); returns the decision with the new budget."""
+        setting, 0 if none); returns the decision with the new budget.
+
+        ``grow_from_kbps`` > 0: the sender may go past what it sends without a budget (H.264 with a ceiling above
+        its start bitrate), so a clear report starts a budget from this rate and grows it as usual, past it at most
+        once per ``climb_hold_s``; 0 (MJPEG: the request is the best there is) leaves a clear link without a
+        budget."""
         cfg = self.config
         self._last_report = now
         self._sent_kbps = sent_kbps
@@ -240,11 +256,19 @@ class LinkAdapter:
             self._good.append((now, sent_kbps))
             while self._good and now - self._good[0][0] > cfg.good_memory_s:
                 self._good.popleft()
-            if self._budget > 0:
+            base = self._budget if self._budget > 0 else grow_from_kbps
+            # past the start, one step per report window: each is judged on a window of its own (the sender's
+            # rate follows the budget at once, and a report covers the last ``window_s``)
+            climbing = grow_from_kbps > 0 and base >= grow_from_kbps
+            if climbing and now - self._last_climb < cfg.climb_hold_s:
+                base = 0.0
+            elif climbing:
+                self._last_climb = now
+            if base > 0:
                 ceiling = max(cfg.headroom * max(sent_kbps, received, cfg.min_kbps), cfg.step_margin * step_up_kbps)
                 if now < self._bad_until:
                     ceiling = min(ceiling, cfg.decrease * self._bad_kbps)
-                self._budget = min(self._budget * cfg.increase, max(ceiling, self._budget))
+                self._budget = min(base * cfg.increase, max(ceiling, base))
         else:
             state = "steady"
         self.state = state

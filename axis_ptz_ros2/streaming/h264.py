@@ -18,7 +18,9 @@ Policy that lives here:
 * lazy: while :meth:`H264Stage.set_active` is off nothing is decoded or encoded, and the transcoder (its
   encoder) is dropped; the next activation starts with an IDR;
 * bitrate, keyframe interval, preset and fps are read from ``settings()`` (the video controller) on every frame;
-  the bitrate changes live, a new preset or fps re-opens the encoder (an IDR follows);
+  the bitrate changes live, a new preset or fps re-opens the encoder (an IDR follows), and so does a ceiling
+  (:attr:`H264Settings.ceiling_kbps`) above the rate it was opened with: once, at that ceiling, when the link lets
+  the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb);
 * the periodic keyframe interval is at most one second of frames (``fps``), so a viewer that joined or lost
   sync without asking gets a start point within a second;
 * an IDR on demand (:meth:`H264Stage.request_idr`: a new subscriber, a consumer that reports loss, a reconnect)
@@ -80,11 +82,11 @@ U8Array = npt.NDArray[np.uint8]
 class H264Settings:
     """What the encoder is to do now (from the video controller)."""
 
-    bitrate_kbps: int = 1000  # the target now (the budget may hold it under the ceiling)
+    bitrate_kbps: int = 1000  # the target now (the budgets move it under the ceiling)
     keyframe_interval: int = 30  # frames; capped at fps (one second)
     preset: str = "superfast"
     fps: int = 15
-    ceiling_kbps: int = 0  # the highest target to expect (the request): the encoder opens with it as VBV maxrate
+    ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
 
     def transcoder_config(self) -> TranscoderConfig:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
@@ -187,6 +189,7 @@ class H264Stage:
         self._transcoder: Transcoder | None = None
         self._opened_with: H264Settings | None = None
         self._applied_kbps = 0  # the bitrate the encoder targets now
+        self._opened_kbps = 0  # the bitrate (VBV maxrate) it was opened with: live changes up to it need no re-open
         self._idr_pending = False
         self._last_idr_request = -1e18
         self._pts = 0
@@ -331,12 +334,18 @@ class H264Stage:
         """The transcoder for ``want`` (made, re-made, or adjusted live); call with the lock held."""
         have = self._opened_with
         t = self._transcoder
-        if t is None or have is None or (have.preset, have.fps) != (want.preset, want.fps):
-            for_fps = t is not None and have is not None and have.preset == want.preset
+        if (
+            t is None
+            or have is None
+            or (have.preset, have.fps) != (want.preset, want.fps)
+            or want.ceiling_kbps > self._opened_kbps  # (a target above the VBV maxrate: re-opened once, at the ceiling)
+        ):
+            for_fps = t is not None and have is not None and have.preset == want.preset and have.fps != want.fps
             config = want.transcoder_config()
             t = self._factory(config)
             self._transcoder = t
             self._applied_kbps = config.bitrate_bps // 1000  # opened at the ceiling; lowered after the first frame
+            self._opened_kbps = self._applied_kbps
             self.stats.encoder_opens += 1
             self.stats.fps_reopens += int(for_fps)
             self._idr_pending = False  # a new encoder starts with an IDR

@@ -4,6 +4,12 @@ Keys → :class:`Action` (``KEYMAP``); :func:`apply` turns one key and the curre
 ROS-free commands plus the new state. ``keyboard.py`` only reads the terminal, calls :func:`apply` and sends
 the commands over ROS interfaces.
 
+The quality keys Y/H follow the stream's codec (``video/params``' ``codec``): with MJPEG they step the JPEG
+compression; with H.264 they step the bitrate through :data:`BITRATE_STEPS_KBPS`, the bitrate without feedback
+(``h264_bitrate_kbps``) and the ceiling a clear link may raise it to (``h264_max_bitrate_kbps``) together, so the
+key acts whether or not the viewer reports on the link. R/F and T/G act the same with both codecs (what the
+camera is asked for; the H.264 encoder follows).
+
 Sign convention: the thesis writes the pan keys in Axis terms ("A: turn by −x° in pan axis",
 Axis +pan = right) on an upright Axis 214 whose VAPIX pan is clockwise. Its intent — A turns the view
 left, D right, W up, S down — is kept for every camera by emitting REP-103 offsets (``PtzCommand``: pan
@@ -25,7 +31,12 @@ from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # R/F and Y/H stop at the camera's ends
 
 FPS_STEP = 3  #: R/F change the frame rate by this many frames per second
-COMPRESSION_STEP = 10  #: Y/H change the JPEG compression by this much
+COMPRESSION_STEP = 10  #: Y/H change the JPEG compression by this much (MJPEG)
+#: kbit/s: Y/H walk the H.264 bitrates through these (H.264), a value between two moves to the next one; the ends
+#: are the stream node's range (``streaming.h264.BITRATE_RANGE_KBPS``, not imported: it would load FFmpeg here)
+BITRATE_STEPS_KBPS: tuple[int, ...] = (
+    100, 150, 200, 300, 400, 500, 700, 1000, 1500, 2000, 3000, 4000, 5000, 7000, 10000, 15000, 20000
+)  # fmt: skip
 FAST_FACTOR = 5  #: SHIFT multiplies pan/tilt steps by this
 ZOOM_UNITS_PER_STEP = 10  #: Q/E zoom by this many VAPIX units per step-size unit
 FAST_ZOOM_UNITS_PER_STEP = 100  #: SHIFT+Q/E
@@ -92,8 +103,8 @@ def _km() -> dict[str, Action]:
         ("f", Kind.FPS, -1, f"fps -{FPS_STEP}"),
         ("t", Kind.RESOLUTION, +1, "higher resolution"),
         ("g", Kind.RESOLUTION, -1, "lower resolution"),
-        ("y", Kind.COMPRESSION, +1, f"compression +{COMPRESSION_STEP}"),
-        ("h", Kind.COMPRESSION, -1, f"compression -{COMPRESSION_STEP}"),
+        ("y", Kind.COMPRESSION, +1, f"MJPEG: compression +{COMPRESSION_STEP}; H.264: bitrate one step down"),
+        ("h", Kind.COMPRESSION, -1, f"MJPEG: compression -{COMPRESSION_STEP}; H.264: bitrate one step up"),
     ):
         m[key] = Action(kind, sign, False, 0, what)
         m[key.upper()] = Action(kind, sign, False, 0, what)
@@ -141,11 +152,13 @@ class StopMotion:
 @dataclass(frozen=True, slots=True)
 class SetVideo:
     """New video parameters (SetVideoParams semantics: fps 0 = keep, resolution "" = keep, compression −1 =
-    keep)."""
+    keep, the H.264 bitrates 0 = keep)."""
 
     fps: int = 0
     resolution: str = ""
     compression: int = -1
+    h264_bitrate_kbps: int = 0
+    h264_max_bitrate_kbps: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -181,6 +194,9 @@ class TeleopState:
     resolution: str | None = None
     compression: int | None = None
     resolutions: tuple[str, ...] = field(default=DEFAULT_RESOLUTIONS)
+    codec: str = "mjpeg"  # what Y/H act on: "mjpeg" (compression) or "h264" (bitrate)
+    h264_bitrate_kbps: int | None = None  # without feedback
+    h264_max_bitrate_kbps: int | None = None  # the ceiling with feedback
 
 
 def parse_resolution(text: str) -> tuple[int, int]:
@@ -261,6 +277,8 @@ def apply(key: str, state: TeleopState) -> tuple[list[Command], TeleopState]:
         if fps == state.fps:
             return [Notice(f"fps already at its limit ({fps})")], state
         return [SetVideo(fps=fps)], state
+    if k is Kind.COMPRESSION and state.codec == "h264":
+        return _bitrate_key(-action.sign, state), state  # compression + = smaller = a lower bitrate
     if k is Kind.COMPRESSION:
         if state.compression is None:
             return [Notice("compression not known yet (no video/params)")], state
@@ -279,6 +297,28 @@ def apply(key: str, state: TeleopState) -> tuple[list[Command], TeleopState]:
         end = "top" if action.sign > 0 else "bottom"
         return [Notice(f"resolution already at the {end} of the list")], state
     return [SetVideo(resolution=res)], state
+
+
+def next_bitrate(kbps: int, direction: int) -> int:
+    """The next step of :data:`BITRATE_STEPS_KBPS` above (``direction`` > 0) or below ``kbps``; ``kbps`` itself
+    when none is left that way."""
+    if direction > 0:
+        return next((b for b in BITRATE_STEPS_KBPS if b > kbps), kbps)
+    return next((b for b in reversed(BITRATE_STEPS_KBPS) if b < kbps), kbps)
+
+
+def _bitrate_key(direction: int, state: TeleopState) -> list[Command]:
+    """Y/H with H.264: the bitrate without feedback and the ceiling one step each way, together (the ceiling never
+    below the start: the stream node refuses that)."""
+    start, top = state.h264_bitrate_kbps, state.h264_max_bitrate_kbps
+    if start is None or top is None:
+        return [Notice("H.264 bitrate not known yet (no video/params)")]
+    lo, hi = BITRATE_STEPS_KBPS[0], BITRATE_STEPS_KBPS[-1]
+    new_start = max(lo, min(hi, next_bitrate(start, direction)))
+    new_top = max(new_start, min(hi, next_bitrate(top, direction)))
+    if (new_start, new_top) == (start, top):
+        return [Notice(f"H.264 bitrate already at its limit ({start} kbit/s, up to {top} with feedback)")]
+    return [SetVideo(h264_bitrate_kbps=new_start, h264_max_bitrate_kbps=new_top)]
 
 
 _ARROWS = {"A": "<up>", "B": "<down>", "C": "<right>", "D": "<left>"}

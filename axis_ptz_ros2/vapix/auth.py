@@ -333,6 +333,30 @@ class NegotiatingAuth(httpx.Auth):
         request.headers["Authorization"] = header
         return True
 
+    # -- without a flow (the state poll's quick path) ---------------------------------------------------------
+    def preemptive(self, request: httpx.Request) -> str | None:
+        """The ``Authorization`` value the first request of :meth:`auth_flow` would carry for ``request``
+        (``""``: it goes unsigned), or None when only the flow can go on (no Digest challenge to sign with, or
+        one we cannot sign). ``request`` is not changed; a Digest signature counts its ``nc`` as the flow's."""
+        if not self.has_credentials:
+            return ""
+        scheme = self._scheme
+        if scheme is AuthScheme.BASIC and not self._basic_allowed(request):
+            scheme = None
+        if scheme is None:
+            return ""
+        if scheme is AuthScheme.BASIC:
+            return self._basic_header()
+        if self._challenge is None:
+            return None
+        return self._digest_header(request, self._challenge)
+
+    def accepted(self, *, signed: bool) -> None:
+        """A 2xx reply to a request sent with :meth:`preemptive`'s value: noted as the flow notes it."""
+        if signed:
+            self._proven = True
+            self.last_problem = ""
+
     # -- the exchange ---------------------------------------------------------------------------------------------
     def auth_flow(self, request: httpx.Request) -> Generator[httpx.Request, httpx.Response, None]:
         """At most: one unauthenticated request, one signed request, and one re-challenged retry."""

@@ -45,6 +45,7 @@ from axis_ptz_ros2.vapix.errors import (
     map_httpx_error,
     redact,
 )
+from axis_ptz_ros2.vapix.keepalive import KeepAliveTransport
 from axis_ptz_ros2.vapix.mjpeg import MjpegParser, MjpegStats, boundary_from_content_type
 from axis_ptz_ros2.vapix.models import (
     CIF_NTSC,
@@ -228,6 +229,13 @@ class VapixClient(_ClosesOnExit):
         self._headers = httpx.Headers(self._http.headers)
         self._extensions: dict[str, object] = {"timeout": self._http.timeout.as_dict()}
         self._urls: dict[str, httpx.URL] = {}
+        self._timeouts: dict[str, float | None] = self._http.timeout.as_dict()
+        self._timeout_s = config.timeout_s
+        # queries over our own transport take its quick path while replies are plain (keepalive.py says why)
+        self._quick = self._pool if isinstance(self._pool, KeepAliveTransport) else None
+        self._quick_requests: dict[str, tuple[httpx.Request, bytes]] = {}
+        self.quick_declined = ""  #: why queries stopped taking the quick path (empty: they take it, or no quick path)
+        self.quick_replies = 0  #: queries answered over the quick path
         self._lock = threading.RLock()
         self._stream_ssl: ssl.SSLContext | None = None  # every MJPEG stream's, built once (_stream_ssl_context)
         self._stream_ssl_lock = threading.Lock()
@@ -419,8 +427,64 @@ class VapixClient(_ClosesOnExit):
         self._get_text(build_path(cmd.path, {**self._camera_args(), **cmd.query()}))
 
     def _query(self, what: PtzQuery) -> str:
-        _, text = self._get_text(build_path(PTZ_CGI, {**self._camera_args(), "query": what.value}))
+        path_query = build_path(PTZ_CGI, {**self._camera_args(), "query": what.value})
+        if self._quick is not None:
+            text = self._quick_text(path_query)
+            if text is not None:
+                return text
+        _, text = self._get_text(path_query)
         return text
+
+    def _quick_request(self, path_query: str) -> tuple[httpx.Request, bytes]:
+        """The request of ``path_query`` (for signatures and error messages) and its head as sent, without the
+        ``Authorization`` line and the final empty line; built once per query. The camera is asked for the
+        identity coding (a coded reply goes the full path)."""
+        prepared = self._quick_requests.get(path_query)
+        if prepared is None:
+            request = httpx.Request("GET", self._url(path_query), headers=self._headers, extensions=self._extensions)
+            lines = [b"GET " + request.url.raw_path + b" HTTP/1.1"]
+            for name, value in request.headers.raw:
+                if name.lower() == b"accept-encoding":
+                    value = b"identity"
+                lines.append(name + b": " + value)
+            prepared = request, b"\r\n".join(lines) + b"\r\n"
+            self._quick_requests[path_query] = prepared
+        return prepared
+
+    def _quick_text(self, path_query: str) -> str | None:
+        """The text of a 2xx reply to ``path_query`` over the transport's quick path; None when the full path
+        must answer (not signable ahead, a non-2xx reply, an ``Error:`` body: it asks again and raises what it
+        always raised; a reply the quick path does not read: queries take the full path from then on)."""
+        with self._lock:
+            quick = self._quick
+            if quick is None:
+                return None
+            request, head = self._quick_request(path_query)
+            authorization = self._auth.preemptive(request)
+            if authorization is None or not authorization.isascii():
+                return None
+            if authorization:
+                head += b"Authorization: " + authorization.encode("ascii") + b"\r\n"
+            try:
+                reply = quick.quick_get(
+                    request.url, head + b"\r\n", self._timeouts, max_bytes=MAX_REPLY_BYTES, total_s=self._timeout_s
+                )
+            except httpx.HTTPError as err:
+                _attach_request(err, request)
+                raise map_httpx_error(err, self._secrets()) from err
+            if reply is None:
+                self._quick = None
+                self.quick_declined = f"{describe_request(request)}: a reply the quick path does not read"
+                return None
+            status, body = reply
+            if not 200 <= status < 300:
+                return None
+            self._auth.accepted(signed=bool(authorization))
+            text = _decode(body)
+            if parse_error_body(text) is not None:
+                return None
+            self.quick_replies += 1
+            return text
 
     def query_position(self) -> PtzPosition:
         """``query=position`` (§4.4)."""

@@ -266,3 +266,49 @@ def test_namespace_remap_reaches_nodes_in_that_namespace(ros, cam):
         assert termios.tcgetattr(pty.slave) == pty.attrs_before
     finally:
         pty.close()
+
+
+def test_quality_keys_step_the_h264_bitrates_when_the_stream_is_h264(ros, cam):
+    """``codec: h264``: the teleop learns the codec from video/params; Y/H step the H.264 bitrate without
+    feedback and the ceiling together (video/set_params), the compression stays; the help says so."""
+    overrides = {"port": cam.port, "codec": "h264", "h264_bitrate_kbps": 1000, "h264_max_bitrate_kbps": 1500}
+    stream = ros.add(
+        StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    )
+    probe = ros.probe("teleop_h264_probe")
+    seen: list[VideoParams] = []
+    probe.create_subscription(VideoParams, "video/params", seen.append, LATCHED_QOS)
+
+    def param(name: str) -> Any:
+        return stream.get_parameter(name).value
+
+    pty = Pty()
+    try:
+        pty.wait_output("h264 1000 kbit/s (up to 1500 with feedback)")
+        compression = param("compression")
+        m = pty.type("h")
+        ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (1500, 2000))
+        ros.wait_for(lambda: seen and (seen[-1].h264_bitrate_kbps, seen[-1].h264_max_bitrate_kbps) == (1500, 2000))
+        assert seen[-1].codec == "h264"
+        pty.wait_output("h264 1500 kbit/s (up to 2000 with feedback)", since=m)
+        m = pty.type("y")
+        ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (1000, 1500))
+        pty.wait_output("h264 1000 kbit/s (up to 1500 with feedback)", since=m)
+        m = pty.type("Y")
+        ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (700, 1000))
+        pty.wait_output("h264 700 kbit/s (up to 1000 with feedback)", since=m)
+        assert param("compression") == compression  # the MJPEG key's parameter is left alone
+        m = pty.type("?")
+        pty.wait_output("the stream is h264: Y/H act on the H.264 bitrate", since=m)
+        pty.wait_output("H.264: bitrate one step down", since=m)
+        # the codec switched back to MJPEG: the same key steps the compression again
+        assert stream.set_parameters([Parameter("codec", value="mjpeg")])[0].successful
+        pty.wait_output("compression 30")
+        m = pty.type("y")
+        ros.wait_for(lambda: param("compression") == 40)
+        assert (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (700, 1000)
+        pty.type("\x03")
+        assert pty.proc.wait(10) == 0
+        assert termios.tcgetattr(pty.slave) == pty.attrs_before
+    finally:
+        pty.close()

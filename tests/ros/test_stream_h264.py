@@ -24,7 +24,7 @@ pytest.importorskip("rclpy")
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket  # noqa: E402
 from foxglove_msgs.msg import CompressedVideo  # noqa: E402
-from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage, Image  # noqa: E402
 
@@ -281,7 +281,7 @@ def test_late_joiner_gets_an_idr_within_a_second(ros: RosHarness, camera: Simula
 
 
 def test_bitrate_parameter_changes_the_message_sizes(ros: RosHarness, camera: SimulatedCamera) -> None:
-    make_node(ros, camera, **H264, h264_bitrate_kbps=3000)
+    make_node(ros, camera, **H264, h264_bitrate_kbps=3000, h264_max_bitrate_kbps=3000)
     probe = ros.probe()
     rec, _ = subscribe(probe)
     ros.wait_for(lambda: sum(p.key for p in rec.since(0.0)) >= 3, timeout=10)
@@ -486,3 +486,61 @@ def test_link_monitor_reports_no_decode_errors_on_a_clean_stream(ros: RosHarness
     ros.wait_for(lambda: sum(r.frames > 10 for r in reports) >= 3, timeout=10)
     steady = [r for r in reports if r.frames > 10][-2:]
     assert all(r.decode_errors == 0 for r in steady), [r.decode_errors for r in steady]
+
+
+def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """Without feedback the encoder stays at h264_bitrate_kbps (the safe default); with the operator's monitor
+    reporting a clear link (loopback) the link adaptation raises it past that, up to h264_max_bitrate_kbps, and the
+    access units grow with it."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=1200)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    targets: list[int] = []
+    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 3.0:  # 3 s of a plain subscriber: no feedback, the start applies
+        targets.append(node._video.h264_settings().bitrate_kbps)
+        time.sleep(0.1)
+    assert set(targets) == {400}
+    assert node._stage._applied_kbps == 400
+    before = rec.since(t0)
+    kbps_before = sum(len(p.data) for p in before) * 8 / 1000 / (before[-1].t_rx - before[0].t_rx)
+    ros.add(LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter("codec", value="h264")]))
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps > 400, timeout=10)
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps >= 1000, timeout=20)
+    s = node._video.h264_settings()
+    assert s.bitrate_kbps <= 1200
+    assert node._video.state().link_state == "clear"
+    ros.wait_for(lambda: node._stage._applied_kbps >= 1000, timeout=3)  # the encoder targets it
+    t1 = time.monotonic()
+    ros.wait_for(lambda: len(rec.since(t1)) >= 45, timeout=10)
+    after = rec.since(t1)
+    kbps_after = sum(len(p.data) for p in after) * 8 / 1000 / (after[-1].t_rx - after[0].t_rx)
+    print(f"kbit/s received: {kbps_before:.0f} without feedback, {kbps_after:.0f} with a clear link")  # noqa: T201
+    assert kbps_after > 1.5 * kbps_before, (kbps_before, kbps_after)
+    assert video_args(camera.request_counts.video_log[-1].query)["compression"] == "0"  # the camera's ask: as is
+
+
+def test_the_ceiling_is_refused_below_the_start_with_the_reason(ros: RosHarness, camera: SimulatedCamera) -> None:
+    node = make_node(ros, camera, **H264)
+    probe = ros.probe()
+    (res,) = set_params(ros, probe, h264_max_bitrate_kbps=800)
+    assert not res.successful
+    assert "below h264_bitrate_kbps=1000" in res.reason
+    (res,) = set_params(ros, probe, h264_bitrate_kbps=2000)
+    assert not res.successful
+    assert "h264_max_bitrate_kbps=1500 is below h264_bitrate_kbps=2000" in res.reason
+    client = probe.create_client(SetParametersAtomically, "/axis_stream/set_parameters_atomically")
+    req = SetParametersAtomically.Request()
+    req.parameters = [
+        Parameter(k, value=v).to_parameter_msg()
+        for k, v in {"h264_bitrate_kbps": 2000, "h264_max_bitrate_kbps": 3000}.items()
+    ]
+    result = ros.call(client, req).result  # both at once: fine
+    assert result.successful, result.reason
+    assert (node.get_parameter("h264_bitrate_kbps").value, node.get_parameter("h264_max_bitrate_kbps").value) == (
+        2000,
+        3000,
+    )

@@ -121,3 +121,36 @@ def test_transform_algebra_and_quaternions():
     q = g.matrix_to_quaternion(T.R)
     assert g.quaternion_to_matrix(*q) == pytest.approx(T.R, abs=1e-12)
     assert g.matrix_to_quaternion(g.rot_z(math.pi)) == pytest.approx((0, 0, 1, 0), abs=1e-12)
+
+
+def _same_pose(p: g.Pose, T: g.Transform) -> None:
+    assert p.q[3] >= 0.0
+    assert math.isclose(sum(v * v for v in p.q), 1.0, abs_tol=1e-12)
+    np.testing.assert_allclose(p.t, T.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(g.quaternion_to_matrix(*p.q), T.R, rtol=0, atol=1e-12)
+    if T.R.trace() > -0.99:  # away from w = 0 the quaternion itself is unique (w >= 0)
+        np.testing.assert_allclose(p.q, g.matrix_to_quaternion(T.R), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("d_opt", [(0.0, 0.0, 0.0), (0.05, 0.0, 0.0), (0.031, -0.012, 0.027)])
+def test_optical_pose_in_floats_equals_the_numpy_transform(d_opt):
+    k = g.PtzKinematics(h_tilt=0.0687, d_opt=d_opt)
+    rng = np.random.default_rng(7)
+    angles = [(0.0, 0.0), (math.pi, 0.0), (-math.pi, math.pi / 2), (2.9, -math.pi / 2), (1e-9, -1e-9)]
+    angles += [(float(p), float(t)) for p, t in zip(rng.uniform(-4, 4, 300), rng.uniform(-1.6, 1.6, 300), strict=True)]
+    for pan, tilt in angles:
+        _same_pose(k.optical_pose(pan, tilt), k.optical_in_ptz_base(pan, tilt))
+
+
+def test_pose_composition_equals_the_numpy_transform():
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        a = g.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
+        b = g.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
+        pa, pb = g.Pose.from_transform(a), g.Pose.from_transform(b)
+        _same_pose(pa, a)
+        _same_pose(pa @ pb, a @ b)
+        np.testing.assert_allclose(pa.transform().matrix(), a.matrix(), rtol=0, atol=1e-12)
+    v = (0.3, -1.2, 2.5)
+    q = g.Pose.from_transform(g.Transform(g.rot_z(0.7) @ g.rot_x(-0.4))).q
+    np.testing.assert_allclose(g.quaternion_rotate(q, v), g.rot_z(0.7) @ g.rot_x(-0.4) @ np.array(v), atol=1e-12)

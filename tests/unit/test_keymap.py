@@ -165,6 +165,64 @@ def test_unknown_keys_do_nothing():
         assert apply(k, VIDEO) == ([], VIDEO)
 
 
+H264 = TeleopState(
+    step=1,
+    fps=15,
+    resolution="704x576",
+    compression=0,
+    codec="h264",
+    h264_bitrate_kbps=1000,
+    h264_max_bitrate_kbps=1500,
+)
+
+
+@pytest.mark.parametrize(
+    ("key", "start", "top"),
+    [("h", 1500, 2000), ("H", 1500, 2000), ("y", 700, 1000), ("Y", 700, 1000)],
+)
+def test_quality_keys_step_both_h264_bitrates_in_h264_mode(key, start, top):
+    """With H.264, Y/H never touch the compression: the bitrate without feedback and the ceiling move together."""
+    assert apply(key, H264) == ([SetVideo(h264_bitrate_kbps=start, h264_max_bitrate_kbps=top)], H264)
+
+
+def test_h264_bitrate_keys_keep_the_ceiling_at_least_the_start_and_stop_at_the_range():
+    # values between two steps move to the next step that way; the ceiling never below the start
+    odd = TeleopState(codec="h264", h264_bitrate_kbps=1200, h264_max_bitrate_kbps=1250)
+    assert apply("h", odd)[0] == [SetVideo(h264_bitrate_kbps=1500, h264_max_bitrate_kbps=1500)]
+    assert apply("y", odd)[0] == [SetVideo(h264_bitrate_kbps=1000, h264_max_bitrate_kbps=1000)]
+    top = TeleopState(codec="h264", h264_bitrate_kbps=15000, h264_max_bitrate_kbps=20000)
+    assert apply("h", top)[0] == [SetVideo(h264_bitrate_kbps=20000, h264_max_bitrate_kbps=20000)]
+    (n,), _ = apply("h", TeleopState(codec="h264", h264_bitrate_kbps=20000, h264_max_bitrate_kbps=20000))
+    assert isinstance(n, Notice)
+    assert "limit" in n.text
+    bottom = TeleopState(codec="h264", h264_bitrate_kbps=100, h264_max_bitrate_kbps=150)
+    assert apply("y", bottom)[0] == [SetVideo(h264_bitrate_kbps=100, h264_max_bitrate_kbps=100)]
+    (n,), _ = apply("y", TeleopState(codec="h264", h264_bitrate_kbps=100, h264_max_bitrate_kbps=100))
+    assert isinstance(n, Notice)
+    (n,), _ = apply("h", TeleopState(codec="h264"))  # no video/params yet
+    assert isinstance(n, Notice)
+    assert "not known" in n.text
+
+
+def test_bitrate_steps_span_the_stream_nodes_range():
+    from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS  # noqa: PLC0415 - loads FFmpeg: only here
+
+    assert (km.BITRATE_STEPS_KBPS[0], km.BITRATE_STEPS_KBPS[-1]) == BITRATE_RANGE_KBPS
+    assert list(km.BITRATE_STEPS_KBPS) == sorted(set(km.BITRATE_STEPS_KBPS))
+
+
+def test_help_says_what_the_quality_keys_do_in_each_mode():
+    lines = {line.split()[0]: line for line in km.help_lines() if line.split()}
+    for key in ("Y", "H"):
+        assert "MJPEG: compression" in lines[key]
+        assert "H.264: bitrate one step" in lines[key]
+
+
+def test_other_video_keys_act_the_same_in_h264_mode():
+    assert apply("r", H264)[0] == [SetVideo(fps=18)]
+    assert apply("g", H264)[0] == [SetVideo(resolution="704x288")]
+
+
 def test_every_mapped_key_has_a_description_and_is_handled():
     for key, action in km.KEYMAP.items():
         assert action.description, key

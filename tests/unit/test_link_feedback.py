@@ -93,6 +93,36 @@ def test_no_budget_is_invented_on_a_clear_link():
     assert a.budget_kbps == 0.0
 
 
+def test_a_sender_that_can_go_past_its_start_gets_a_budget_from_a_clear_link_one_step_per_hold():
+    """H.264 with a ceiling above its start bitrate (``grow_from_kbps``): a clear report starts a budget from the
+    start and each later step past it waits ``climb_hold_s`` (a report window of its own); a budget under the
+    start (after congestion) recovers as fast as before."""
+    a = LinkAdapter(AdapterConfig(climb_hold_s=2.0))
+    budgets = []
+    for i in range(1, 13):  # 6 s of clear reports, twice a second
+        a.report(
+            0.5 * i,
+            _report(fps=25.0, frames=50, kbps=1000.0),
+            sent_fps=25,
+            sent_kbps=1000.0,
+            step_up_kbps=1667,
+            grow_from_kbps=1000,
+        )
+        budgets.append(round(a.budget_kbps))
+    assert budgets[0] == 1200
+    assert budgets == [1200] * 4 + [1440] * 4 + [1728] * 4
+    # congested: back under the start, then clear again: no hold under the start
+    a.report(
+        7.0, _report(fps=25.0, frames=50, kbps=500.0, queue=0.8), sent_fps=25, sent_kbps=1000.0, grow_from_kbps=1000
+    )
+    low = a.budget_kbps
+    assert low < 1000
+    a.report(9.0, _report(fps=25.0, frames=50, kbps=500.0), sent_fps=25, sent_kbps=500.0, grow_from_kbps=1000)
+    assert a.budget_kbps == pytest.approx(1.2 * low)
+    a.report(9.5, _report(fps=25.0, frames=50, kbps=500.0), sent_fps=25, sent_kbps=500.0, grow_from_kbps=1000)
+    assert a.budget_kbps == pytest.approx(1.44 * low)
+
+
 def test_silence_holds_the_budget_then_releases_it():
     a = LinkAdapter(AdapterConfig(silence_s=2.0, release_s=30.0))
     a.report(0.0, _report(kbps=1000.0, queue=0.5), sent_fps=15, sent_kbps=3000)
@@ -131,6 +161,7 @@ def test_the_most_constrained_consumer_decides_and_stale_ones_are_forgotten():
         {"min_kbps": 0.0},
         {"silence_s": 5.0, "release_s": 1.0},
         {"good_margin": 0.9},
+        {"climb_hold_s": -1.0},
     ],
 )
 def test_adapter_config_refuses_settings_that_cannot_converge(kwargs):

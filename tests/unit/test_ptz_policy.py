@@ -157,6 +157,23 @@ def test_state_loop_does_not_burst_after_a_slow_tick() -> None:
     assert min(gaps) > 0.01  # no catch-up burst of back-to-back polls
 
 
+def test_state_loop_stop_ends_the_wait_between_ticks_at_once() -> None:
+    head = CountingHead()
+    poller = StatePoller(head.read_state, 30.0)  # a tick every 30 s: the thread waits between them
+    got: list[StateSample] = []
+    loop = StateLoop(poller, head.limits, got.append)
+    loop.start()
+    RosFreeWait.until(lambda: len(got) == 1, 5.0)
+    time.sleep(0.05)
+    t0 = time.monotonic()
+    loop.stop(5.0)
+    assert not loop.alive
+    assert time.monotonic() - t0 < 1.0
+    loop.stop(1.0)  # stopping twice is harmless
+    assert not loop.ensure_running()
+    assert len(got) == 1
+
+
 def test_state_loop_ends_quietly_on_shutdown_and_ensure_running_restarts_a_dead_thread() -> None:
     head = CountingHead()
     poller = StatePoller(head.read_state, 0.01)

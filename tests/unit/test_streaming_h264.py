@@ -15,7 +15,7 @@ from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
-from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings
+from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings, h264_target_kbps
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
@@ -373,3 +373,124 @@ def test_link_budget_lowers_the_h264_bitrate_judged_against_h264_bytes() -> None
     assert 100 <= s.bitrate_kbps <= 500
     assert c.current.compression == 0
     assert c.state().level == 0
+
+
+# ---- the H.264 ceiling: a clear link raises the bitrate past h264_bitrate_kbps, up to h264_max_bitrate_kbps ----
+@pytest.mark.parametrize(
+    ("start", "ceiling", "link", "hand", "want"),
+    [
+        (1000, 1500, 0.0, 0.0, (1000, 1000)),  # no feedback: the start, the encoder opened at it
+        (1000, 1500, 600.0, 0.0, (600, 1000)),  # a budget under the start lowers it (as before the ceiling)
+        (1000, 1500, 1100.0, 0.0, (1000, 1000)),  # 0.9 x 1100 = 990: not past the start yet
+        (1000, 1500, 1400.0, 0.0, (1260, 1500)),  # 0.9 x the budget, the ceiling announced
+        (1000, 1500, 5000.0, 0.0, (1500, 1500)),  # never past the ceiling
+        (1000, 1500, 5000.0, 1200.0, (1200, 1500)),  # the hand-set budget caps it
+        (1000, 1000, 5000.0, 0.0, (1000, 1000)),  # ceiling = start: never above it (the behaviour before)
+        (1000, 1000, 700.0, 0.0, (700, 1000)),
+        (1000, 1500, 50.0, 0.0, (100, 1000)),  # the encoder's floor
+    ],
+)
+def test_h264_target_follows_the_budget_up_to_the_ceiling(
+    start: int, ceiling: int, link: float, hand: float, want: tuple[int, int]
+) -> None:
+    assert h264_target_kbps(start, ceiling, link, hand) == want
+
+
+def test_ceiling_equal_to_start_keeps_the_old_rule() -> None:
+    """min(start, every budget in force) for any budget, when h264_max_bitrate_kbps = h264_bitrate_kbps."""
+    for link in (0.0, 80.0, 300.0, 999.0, 1000.0, 1001.0, 4000.0):
+        for hand in (0.0, 250.0, 2000.0):
+            budgets = [b for b in (link, hand) if b > 0]
+            old = max(100, min(1000, int(min(budgets)))) if budgets else 1000
+            assert h264_target_kbps(1000, 1000, link, hand)[0] == old, (link, hand)
+
+
+def test_ceiling_below_start_is_refused_with_the_reason() -> None:
+    c, _ = controller(codec="h264")
+    reason = c.check(VideoSettings(codec="h264", h264_max_bitrate_kbps=800), {"h264_max_bitrate_kbps"})
+    assert reason is not None
+    assert "h264_max_bitrate_kbps=800 is below h264_bitrate_kbps=1000" in reason
+    reason = c.check(VideoSettings(h264_bitrate_kbps=2000), {"h264_bitrate_kbps"})
+    assert reason is not None
+    assert "below h264_bitrate_kbps=2000" in reason
+    assert "outside 100…20000" in (
+        c.check(VideoSettings(h264_max_bitrate_kbps=30_000), {"h264_max_bitrate_kbps"}) or ""
+    )
+    both = VideoSettings(h264_bitrate_kbps=2000, h264_max_bitrate_kbps=3000)
+    assert c.check(both, {"h264_bitrate_kbps", "h264_max_bitrate_kbps"}) is None
+    with pytest.raises(ValueError, match="h264_max_bitrate_kbps"):
+        VideoController(VideoSettings(h264_bitrate_kbps=3000), BitrateMeter(2.0))
+
+
+def _clear_reports(c: VideoController, clock: Clock, seconds: float, *, report: bool = True) -> list[int]:
+    """``seconds`` of 25 access units/s at the encoder's target, a clear report every 0.5 s (``report``); the
+    targets seen after each half second."""
+    targets = []
+    for _half in range(int(seconds * 2)):
+        kbps = c.h264_settings().bitrate_kbps
+        for _i in range(12):
+            clock.t += 1 / 25
+            c.on_h264_frame(clock.t, int(kbps * 1000 / 8 / 25))
+        if report:
+            fb = FeedbackReport("/op", 50, 25.0, float(kbps), 0.02, 0.01, 0.04, 2.0)
+            c.feedback(fb, lambda _name: True)
+        c.tick()
+        targets.append(c.h264_settings().bitrate_kbps)
+    return targets
+
+
+def test_clear_link_raises_the_bitrate_to_the_ceiling_and_no_feedback_keeps_the_start() -> None:
+    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1000, h264_max_bitrate_kbps=1500)
+    assert _clear_reports(c, clock, 4.0, report=False)[-1] == 1000  # nobody reports: the safe default
+    targets = _clear_reports(c, clock, 10.0)
+    assert targets[-1] == 1500, targets
+    assert all(b >= a for a, b in zip(targets, targets[1:], strict=False)), targets  # one way, step by step
+    assert targets.index(1500) >= 3, targets  # climbed in steps, each judged, not in one jump
+    s = c.h264_settings()
+    assert s.ceiling_kbps == 1500
+    assert c.state().link_state == "clear"
+    # the reports stop: held through the silence, released after link_release, back to the start
+    clock.t += 31.0
+    c.tick()
+    assert c.h264_settings().bitrate_kbps == 1000
+    # a ceiling equal to the start: the same clear reports never raise it
+    c2, clock2 = controller(codec="h264", h264_bitrate_kbps=1000, h264_max_bitrate_kbps=1000)
+    assert set(_clear_reports(c2, clock2, 6.0)) == {1000}
+    assert c2.state().link_budget_kbps == 0.0
+
+
+def test_congestion_after_the_climb_brings_the_bitrate_back_down() -> None:
+    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1000, h264_max_bitrate_kbps=2000)
+    _clear_reports(c, clock, 8.0)
+    high = c.h264_settings().bitrate_kbps
+    assert high > 1300
+    sent = high
+    # the consumer receives 60 % of what is sent, with a queue: congested
+    for _i in range(12):
+        clock.t += 1 / 25
+        c.on_h264_frame(clock.t, int(sent * 1000 / 8 / 25))
+    j = c.feedback(FeedbackReport("/op", 30, 15.0, 0.6 * sent, 0.9, 0.01, 0.2, 2.0), lambda _name: True)
+    assert j is not None
+    assert j.decision.state == "congested"
+    assert c.h264_settings().bitrate_kbps < 0.8 * high
+
+
+def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: list[bytes]) -> None:
+    """Without feedback the encoder opens at the start; the climb past it re-opens it once, at the ceiling (one
+    IDR), and every later step up or down is live."""
+    h = Harness(H264Settings(bitrate_kbps=1000, fps=30, ceiling_kbps=1000))
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])
+    assert [m.bitrate_bps for m in h.made] == [1_000_000]
+    h.settings = H264Settings(bitrate_kbps=1080, fps=30, ceiling_kbps=1500)
+    out = h.feed(jpegs[3:5])
+    assert [m.bitrate_bps for m in h.made] == [1_000_000, 1_500_000]
+    assert h.stage.stats.fps_reopens == 0  # re-made for the ceiling, not for a new picture rate
+    assert out[0] is not None
+    assert out[0].keyframe
+    for kbps, top in ((1200, 1500), (1500, 1500), (800, 1000), (1300, 1500)):
+        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, ceiling_kbps=top)
+        out = h.feed(jpegs[5:7])
+        assert not any(f is not None and f.keyframe for f in out)
+        assert h.transcoders[-1].config.bitrate_bps == kbps * 1000
+    assert len(h.made) == 2

@@ -281,3 +281,6 @@ def test_a_video_set_params_request_changes_only_what_it_names():
     assert requested_changes(5, "", -1) == {"fps": 5}
     assert requested_changes(0, "352x288", 0) == {"resolution": "352x288", "compression": 0}
     assert requested_changes(30, "CIF", 100) == {"fps": 30, "resolution": "CIF", "compression": 100}
+    assert requested_changes(0, "", -1, 0, 0) == {}
+    assert requested_changes(0, "", -1, 700, 0) == {"h264_bitrate_kbps": 700}
+    assert requested_changes(0, "", -1, 700, 1000) == {"h264_bitrate_kbps": 700, "h264_max_bitrate_kbps": 1000}
