@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import os
 import signal
 import time
@@ -40,6 +41,42 @@ with contextlib.suppress(OSError, AttributeError):
     ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
 
 TESTS = Path(__file__).resolve().parent
+
+
+class _GcPauses:
+    """The cyclic garbage collector's pauses in this process (every thread waits for them: a node under test, the
+    simulated camera and the DDS callbacks alike). A ``gen2`` collection walks every tracked object, so its pause
+    grows with what the session has accumulated; a failed test's report shows the longest pauses during it, and
+    the run's summary shows the worst (a timing-sensitive failure can then be told from a defect)."""
+
+    def __init__(self) -> None:
+        self.pauses: list[tuple[float, float, int]] = []  # (end, seconds, generation)
+        self._start = 0.0
+
+    def __call__(self, phase: str, info: dict[str, int]) -> None:
+        now = time.perf_counter()
+        if phase == "start":
+            self._start = now
+        elif self._start:
+            self.pauses.append((now, now - self._start, info.get("generation", -1)))
+            self._start = 0.0
+
+    def since(self, t0: float) -> list[tuple[float, float, int]]:
+        return [p for p in self.pauses if p[0] >= t0]
+
+    @staticmethod
+    def describe(pauses: list[tuple[float, float, int]]) -> str:
+        if not pauses:
+            return "no collection"
+        worst = sorted(pauses, key=lambda p: p[1], reverse=True)
+        total = sum(p[1] for p in pauses)
+        long = sum(p[1] >= 0.1 for p in pauses)
+        top = ", ".join(f"{1000 * s:.0f} ms (gen {g})" for _e, s, g in worst[:3])
+        return f"{len(pauses)} collections, {1000 * total:.0f} ms in all, {long} of 100 ms or more; longest {top}"
+
+
+_gc_pauses = _GcPauses()
+gc.callbacks.append(_gc_pauses)
 REQUIRE = "AXIS_REQUIRE_ALL_TIERS"
 _collected: Counter[Path] = Counter()  # test module -> tests collected (before deselection)
 _problems: list[str] = []
@@ -55,9 +92,13 @@ def _skip_reason(longrepr: object) -> str:
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):  # noqa: ANN001, ANN201
-    """A skipped test is a failure while AXIS_REQUIRE_ALL_TIERS=1."""
+    """A skipped test is a failure while AXIS_REQUIRE_ALL_TIERS=1; a failed test's report shows the garbage
+    collector's pauses during it."""
     outcome = yield
     report = outcome.get_result()
+    if report.failed and call.when == "call":
+        t0 = time.perf_counter() - call.duration - 0.01
+        report.sections.append(("garbage collector pauses during the test", _GcPauses.describe(_gc_pauses.since(t0))))
     if _required() and report.skipped and not hasattr(report, "wasxfail"):
         report.outcome = "failed"
         reason = _skip_reason(report.longrepr)
@@ -142,6 +183,10 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ANN0
         terminalreporter.write_line(
             "tests collected per tier: " + ", ".join(f"{t} {n}" for t, n in sorted(tiers.items()))
         )
+    terminalreporter.write_line(
+        f"garbage collector pauses in the pytest process: {_GcPauses.describe(_gc_pauses.pauses)}; "
+        f"objects tracked at the end: {len(gc.get_objects())}"
+    )
     if _problems:
         terminalreporter.section(f"missing tiers ({REQUIRE}=1)", red=True)
         for p in _problems:

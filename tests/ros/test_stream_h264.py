@@ -38,6 +38,7 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.persona import AXIS_214_PICTURE  # noqa: E402
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
+from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 
@@ -492,9 +493,11 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
     """Without feedback the encoder stays at h264_bitrate_kbps (the safe default); with the operator's monitor
-    reporting a clear link (loopback) the link adaptation raises it past that, up to h264_max_bitrate_kbps, and the
-    access units grow with it."""
-    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=1200)
+    reporting a clear link (loopback) the link adaptation raises it past that, up to h264_max_bitrate_kbps and no
+    further, and the access units grow with it. (The climb's pace and its judgements are the adapter's unit tests'
+    and the weak-link bench's: here the ceiling sits three climbs above the start, so a host that pauses now and
+    then still gets there.)"""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=600)
     probe = ros.probe()
     rec, _ = subscribe(probe)
     targets: list[int] = []
@@ -508,18 +511,24 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     before = rec.since(t0)
     kbps_before = sum(len(p.data) for p in before) * 8 / 1000 / (before[-1].t_rx - before[0].t_rx)
     ros.add(LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter("codec", value="h264")]))
-    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps > 400, timeout=10)
-    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps >= 1000, timeout=20)
-    s = node._video.h264_settings()
-    assert s.bitrate_kbps <= 1200
+    seen: list[int] = []
+
+    def at_ceiling() -> bool:
+        seen.append(node._video.h264_settings().bitrate_kbps)
+        return seen[-1] == 600
+
+    wait_for_climb(ros, node, at_ceiling, timeout=30)
+    assert max(seen) == 600, sorted(set(seen))  # never past the ceiling
+    assert len(set(seen)) >= 3, sorted(set(seen))  # climbed in steps
     assert node._video.state().link_state == "clear"
-    ros.wait_for(lambda: node._stage._applied_kbps >= 1000, timeout=3)  # the encoder targets it
+    ros.wait_for(lambda: node._stage._applied_kbps == 600, timeout=3)  # the encoder targets it
     t1 = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t1)) >= 45, timeout=10)
     after = rec.since(t1)
     kbps_after = sum(len(p.data) for p in after) * 8 / 1000 / (after[-1].t_rx - after[0].t_rx)
     print(f"kbit/s received: {kbps_before:.0f} without feedback, {kbps_after:.0f} with a clear link")  # noqa: T201
-    assert kbps_after > 1.5 * kbps_before, (kbps_before, kbps_after)
+    assert kbps_after > 1.25 * kbps_before, (kbps_before, kbps_after)
+    assert node._video.h264_settings().bitrate_kbps <= 600  # a clear link holds at the ceiling
     assert video_args(camera.request_counts.video_log[-1].query)["compression"] == "0"  # the camera's ask: as is
 
 
