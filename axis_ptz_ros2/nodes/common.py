@@ -26,7 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from sensor_msgs.msg import CameraInfo, CompressedImage
 
-from axis_ptz_ros2.geometry import Intrinsics, Transform, matrix_to_quaternion, quaternion_to_matrix
+from axis_ptz_ros2.geometry import Intrinsics, Pose, Transform, quaternion_to_matrix
 from axis_ptz_ros2.streaming.jpeg import jpeg_components
 from axis_ptz_ros2.vapix import CameraConfig
 from axis_ptz_ros2.vapix.credentials import load_credentials
@@ -353,17 +353,23 @@ def camera_info_msg(intr: Intrinsics, frame_id: str, stamp: Time) -> CameraInfo:
     return m
 
 
-def transform_msg(T: Transform, parent: str, child: str, stamp: Time) -> TransformStamped:
-    """``geometry_msgs/TransformStamped`` (parent → child) from a :class:`Transform` ``T_parent_child``."""
+def pose_msg(P: Pose, parent: str, child: str, stamp: Time) -> TransformStamped:
+    """``geometry_msgs/TransformStamped`` (parent → child) of a :class:`~axis_ptz_ros2.geometry.Pose`
+    ``T_parent_child`` (the PTZ node's 20 Hz path: plain floats, no matrices)."""
     m = TransformStamped()
     m.header.frame_id = parent
     m.header.stamp = stamp
     m.child_frame_id = child
-    m.transform.translation.x, m.transform.translation.y, m.transform.translation.z = (float(v) for v in T.t)
-    qx, qy, qz, qw = matrix_to_quaternion(T.R)
-    m.transform.rotation.x, m.transform.rotation.y = qx, qy
-    m.transform.rotation.z, m.transform.rotation.w = qz, qw
+    t, q = m.transform.translation, m.transform.rotation
+    t.x, t.y, t.z = P.t
+    q.x, q.y, q.z, q.w = P.q
     return m
+
+
+def transform_msg(T: Transform, parent: str, child: str, stamp: Time) -> TransformStamped:
+    """``geometry_msgs/TransformStamped`` (parent → child) from a :class:`Transform` ``T_parent_child`` (its
+    :class:`~axis_ptz_ros2.geometry.Pose`: one conversion from rotation matrix to quaternion, in the geometry)."""
+    return pose_msg(Pose.from_transform(T), parent, child, stamp)
 
 
 def transform_from_msg(msg: TransformStamped) -> Transform:

@@ -13,7 +13,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -21,7 +20,7 @@ from sensor_msgs.msg import JointState
 from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import CameraModel, MountConfig
 from axis_ptz_ros2.geometry import Pose
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, publisher, stamp_from_ns, transform_msg
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, pose_msg, publisher, stamp_from_ns, transform_msg
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
 from axis_ptz_ros2.ptz.commander import Commander
@@ -127,16 +126,3 @@ class PtzStatePublisher:
                 self._tf_pub.publish(pose_msg(self._mount_pose @ P_opt, frames.base, frames.optical, stamp))
             if want_head and self._tf is not None:
                 self._tf.sendTransform(pose_msg(P_opt, frames.ptz_base, frames.optical, stamp))
-
-
-def pose_msg(P: Pose, parent: str, child: str, stamp: Time) -> TransformStamped:
-    """``geometry_msgs/TransformStamped`` (parent → child) of a :class:`~axis_ptz_ros2.geometry.Pose`
-    ``T_parent_child`` (as :func:`~axis_ptz_ros2.nodes.common.transform_msg` of its :class:`Transform`)."""
-    m = TransformStamped()
-    m.header.frame_id = parent
-    m.header.stamp = stamp
-    m.child_frame_id = child
-    t, q = m.transform.translation, m.transform.rotation
-    t.x, t.y, t.z = P.t
-    q.x, q.y, q.z, q.w = P.q
-    return m

@@ -17,13 +17,14 @@ from scipy.spatial.transform import Rotation
 pytest.importorskip("rclpy")
 yourdfpy = pytest.importorskip("yourdfpy", reason="scripts/bootstrap installs yourdfpy")
 
+from builtin_interfaces.msg import Time  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
-from axis_ptz_ros2.geometry import Transform  # noqa: E402
-from axis_ptz_ros2.nodes.common import STREAM_QOS, transform_from_msg  # noqa: E402
+from axis_ptz_ros2.geometry import Pose, Transform  # noqa: E402
+from axis_ptz_ros2.nodes.common import STREAM_QOS, pose_msg, transform_from_msg, transform_msg  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.tf_publish import TF_QOS, TF_STATIC_QOS  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
@@ -139,3 +140,21 @@ def test_publish_tf_false_publishes_neither(ros: Any, cam: SimulatedCamera) -> N
     probe = ros.probe()
     assert probe.get_publishers_info_by_topic("/tf") == []
     assert probe.get_publishers_info_by_topic("/tf_static") == []
+
+
+def test_transform_and_pose_messages_are_one_conversion() -> None:
+    """``transform_msg`` (matrices) and ``pose_msg`` (the 20 Hz path's plain floats) build the same message, and
+    ``transform_from_msg`` inverts it, for rotations all over SO(3) (scipy's, an independent implementation)."""
+    rng = np.random.default_rng(7)
+    stamp = Time(sec=3, nanosec=4)
+    for R in Rotation.random(50, random_state=rng):
+        T = Transform(R.as_matrix(), rng.uniform(-2.0, 2.0, 3))
+        a = transform_msg(T, "base_link", "child", stamp)
+        b = pose_msg(Pose.from_transform(T), "base_link", "child", stamp)
+        assert (a.header.frame_id, a.child_frame_id, a.header.stamp) == ("base_link", "child", stamp)
+        assert a == b
+        q = a.transform.rotation
+        assert abs(abs(np.dot([q.x, q.y, q.z, q.w], R.as_quat())) - 1.0) < 1e-12  # scipy: (x, y, z, w)
+        back = transform_from_msg(a)
+        assert np.allclose(back.R, T.R, atol=1e-12)
+        assert np.allclose(back.t, T.t, atol=1e-12)
