@@ -141,8 +141,15 @@ class H264Output:
     def diagnostics(self) -> dict[str, Any]:
         """The H.264 side's diagnostics values."""
         bitrate = self._video.h264_settings().bitrate_kbps
+        s = self._video.settings
         return h264_diagnostic_values(
-            self.stage.active, bitrate, self.stage.stats, self.rtsp.stats, self.rtsp.supported
+            self.stage.active,
+            bitrate,
+            self.stage.stats,
+            self.rtsp.stats,
+            self.rtsp.supported,
+            int(s.h264_bitrate_kbps),
+            int(s.h264_max_bitrate_kbps),
         )
 
     def start(self) -> None:

@@ -129,12 +129,22 @@ def h264_mode_line(camera_streams_h264: bool) -> str:
 
 
 def h264_diagnostic_values(
-    encoding: bool, bitrate_kbps: int, stage: StageStats, rtsp: RtspSourceStats, camera_streams_h264: bool | None
+    encoding: bool,
+    bitrate_kbps: int,
+    stage: StageStats,
+    rtsp: RtspSourceStats,
+    camera_streams_h264: bool | None,
+    start_kbps: int = 0,
+    ceiling_kbps: int = 0,
 ) -> dict[str, Any]:
-    """The H.264 side's diagnostics values (``camera_streams_h264``: None until the camera was asked)."""
+    """The H.264 side's diagnostics values (``camera_streams_h264``: None until the camera was asked;
+    ``start_kbps``/``ceiling_kbps``: ``h264_bitrate_kbps``/``h264_max_bitrate_kbps``, between which the link moves
+    the target)."""
     return {
         "h264 encoding": encoding,
         "h264 bitrate target [kbit/s]": bitrate_kbps,
+        "h264 bitrate start [kbit/s]": start_kbps,
+        "h264 bitrate ceiling [kbit/s]": ceiling_kbps,
         "h264 access units": stage.frames,
         "h264 IDRs": stage.idrs,
         "h264 IDRs on demand": stage.idr_requests,
