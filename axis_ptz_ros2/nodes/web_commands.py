@@ -34,7 +34,15 @@ from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
 from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.panorama import cloud_msg_in_base, look_target
 from axis_ptz_ros2.web.server import CommandResult
-from axis_ptz_ros2.web.view import ConsoleModel, budget_answer, in_turn, move_text, service_answer, video_answer
+from axis_ptz_ros2.web.view import (
+    ConsoleModel,
+    budget_answer,
+    in_turn,
+    move_text,
+    service_answer,
+    video_answer,
+    video_text,
+)
 
 
 class ConsoleCommands:
@@ -157,16 +165,25 @@ class ConsoleCommands:
             self._vel_pub.publish(PtzVelocity(pan_rate=0.0, tilt_rate=0.0, zoom_rate=0.0))
             return CommandResult(True, "stop")
         if isinstance(c, keymap.SetVideo):
-            return self._set_video_params(c.fps, c.resolution, c.compression)
+            return self._set_video_params(
+                c.fps, c.resolution, c.compression, c.h264_bitrate_kbps, c.h264_max_bitrate_kbps
+            )
         if isinstance(c, keymap.Notice):
             return CommandResult(False, c.text, 409)
         return CommandResult(True, "help")  # ToggleHelp: the page shows its own help
 
-    def _set_video_params(self, fps: int, resolution: str, compression: int) -> CommandResult:
-        req = SetVideoParams.Request(fps=fps, resolution=resolution, compression=compression)
+    def _set_video_params(
+        self, fps: int, resolution: str, compression: int, h264_kbps: int = 0, h264_max_kbps: int = 0
+    ) -> CommandResult:
+        req = SetVideoParams.Request(
+            fps=fps,
+            resolution=resolution,
+            compression=compression,
+            h264_bitrate_kbps=h264_kbps,
+            h264_max_bitrate_kbps=h264_max_kbps,
+        )
         res = self._calls.call(self._set_video, req)
-        p = res.params
-        return video_answer(res.success, res.message, f"{p.resolution} at {p.fps} fps, compression {p.compression}")
+        return video_answer(res.success, res.message, video_text(res.params))
 
     def _cmd_video(self, body: dict[str, Any]) -> CommandResult:
         v = api.video_request(body)

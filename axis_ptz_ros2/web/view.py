@@ -57,6 +57,9 @@ class VideoParamsLike(Protocol):
     max_bitrate_kbps: int
     source: str
     available_resolutions: Sequence[str]
+    codec: str
+    h264_bitrate_kbps: int
+    h264_max_bitrate_kbps: int
 
 
 def finite(obj: Any) -> Any:  # noqa: ANN401 - JSON values
@@ -111,6 +114,16 @@ def video_answer(success: bool, message: str, in_effect: str) -> CommandResult:
     return CommandResult(True, f"video {in_effect}" + _note(message))
 
 
+def video_text(p: VideoParamsLike) -> str:
+    """The parameters a stream streams with, in words: the JPEG compression, or in H.264 mode the bitrates."""
+    quality = (
+        f"H.264 {p.h264_bitrate_kbps} kbit/s (up to {p.h264_max_bitrate_kbps} with feedback)"
+        if p.codec == "h264"
+        else f"compression {p.compression}"
+    )
+    return f"{p.resolution} at {p.fps} fps, {quality}"
+
+
 def budget_answer(successful: bool, reason: str, kbps: int) -> CommandResult:
     """The stream node's answer to a ``max_bitrate_kbps`` set (0 = off)."""
     if not successful:
@@ -146,6 +159,8 @@ def video_json(v: VideoParamsLike) -> dict[str, Any]:
     return {
         "fps": v.fps, "resolution": v.resolution, "width": v.width, "height": v.height,
         "compression": v.compression, "max_bitrate_kbps": v.max_bitrate_kbps, "source": v.source,
+        "codec": v.codec or "mjpeg", "h264_bitrate_kbps": v.h264_bitrate_kbps,
+        "h264_max_bitrate_kbps": v.h264_max_bitrate_kbps,
     }  # fmt: skip
 
 
@@ -195,6 +210,11 @@ class ConsoleModel:
                 resolution=str(msg.resolution),
                 compression=int(msg.compression),
                 resolutions=self._resolutions,
+                # the quality keys act on the JPEG compression or, in H.264 mode, on the bitrates (as the keyboard
+                # teleop's)
+                codec="h264" if msg.codec == "h264" else "mjpeg",
+                h264_bitrate_kbps=int(msg.h264_bitrate_kbps) or None,
+                h264_max_bitrate_kbps=int(msg.h264_max_bitrate_kbps) or None,
             )
 
     def diagnostics(self, name: str, message: str, values: Mapping[str, str]) -> None:

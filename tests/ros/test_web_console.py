@@ -167,6 +167,8 @@ class FakePtz:
         v.fps = req.fps or v.fps
         v.resolution = req.resolution or v.resolution
         v.compression = req.compression if req.compression >= 0 else v.compression
+        v.h264_bitrate_kbps = req.h264_bitrate_kbps or v.h264_bitrate_kbps
+        v.h264_max_bitrate_kbps = req.h264_max_bitrate_kbps or v.h264_max_bitrate_kbps
         self.params_pub.publish(v)
         resp.success, resp.message, resp.params = True, "", v
         return resp
@@ -397,6 +399,24 @@ def test_keys_follow_the_keyboard_teleop_map(ros: Any) -> None:
     assert status == 409
     assert "top" in ans["message"]
     assert post(console, "/api/key", {"key": "Z"})[0] == 400
+
+
+def test_in_h264_mode_the_quality_keys_step_the_bitrates(ros: Any) -> None:
+    """Y/H act on what the stream sends: the H.264 bitrates (start and ceiling) once video/params says H.264."""
+    fake = FakePtz(ros)
+    console = make_console(ros)
+    ros.wait_for(lambda: console.state()["video"] is not None, 5.0)
+    fake.video.codec, fake.video.h264_bitrate_kbps, fake.video.h264_max_bitrate_kbps = "h264", 1000, 1500
+    fake.params_pub.publish(fake.video)
+    ros.wait_for(lambda: console.state()["video"]["codec"] == "h264", 5.0)
+    status, ans = post(console, "/api/key", {"key": "h"})  # compression down = a bigger picture: more bits
+    assert status == 200, ans
+    r = fake.requests["video"][-1]
+    assert r.h264_bitrate_kbps > 1000
+    assert r.h264_max_bitrate_kbps >= 1500
+    assert r.compression == -1  # kept
+    assert f"H.264 {r.h264_bitrate_kbps} kbit/s" in ans["message"]
+    ros.wait_for(lambda: console.state()["video"]["h264_bitrate_kbps"] == r.h264_bitrate_kbps, 5.0)
 
 
 def test_video_controls_and_bandwidth_budget(ros: Any) -> None:

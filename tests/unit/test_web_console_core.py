@@ -27,6 +27,7 @@ from axis_ptz_ros2.web.view import (
     move_text,
     service_answer,
     video_answer,
+    video_text,
 )
 
 pytestmark = pytest.mark.unit
@@ -128,7 +129,8 @@ class Clock:
 
 def _video(**kw: Any) -> Any:
     base = {"fps": 10, "resolution": "704x576", "width": 704, "height": 576, "compression": 30,
-            "max_bitrate_kbps": 800, "source": "camera", "available_resolutions": ["704x576", "176x144"]}  # fmt: skip
+            "max_bitrate_kbps": 800, "source": "camera", "available_resolutions": ["704x576", "176x144"],
+            "codec": "mjpeg", "h264_bitrate_kbps": 1000, "h264_max_bitrate_kbps": 1500}  # fmt: skip
     return types.SimpleNamespace(**{**base, **kw})
 
 
@@ -254,6 +256,30 @@ def test_service_answers_say_what_was_done_or_why_not():
     refused = service_answer(False, "", "centring")
     assert (refused.ok, refused.status, refused.message) == (False, 409, "centring: refused: no reason given")
     assert service_answer(False, "outside the image", "centring").message == "centring: refused: outside the image"
+
+
+def test_the_quality_keys_act_on_the_compression_or_in_h264_mode_on_the_bitrates() -> None:
+    """As the keyboard teleop's: Y/H step the JPEG compression with MJPEG, the H.264 bitrates (the start and the
+    ceiling, together) in H.264 mode; the page's video line says which."""
+    m = ConsoleModel()
+    m.video_params(_video())
+    _label, commands, _step = m.key("y")
+    assert commands == [keymap.SetVideo(compression=30 + keymap.COMPRESSION_STEP)]
+    assert m.state(False, {})["video"]["codec"] == "mjpeg"
+    m.video_params(_video(codec="h264"))
+    _label, commands, _step = m.key("y")  # compression up = a smaller picture: a lower bitrate
+    (c,) = commands
+    assert isinstance(c, keymap.SetVideo)
+    assert c.h264_bitrate_kbps < 1000
+    assert c.h264_max_bitrate_kbps < 1500
+    assert c.h264_bitrate_kbps <= c.h264_max_bitrate_kbps
+    assert c.compression == -1  # the compression is kept
+    _label, commands, _step = m.key("h")
+    assert commands[0].h264_bitrate_kbps > 1000
+    video = m.state(False, {})["video"]
+    assert (video["codec"], video["h264_bitrate_kbps"], video["h264_max_bitrate_kbps"]) == ("h264", 1000, 1500)
+    assert video_text(_video(codec="h264")) == "704x576 at 10 fps, H.264 1000 kbit/s (up to 1500 with feedback)"
+    assert video_text(_video()) == "704x576 at 10 fps, compression 30"
 
 
 def test_video_and_budget_answers():
