@@ -9,6 +9,12 @@ Two rclpy Jazzy defects are worked around here, each with the measurement that s
   ``InvalidHandle`` at shutdown and held its exit. :class:`PoolExecutor` submits a task once while it waits.
 * ``Executor.shutdown`` does not wait for work in flight, and rclpy's signal handler shuts the context down
   inside the signal (see :func:`run_nodes`).
+* While a handed-over task waits for a pool thread, its message stays in the reader and every wait returns at
+  once with nothing ready (rmw_fastrtps wakes on the reader's status condition, rclpy leaves the subscription
+  out): ~8,500 empty rounds a second that hold the GIL from the pool thread meant to take the task. 20 Hz PTZ
+  commands reached the camera with a median of 31-54 ms (up to 300 ms) and 2-19 of 100 were dropped by the
+  reader's KEEP_LAST 5; :class:`PoolExecutor` waits (GIL released) until a pool thread has taken the task:
+  3.3 ms, none dropped.
 """
 
 from __future__ import annotations
@@ -96,6 +102,10 @@ def spin_once(executor: Executor, timeout_sec: float | None) -> None:
             raise
 
 
+#: how long :class:`PoolExecutor`'s spin waits for a pool thread to take a task it handed over (s)
+TAKE_WAIT_S = 0.05
+
+
 class PoolExecutor(MultiThreadedExecutor):
     """rclpy's ``MultiThreadedExecutor`` with one change: a task still waiting in the thread pool's queue is not
     submitted again.
@@ -112,33 +122,45 @@ class PoolExecutor(MultiThreadedExecutor):
     def __init__(self, num_threads: int, *, context: Context | None = None) -> None:
         super().__init__(num_threads=num_threads, context=context)
         self._queued: set[Any] = set()  # tasks handed to the pool that no pool thread has taken yet
-        self._queued_lock = threading.Lock()
+        self._taken = threading.Condition()  # notified when a pool thread takes a task (guards ``_queued``)
         self.submitted = 0  # tasks handed to the pool (a counter for tests and benches)
+        self.spins = 0  # wait-set rounds (a counter for tests: no round may come back at once, empty-handed)
 
     def _spin_once_impl(
         self,
         timeout_sec: float | Any | None = None,
         wait_condition: Callable[[], bool] = lambda: False,
     ) -> None:
+        self.spins += 1
         try:
             handler = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)[0]
         except (ExternalShutdownException, ShutdownException, TimeoutException, ConditionReachedException):
             return
-        with self._queued_lock:
-            if handler in self._queued:
-                return  # still waiting in the pool's queue: it will run
+        with self._taken:
+            queued = handler in self._queued
             self._queued.add(handler)
-        self.submitted += 1
-        self._executor.submit(self._run_task, handler)
-        self._futures.append(handler)
+        if not queued:
+            self.submitted += 1
+            self._executor.submit(self._run_task, handler)
+            self._futures.append(handler)
+        # Until a pool thread has taken it, the task's message is still in its reader, and rmw_fastrtps wakes the
+        # wait set at once for it (the reader's status condition, attached for the subscription's QoS events)
+        # while rclpy leaves the subscription itself out: every wait returns with nothing ready. That loop holds
+        # the GIL so often that the pool thread waiting for it started the callback 20-300 ms late (PTZ commands
+        # at 20 Hz: median 42 ms to the camera and 14 of 100 dropped by the reader's KEEP_LAST 5). So wait here,
+        # with the GIL released, until a pool thread has taken it (at most ``TAKE_WAIT_S``: with every pool
+        # thread busy the task waits for one, and the spin goes on).
+        with self._taken:
+            self._taken.wait_for(lambda: handler not in self._queued, timeout=TAKE_WAIT_S)
         for future in self._futures[:]:  # as rclpy: forget finished tasks, raise a callback's exception
             if future.done():
                 self._futures.remove(future)
                 future.result()
 
     def _run_task(self, task: Any) -> None:
-        with self._queued_lock:
+        with self._taken:
             self._queued.discard(task)
+            self._taken.notify_all()
         task()
 
 

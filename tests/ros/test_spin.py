@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -173,6 +174,56 @@ def test_pool_executor_submits_each_callback_once_and_loses_no_message():
         submitted = executor.submitted - before
         assert submitted <= 2 * callbacks, f"{submitted} tasks submitted for about {callbacks} callbacks"
     finally:
+        assert spinner.stop(2.0)
+        node.destroy_node()
+        pub_node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        rclpy.try_shutdown(context=pub_ctx)
+
+
+def test_pool_executor_waits_for_a_pool_thread_instead_of_spinning_on_a_handed_over_message():
+    # Until a pool thread takes a handed-over task, its message stays in the reader, and rmw_fastrtps wakes the
+    # wait set at once for it (the reader's status condition, attached for the subscription's QoS events) while
+    # rclpy leaves the subscription out: an empty round after an empty round, ~2 a millisecond, holding the GIL
+    # from the very pool thread that was to take the task (PTZ commands reached the camera 20-300 ms late, some
+    # never). With every pool thread busy the spin must wait for one, and the message is not lost.
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+    from rclpy.qos import QoSProfile
+
+    ctx, node = _context_node("pool_busy")
+    got: list[str] = []
+    release = threading.Event()
+    busy = [0]
+
+    def hold(_msg: String) -> None:
+        busy[0] += 1
+        release.wait(10.0)
+
+    node.create_subscription(String, "hold", hold, QoSProfile(depth=10), callback_group=ReentrantCallbackGroup())
+    commands = MutuallyExclusiveCallbackGroup()
+    node.create_subscription(String, "cmd", lambda m: got.append(m.data), QoSProfile(depth=10), callback_group=commands)
+    pub_ctx, pub_node = _context_node("pool_busy_pub")
+    hold_pub = pub_node.create_publisher(String, "hold", QoSProfile(depth=10))
+    cmd_pub = pub_node.create_publisher(String, "cmd", QoSProfile(depth=10))
+    executor = new_executor(ctx)
+    executor.add_node(node)
+    spinner = Spinner(executor, "test-pool").start()
+    try:
+        assert _wait(lambda: hold_pub.get_subscription_count() > 0 and cmd_pub.get_subscription_count() > 0)
+        for _ in range(4):  # every pool thread (new_executor: 4) blocked in a callback
+            hold_pub.publish(String(data="hold"))
+        assert _wait(lambda: busy[0] == 4)
+        cmd_pub.publish(String(data="go"))
+        time.sleep(0.3)  # the message arrives and is handed over; no pool thread can take it
+        before = executor.spins
+        time.sleep(1.0)
+        rounds = executor.spins - before
+        assert not got
+        assert rounds <= 40, f"{rounds} wait-set rounds in 1 s while the task waited for a pool thread"
+        release.set()
+        assert _wait(lambda: got == ["go"]), got
+    finally:
+        release.set()
         assert spinner.stop(2.0)
         node.destroy_node()
         pub_node.destroy_node()
