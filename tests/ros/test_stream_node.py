@@ -415,15 +415,20 @@ def test_recovers_after_reboot_stall_and_garbage(ros, camera):
 
     # garbage between parts and truncated frames: dropped and counted, the rest decodes
     camera.set_faults(garbage_between_parts=True, truncate_every=3)
+    on_ns = time.time_ns()
     t = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t)) >= 12, timeout=4)
+    off_ns = time.time_ns()
     camera.set_faults(FaultConfig())
     s = node._reader.stats()
     assert s.parser.dropped_truncated >= 2
     assert s.parser.garbage_bytes > 0
     for f in rec.since(t):
         assert decoded_size(f.data) == (176, 144)
-        assert f.seq % 3 != 0 or f.seq == -1, "a truncated frame was published"
+        # every third frame the camera sent while the fault was on was cut (one in flight when it was set, or
+        # sent after it was cleared, is whole: a CI run failed on such a seq=6)
+        if on_ns < f.t_sent < off_ns:
+            assert f.seq % 3 != 0 or f.seq == -1, "a truncated frame was published"
     assert_never_repeated(rec.frames)
     assert s.reconnects >= 3
 
