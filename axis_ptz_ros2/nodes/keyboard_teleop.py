@@ -92,17 +92,7 @@ class KeyboardTeleop(Node):
     def _on_video(self, msg: VideoParams) -> None:
         self.video = msg
         # the camera's own list (published by the stream node) wins over the `resolutions` parameter
-        listed = km.sort_resolutions(list(msg.available_resolutions)) if msg.available_resolutions else ()
-        self.state = km.TeleopState(
-            step=self.state.step,
-            fps=int(msg.fps),
-            resolution=str(msg.resolution) or f"{msg.width}x{msg.height}",
-            compression=int(msg.compression),
-            resolutions=listed or self.state.resolutions,
-            codec="h264" if msg.codec == "h264" else "mjpeg",
-            h264_bitrate_kbps=int(msg.h264_bitrate_kbps) or None,
-            h264_max_bitrate_kbps=int(msg.h264_max_bitrate_kbps) or None,
-        )
+        self.state = km.with_video(self.state, msg)
         self._status_dirty = True
 
     # ---- keys -----------------------------------------------------------------------------------------

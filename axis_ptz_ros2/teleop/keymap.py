@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from types import MappingProxyType
+from typing import Any
 
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # R/F and Y/H stop at the camera's ends
@@ -220,6 +221,23 @@ def sort_resolutions(resolutions: Sequence[str]) -> tuple[str, ...]:
             continue
         out.setdefault((w * h, w, h), f"{w}x{h}")
     return tuple(out[k] for k in sorted(out))
+
+
+def with_video(state: TeleopState, msg: Any) -> TeleopState:  # noqa: ANN401 - a VideoParams message
+    """``state`` after the stream node's ``video/params`` (``axis_ptz_interfaces/VideoParams``): the values in effect,
+    the camera's own resolution list when it sends one (else the list ``state`` had), and what Y/H act on (the JPEG
+    compression, or the H.264 bitrates when ``codec`` is ``h264``)."""
+    listed = sort_resolutions(list(msg.available_resolutions)) if msg.available_resolutions else ()
+    return replace(
+        state,
+        fps=int(msg.fps),
+        resolution=str(msg.resolution) or f"{msg.width}x{msg.height}",
+        compression=int(msg.compression),
+        resolutions=listed or state.resolutions,
+        codec="h264" if msg.codec == "h264" else "mjpeg",
+        h264_bitrate_kbps=int(msg.h264_bitrate_kbps) or None,
+        h264_max_bitrate_kbps=int(msg.h264_max_bitrate_kbps) or None,
+    )
 
 
 def next_resolution(current: str, resolutions: Sequence[str], direction: int) -> str | None:

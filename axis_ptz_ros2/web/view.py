@@ -181,7 +181,6 @@ class ConsoleModel:
         self._last_click: dict[str, Any] | None = None
         self._latency: deque[float] = deque(maxlen=LATENCY_SAMPLES)
         self._teleop = keymap.TeleopState()
-        self._resolutions: tuple[str, ...] = keymap.DEFAULT_RESOLUTIONS
         self.meter = BitrateMeter()
         self._decoder: dict[str, Any] = {"mode": "", "decoded": 0, "errors": 0, "codec": "", "note": "", "reports": 0}
 
@@ -202,20 +201,9 @@ class ConsoleModel:
         """The stream node's ``video/params``: shown, and the teleop's next video steps start from it."""
         with self._lock:
             self._video = msg
-            if msg.available_resolutions:  # the camera's own list, from the stream node
-                self._resolutions = keymap.sort_resolutions(list(msg.available_resolutions))
-            self._teleop = keymap.TeleopState(
-                step=self._teleop.step,
-                fps=int(msg.fps),
-                resolution=str(msg.resolution),
-                compression=int(msg.compression),
-                resolutions=self._resolutions,
-                # the quality keys act on the JPEG compression or, in H.264 mode, on the bitrates (as the keyboard
-                # teleop's)
-                codec="h264" if msg.codec == "h264" else "mjpeg",
-                h264_bitrate_kbps=int(msg.h264_bitrate_kbps) or None,
-                h264_max_bitrate_kbps=int(msg.h264_max_bitrate_kbps) or None,
-            )
+            # the camera's own resolution list, from the stream node; the quality keys act on the JPEG compression
+            # or, in H.264 mode, on the bitrates (as the keyboard teleop's)
+            self._teleop = keymap.with_video(self._teleop, msg)
 
     def diagnostics(self, name: str, message: str, values: Mapping[str, str]) -> None:
         """One ``/diagnostics`` status: the stream node's (fps and kbit/s) is shown as the driver's view."""
@@ -265,7 +253,7 @@ class ConsoleModel:
             lat = sorted(self._latency)
             errors = list(self._errors)
             click = dict(self._last_click) if self._last_click else None
-            resolutions = list(self._resolutions)
+            resolutions = list(self._teleop.resolutions)
             step = self._teleop.step
             dec = dict(self._decoder)
         dec["age_s"] = now - dec.pop("age_t") if "age_t" in dec else None
