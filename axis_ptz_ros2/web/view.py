@@ -160,7 +160,7 @@ def video_json(v: VideoParamsLike) -> dict[str, Any]:
         "fps": v.fps, "resolution": v.resolution, "width": v.width, "height": v.height,
         "compression": v.compression, "max_bitrate_kbps": v.max_bitrate_kbps, "source": v.source,
         "codec": v.codec or "mjpeg", "h264_bitrate_kbps": v.h264_bitrate_kbps,
-        "h264_max_bitrate_kbps": v.h264_max_bitrate_kbps,
+        "h264_max_bitrate_kbps": v.h264_max_bitrate_kbps, "text": video_text(v),
     }  # fmt: skip
 
 

@@ -205,6 +205,7 @@ def test_page_loads_and_ptz_view_updates(demo: Demo, page: Any) -> None:
     wait_for(lambda: "75.00°" in (page.locator("#r-pan").text_content() or ""), 10.0, "pan readout 75°")
     for rid in ("#r-fps", "#r-kbps", "#r-latency", "#r-video"):
         assert page.locator(rid).text_content() not in ("", "–"), rid
+    assert "fps, compression" in (page.locator("#r-video").text_content() or "")  # the console's own wording
     fps = float((page.locator("#r-fps").text_content() or "0").split()[0])
     assert 3.0 < fps < 15.0  # 8 fps requested
     # the key map of the keyboard teleop is on the page

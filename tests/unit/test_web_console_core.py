@@ -278,6 +278,7 @@ def test_the_quality_keys_act_on_the_compression_or_in_h264_mode_on_the_bitrates
     assert commands[0].h264_bitrate_kbps > 1000
     video = m.state(False, {})["video"]
     assert (video["codec"], video["h264_bitrate_kbps"], video["h264_max_bitrate_kbps"]) == ("h264", 1000, 1500)
+    assert video["text"] == "704x576 at 10 fps, H.264 1000 kbit/s (up to 1500 with feedback)"  # the page's line
     assert video_text(_video(codec="h264")) == "704x576 at 10 fps, H.264 1000 kbit/s (up to 1500 with feedback)"
     assert video_text(_video()) == "704x576 at 10 fps, compression 30"
 

@@ -472,9 +472,7 @@ function render(s) {
   maybeStartH264(s);
   const v = s.video;
   if (v) {
-    $("r-video").textContent = v.codec === "h264"
-      ? `${v.resolution} @ ${v.fps} fps, H.264 ${v.h264_bitrate_kbps} kbit/s (up to ${v.h264_max_bitrate_kbps} with feedback)`
-      : `${v.resolution} @ ${v.fps} fps, compression ${v.compression}`;
+    $("r-video").textContent = v.text;  // worded by the console (web/view.py video_text), as its answers are
     $("r-budget").textContent = v.max_bitrate_kbps ? `${v.max_bitrate_kbps} kbit/s` : "off";
   }
   fillQuality(v, s.resolutions);
