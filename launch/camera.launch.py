@@ -12,6 +12,8 @@ Arguments:
                          config/), fed by the PTZ node's joint_states; the PTZ node then leaves the head's /tf to it
                          (publish_tf false) so every frame has one parent. Needs the xacro and
                          robot_state_publisher packages.
+  frame_prefix           robot_state_publisher's frame_prefix (default: none): set it to the params file's
+                         frame_prefix (e.g. robot2/) when several robots share /tf
 Credentials: AXIS_USERNAME / AXIS_PASSWORD in the environment of `ros2 launch`, or `password_file` in the params.
 """
 
@@ -29,6 +31,7 @@ def generate_launch_description() -> LaunchDescription:
     params_file = LaunchConfiguration("params_file")
     namespace = LaunchConfiguration("namespace")
     use_rsp = LaunchConfiguration("robot_state_publisher")
+    frame_prefix = LaunchConfiguration("frame_prefix")
     return LaunchDescription(
         [
             DeclareLaunchArgument(
@@ -41,6 +44,11 @@ def generate_launch_description() -> LaunchDescription:
                 "robot_state_publisher",
                 default_value="false",
                 description="publish the head's frames with robot_state_publisher from urdf/axis_214.urdf.xacro",
+            ),
+            DeclareLaunchArgument(
+                "frame_prefix",
+                default_value="",
+                description="robot_state_publisher's frame_prefix: the params file's frame_prefix (e.g. robot2/)",
             ),
             Node(
                 package="axis_ptz_ros2",
@@ -63,7 +71,8 @@ def generate_launch_description() -> LaunchDescription:
                         "robot_description": ParameterValue(
                             Command(["xacro ", PathJoinSubstitution([share, "urdf", "axis_214.urdf.xacro"])]),
                             value_type=str,
-                        )
+                        ),
+                        "frame_prefix": frame_prefix,
                     }
                 ],
             ),

@@ -80,7 +80,7 @@ class StreamNode(Node):
         """``kwargs`` go to :class:`rclpy.node.Node` (``context=``, ``parameter_overrides=``, ``namespace=``)."""
         super().__init__(name, **kwargs)
         p = declare_params(self, PARAMS)
-        self._frame_id = str(p["frame_id"])
+        self._frame_id = str(p["frame_prefix"]) + str(p["frame_id"])
         model_file = camera_model_path(str(p["camera_model"])) or ""
         self._log_throttle = LogThrottle()
         reader_config = snapshot(ReaderConfig, PARAMS, p)

@@ -109,7 +109,15 @@ PARAMS: tuple[ParamSpec, ...] = (
         "stream only while someone subscribes to image_raw/compressed, camera_info or (codec h264) the H.264 topics",
     ),
     # -- frames and model (read-only) --
-    ParamSpec("frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info", read_only=True),
+    ParamSpec(
+        "frame_id", "axis_ptz_optical_frame", "frame_id of images and camera_info (after frame_prefix)", read_only=True
+    ),
+    ParamSpec(
+        "frame_prefix",
+        "",
+        "prefix of frame_id (e.g. 'robot1/'); set it to axis_ptz's frame_prefix so the images name the /tf frame",
+        read_only=True,
+    ),
     ParamSpec(
         "camera_model",
         "",

@@ -58,7 +58,7 @@ EXE_NODES: dict[str, dict[str, Any]] = {
 }
 #: other packages' executables our launch files may start, with the parameters we may give them
 EXTERNAL: dict[tuple[str, str], set[str]] = {
-    ("robot_state_publisher", "robot_state_publisher"): {"robot_description", "publish_frequency"},
+    ("robot_state_publisher", "robot_state_publisher"): {"robot_description", "publish_frequency", "frame_prefix"},
     ("joy", "game_controller_node"): {"device_id", "device_name", "deadzone", "autorepeat_rate", "sticky_buttons"},
     ("joy", "joy_node"): {"device_id", "device_name", "deadzone", "autorepeat_rate", "sticky_buttons"},
 }

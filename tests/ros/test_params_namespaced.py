@@ -6,7 +6,8 @@ renames every node of a process, so the two-node ``axis_camera`` gets none). Eve
 back over DDS from ``/robot1/<node>/get_parameters`` and must be the value in effect. The old ``node_name:``
 form is shown to be ignored under a namespace (so these tests can fail), a renamed node reads its own
 ``/**/<new name>`` section, and the README's two-robot example (two namespaces, two parameter files, one
-process each) gives each robot its own values.
+process each) gives each robot its own values, and each robot's images and camera_info name the optical frame
+of its own, prefixed ``/tf`` chain.
 """
 
 from __future__ import annotations
@@ -16,7 +17,11 @@ from typing import Any
 
 import pytest
 import yaml
+from sensor_msgs.msg import CameraInfo, CompressedImage
+from tf2_msgs.msg import TFMessage
 
+from axis_ptz_ros2.nodes.common import STREAM_QOS
+from axis_ptz_ros2.nodes.tf_publish import TF_QOS, TF_STATIC_QOS
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.world import load_world
 from tests.ros.test_launch_files import ALL_NODES, EXE_NODES
@@ -157,7 +162,7 @@ def test_two_robots_two_params_files_as_in_the_readme(ros, cam, tmp_path):
         doc = yaml.safe_load(src.read_text(encoding="utf-8"))
         for key in doc:
             doc[key]["ros__parameters"].update(port=cam.port)
-        doc["/**/axis_stream"]["ros__parameters"]["fps"] = fps
+        doc["/**/axis_stream"]["ros__parameters"].update(fps=fps, frame_prefix=f"{ns}/", camera_name=f"{ns}_axis")
         doc["/**/axis_ptz"]["ros__parameters"]["frame_prefix"] = f"{ns}/"
         files[ns] = tmp_path / f"{ns}.params.yaml"
         files[ns].write_text(yaml.safe_dump(doc), encoding="utf-8")
@@ -169,3 +174,23 @@ def test_two_robots_two_params_files_as_in_the_readme(ros, cam, tmp_path):
         for ns, p, fps in (("robot1", p1, 5), ("robot2", p2, 12)):
             assert read_params(ros, probe, p, f"{ns}/axis_stream", ["fps", "port"]) == {"fps": fps, "port": cam.port}
             assert read_params(ros, probe, p, f"{ns}/axis_ptz", ["frame_prefix"]) == {"frame_prefix": f"{ns}/"}
+            assert read_params(ros, probe, p, f"{ns}/axis_stream", ["camera_name"]) == {"camera_name": f"{ns}_axis"}
+        # each robot's images and camera_info name a frame of its own /tf chain (one /tf shared by both robots)
+        frames: dict[str, set[str]] = {}
+        tf_children: set[str] = set()
+        for ns in ("robot1", "robot2"):
+            for msg_type, topic in ((CompressedImage, "image_raw/compressed"), (CameraInfo, "camera_info")):
+                probe.create_subscription(
+                    msg_type,
+                    f"/{ns}/{topic}",
+                    lambda m, ns=ns: frames.setdefault(ns, set()).add(m.header.frame_id),
+                    STREAM_QOS,
+                )
+        for topic, qos in (("/tf", TF_QOS), ("/tf_static", TF_STATIC_QOS)):
+            probe.create_subscription(
+                TFMessage, topic, lambda m: tf_children.update(t.child_frame_id for t in m.transforms), qos
+            )
+        want = {ns: f"{ns}/axis_ptz_optical_frame" for ns in ("robot1", "robot2")}
+        ros.wait_for(lambda: all(f in tf_children for f in want.values()) and len(frames) == 2, timeout=30.0)
+        assert frames == {ns: {f} for ns, f in want.items()}, f"image/camera_info frames {frames}"
+        assert {f for f in tf_children if "/" not in f} == set(), f"unprefixed /tf frames: {sorted(tf_children)}"
