@@ -58,6 +58,8 @@ STATIC_TYPES = {
 BOUNDARY = "axisframe"
 COOKIE = "axis_token"
 MAX_BODY = 64 * 1024
+#: s, longest wait for the next frame of a stream before checking whether its client hung up
+STREAM_POLL_S = 0.5
 STREAMS = STREAM_NAMES
 COMMANDS = tuple(COMMAND_FIELDS)
 
@@ -712,32 +714,19 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         slot = self._slot_or_404(name)
         if slot is None:
             return
-        with suppress(OSError):  # keep the kernel's send queue short: a slow client drops frames
-            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 64 * 1024)
-        self.send_response(HTTPStatus.OK)
-        self.send_header("Content-Type", multipart_content_type(BOUNDARY))
-        self.send_header("Cache-Control", "no-store")
-        self.send_header("Connection", "close")
-        self.send_header("X-Content-Type-Options", "nosniff")
-        self.end_headers()
-        self.close_connection = True
-        stop = self.server.stop_event
+        self._stream_head(multipart_content_type(BOUNDARY), sndbuf=64 * 1024)
         with slot.watch():
             seq = 0
-            try:
-                while not stop.is_set():
-                    got = slot.wait_newer(seq, 0.5)
-                    if got is None:
-                        if self._client_gone():
-                            return
-                        continue
-                    seq, jpeg = got
-                    self.wfile.write(part_header(BOUNDARY, len(jpeg)))
-                    self.wfile.write(jpeg)
-                    self.wfile.write(b"\r\n")
-                    self.wfile.flush()
-            except (OSError, ValueError):  # client went away (BrokenPipe, reset, timeout, closed file)
-                return
+
+            def parts(timeout: float) -> tuple[bytes, ...] | None:
+                nonlocal seq
+                got = slot.wait_newer(seq, timeout)
+                if got is None:
+                    return None
+                seq, jpeg = got
+                return part_header(BOUNDARY, len(jpeg)), jpeg, b"\r\n"
+
+            self._relay(parts)
 
     def _h264(self, name: str) -> None:
         """The H.264 access units of a stream as length-prefixed records (:mod:`.h264relay`) until either side
@@ -747,29 +736,46 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         if slot is None:
             self._error(HTTPStatus.NOT_FOUND, f"no H.264 stream {name!r}")
             return
+        self._stream_head(H264_CONTENT_TYPE, sndbuf=256 * 1024)
+        with slot.watch() as client:
+
+            def parts(timeout: float) -> tuple[bytes, ...] | None:
+                got = slot.next(client, timeout)
+                return None if got is None else (encode_record(got[0], catch_up=got[1]),)
+
+            self._relay(parts)
+
+    def _stream_head(self, ctype: str, sndbuf: int) -> None:
+        """The response head of an endless stream (it ends with the connection), after shrinking the socket's
+        send buffer to ``sndbuf`` bytes: the kernel's send queue stays short, so a slow client drops frames."""
         with suppress(OSError):
-            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 256 * 1024)
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, sndbuf)
         self.send_response(HTTPStatus.OK)
-        self.send_header("Content-Type", H264_CONTENT_TYPE)
+        self.send_header("Content-Type", ctype)
         self.send_header("Cache-Control", "no-store")
         self.send_header("Connection", "close")
         self.send_header("X-Content-Type-Options", "nosniff")
         self.end_headers()
         self.wfile.flush()
         self.close_connection = True
+
+    def _relay(self, parts: Callable[[float], tuple[bytes, ...] | None]) -> None:
+        """Write what ``parts(timeout)`` gives (the pieces of the next frame, None when nothing came within
+        ``timeout``) until the server stops or the client goes: a failed write, or a hang-up noticed while no
+        frame arrives (so idle streams end too)."""
         stop = self.server.stop_event
-        with slot.watch() as client:
-            try:
-                while not stop.is_set():
-                    got = slot.next(client, 0.5)
-                    if got is None:
-                        if self._client_gone():
-                            return
-                        continue
-                    self.wfile.write(encode_record(got[0], catch_up=got[1]))
-                    self.wfile.flush()
-            except (OSError, ValueError):  # client went away
-                return
+        try:
+            while not stop.is_set():
+                pieces = parts(STREAM_POLL_S)
+                if pieces is None:
+                    if self._client_gone():
+                        return
+                    continue
+                for piece in pieces:
+                    self.wfile.write(piece)
+                self.wfile.flush()
+        except (OSError, ValueError):  # client went away (BrokenPipe, reset, timeout, closed file)
+            return
 
     def _client_gone(self) -> bool:
         """True when the client closed its end (checked while no frame arrives, so idle streams end too)."""
