@@ -1,10 +1,11 @@
 """``axis_laser_sim``: a simulated 3-D laser scanner of the simulated scene.
 
-Rays on a regular elevation × azimuth grid from the scanner's true pose (``SimWorld.T_base_laser``) are traced
-through ``Scene.raycast`` (targets, ground, skyline); returns within ``[min_range, max_range]`` become points
-(x, y, z in ``laser_link``, metres; intensity = luminance of the hit surface, 0…1), optionally with Gaussian
-range noise drawn anew for every scan. Published as ``sensor_msgs/PointCloud2`` on ``laser/points`` (latched:
-a late subscriber gets the newest scan) plus the scanner pose as latched ``laser/transform``.
+The scanner's maths is :mod:`axis_ptz_ros2.sim.laser`: rays on a regular elevation × azimuth grid from the
+scanner's true pose (``SimWorld.T_base_laser``) traced through the scene (targets, ground, skyline); returns within
+``[min_range, max_range]`` become points (x, y, z in ``laser_link``, metres; intensity = luminance of the hit
+surface, 0…1), optionally with Gaussian range noise drawn anew for every scan. This node publishes them as
+``sensor_msgs/PointCloud2`` on ``laser/points`` (latched: a late subscriber gets the newest scan) plus the scanner
+pose as latched ``laser/transform``.
 
 The scene is static, so the geometry is traced once; each scan gets its own stamp and (with noise) its own
 noise draw, like a real scanner looking at a static scene.
@@ -21,11 +22,12 @@ from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, PointField
 
-from axis_ptz_ros2.geometry import FloatArray, Transform
+from axis_ptz_ros2.geometry import FloatArray
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher, transform_msg
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
-from axis_ptz_ros2.sim.scene import Scene, shared_scene
+from axis_ptz_ros2.sim.laser import StaticScan, scan_directions
+from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -54,28 +56,6 @@ FIELDS = [
     PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
     for i, n in enumerate(("x", "y", "z", "intensity"))
 ]
-
-
-def scan_directions(min_el: float, max_el: float, el_step: float, az_step: float) -> FloatArray:
-    """Unit ray directions (N, 3) in the scanner frame, elevation-major (rings), azimuth −π…π."""
-    n_el = int(math.floor((max_el - min_el) / el_step + 1e-9)) + 1
-    el = min_el + el_step * np.arange(n_el)
-    n_az = max(1, int(round(2 * math.pi / az_step)))
-    az = -math.pi + (2 * math.pi / n_az) * np.arange(n_az)
-    E, A = np.meshgrid(el, az, indexing="ij")
-    d = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], -1)
-    return np.asarray(d.reshape(-1, 3), dtype=np.float64)
-
-
-def trace_scan(
-    scene: Scene, T_base_laser: Transform, dirs_laser: FloatArray, min_range: float, max_range: float
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Exact returns: (unit directions in the laser frame (M, 3), ranges (M,), intensities (M,))."""
-    d_base = dirs_laser @ T_base_laser.R.T
-    bgr, depth, _ = scene.raycast(T_base_laser.t, d_base)
-    ok = np.isfinite(depth) & (depth >= min_range) & (depth <= max_range)
-    lum = bgr[ok].astype(np.float64) @ np.array([0.114, 0.587, 0.299]) / 255.0
-    return dirs_laser[ok], depth[ok], lum
 
 
 def cloud_msg(points: FloatArray, intensity: FloatArray, frame_id: str, stamp: Any) -> PointCloud2:
@@ -115,13 +95,10 @@ class LaserSim(Node):
         world = load_world(p["world_file"] or None)
         self.T_base_laser = world.T_base_laser
         dirs = scan_directions(p["min_elevation"], p["max_elevation"], p["elevation_step"], p["azimuth_step"])
-        self._dirs, self._ranges, self._intensity = trace_scan(
-            shared_scene(world), world.T_base_laser, dirs, p["min_range"], p["max_range"]
+        self._returns = StaticScan.trace(
+            shared_scene(world), world.T_base_laser, dirs, p["min_range"], p["max_range"], int(p["seed"])
         )
-        self._max_range = float(p["max_range"])
-        self._min_range = float(p["min_range"])
-        self._rng = np.random.default_rng(int(p["seed"]))
-        self.get_logger().info(f"{dirs.shape[0]} rays, {self._ranges.size} returns per scan")
+        self.get_logger().info(f"{dirs.shape[0]} rays, {self._returns.ranges.size} returns per scan")
         self._pub = publisher(self, PointCloud2, "laser/points", LATCHED_QOS)
         self._tf_pub = publisher(self, TransformStamped, "laser/transform", LATCHED_QOS)
         tf_msg = transform_msg(self.T_base_laser, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
@@ -133,12 +110,8 @@ class LaserSim(Node):
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)
 
     def _scan(self) -> None:
-        r = self._ranges
-        sigma = float(self.get_parameter("range_noise").value)
-        if sigma > 0.0:
-            r = np.clip(r + self._rng.normal(0.0, sigma, r.shape), self._min_range, self._max_range)
-        pts = self._dirs * r[:, None]
-        self._pub.publish(cloud_msg(pts, self._intensity, self._frame_id, self.get_clock().now().to_msg()))
+        pts = self._returns.points(float(self.get_parameter("range_noise").value))
+        self._pub.publish(cloud_msg(pts, self._returns.intensity, self._frame_id, self.get_clock().now().to_msg()))
 
 
 def main(args: list[str] | None = None) -> int:
