@@ -12,10 +12,12 @@ at start-up (exit code 2) and on ``set_parameters``.
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from types import FrameType
 from typing import Any
 
@@ -31,57 +33,73 @@ from std_srvs.srv import Trigger
 
 from axis_ptz_interfaces.msg import PtzVelocity
 from axis_ptz_interfaces.srv import Preset
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params, field_spec, publisher, snapshot
 from axis_ptz_ros2.nodes.runner import close_own_loop
-from axis_ptz_ros2.teleop.joy import Command, GotoPreset, Home, JoyMap, JoyTeleop, Stop, Velocity
+from axis_ptz_ros2.teleop.joy import (
+    MAX_PAN_TILT_SPEED,
+    MAX_ZOOM_SPEED,
+    Command,
+    GotoPreset,
+    Home,
+    JoyMap,
+    JoyTeleop,
+    Stop,
+    Velocity,
+)
+
+#: Joy axis and button indices (-1 = none)
+_INDEX = (-1, 63)
+#: rad/s, either sign (JoyMap refuses more)
+_PAN_TILT_SPEED = (-MAX_PAN_TILT_SPEED, MAX_PAN_TILT_SPEED)
+
+
+def _map(field: str, description: str, unit: str = "", **kw: Any) -> ParamSpec:
+    """A map parameter: fills ``JoyMap.<field>``, its default from there."""
+    return field_spec(JoyMap, field, description, unit, **kw)
+
+
+def _map_list(field: str, description: str) -> ParamSpec:
+    """A list-valued map parameter: ``JoyMap``'s tuple default as the list a parameter file writes."""
+    spec = _map(field, description)
+    return dataclasses.replace(spec, default=list(spec.default))
+
 
 PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("pan_axis", 0, "Joy axis for pan (left = positive = turn left; -1 = none)", int_range=(-1, 63)),
-    ParamSpec("tilt_axis", 1, "Joy axis for tilt (up = positive = tilt up; -1 = none)", int_range=(-1, 63)),
-    ParamSpec("zoom_axis", 3, "Joy axis for zoom (up = positive = zoom in; -1 = none)", int_range=(-1, 63)),
-    ParamSpec("pan_speed", 1.0, "pan rate at full deflection (negative inverts)", "rad/s", float_range=(-10.0, 10.0)),
-    ParamSpec("tilt_speed", 1.0, "tilt rate at full deflection (negative inverts)", "rad/s", float_range=(-10.0, 10.0)),
-    ParamSpec(
-        "zoom_speed", 1.0, "zoom rate at full deflection, fraction of the camera's", "1", float_range=(-1.0, 1.0)
+    # -- the map (live): defaults from JoyMap --
+    _map("pan_axis", "Joy axis for pan (left = positive = turn left; -1 = none)", int_range=_INDEX),
+    _map("tilt_axis", "Joy axis for tilt (up = positive = tilt up; -1 = none)", int_range=_INDEX),
+    _map("zoom_axis", "Joy axis for zoom (up = positive = zoom in; -1 = none)", int_range=_INDEX),
+    _map("pan_speed", "pan rate at full deflection (negative inverts)", "rad/s", float_range=_PAN_TILT_SPEED),
+    _map("tilt_speed", "tilt rate at full deflection (negative inverts)", "rad/s", float_range=_PAN_TILT_SPEED),
+    _map(
+        "zoom_speed",
+        "zoom rate at full deflection, fraction of the camera's",
+        "1",
+        float_range=(-MAX_ZOOM_SPEED, MAX_ZOOM_SPEED),
     ),
-    ParamSpec("deadzone", 0.1, "stick deflection ignored around the centre", "1", float_range=(0.0, 0.95)),
-    ParamSpec(
-        "deadman_button", 9, "button that must be held for any motion (-1 = none: simulators only)", int_range=(-1, 63)
-    ),
-    ParamSpec("home_button", 3, "button: home (pan 0, tilt 0, zoom 1) (-1 = none)", int_range=(-1, 63)),
-    ParamSpec("zoom_in_button", -1, "button: zoom in at zoom_speed while held (-1 = none)", int_range=(-1, 63)),
-    ParamSpec("zoom_out_button", -1, "button: zoom out at zoom_speed while held (-1 = none)", int_range=(-1, 63)),
-    ParamSpec("preset_buttons", [0, 1, 2], "buttons that go to the presets named in preset_names (same order)"),
-    ParamSpec("preset_names", ["1", "2", "3"], "camera preset names for preset_buttons"),
-    ParamSpec("joy_timeout", 0.5, "stop when no Joy message came for this long", "s", float_range=(0.05, 10.0)),
+    _map("deadzone", "stick deflection ignored around the centre", "1", float_range=(0.0, 0.95)),
+    _map("deadman_button", "button that must be held for any motion (-1 = none: simulators only)", int_range=_INDEX),
+    _map("home_button", "button: home (pan 0, tilt 0, zoom 1) (-1 = none)", int_range=_INDEX),
+    _map("zoom_in_button", "button: zoom in at zoom_speed while held (-1 = none)", int_range=_INDEX),
+    _map("zoom_out_button", "button: zoom out at zoom_speed while held (-1 = none)", int_range=_INDEX),
+    _map_list("preset_buttons", "buttons that go to the presets named in preset_names (same order)"),
+    _map_list("preset_names", "camera preset names for preset_buttons"),
+    _map("timeout", "stop when no Joy message came for this long", "s", name="joy_timeout", float_range=(0.05, 10.0)),
+    # -- the node (read-only) --
     ParamSpec("rate", 10.0, "velocity repeat rate while moving", "Hz", float_range=(1.0, 100.0), read_only=True),
 )
 _SPECS = {s.name: s for s in PARAMS}
-_MAP_FIELDS = {
-    "pan_axis": int,
-    "tilt_axis": int,
-    "zoom_axis": int,
-    "pan_speed": float,
-    "tilt_speed": float,
-    "zoom_speed": float,
-    "deadzone": float,
-    "deadman_button": int,
-    "home_button": int,
-    "zoom_in_button": int,
-    "zoom_out_button": int,
-}
 
 
-def joy_map_from_params(p: dict[str, Any]) -> JoyMap:
-    """A :class:`JoyMap` from parameter values; ValueError with every reason when it is not usable."""
-    kwargs: dict[str, Any] = {k: conv(p[k]) for k, conv in _MAP_FIELDS.items()}
+def joy_map_from_params(p: Mapping[str, Any]) -> JoyMap:
+    """A :class:`JoyMap` from parameter values (a :func:`snapshot` of the specs that fill it, the two lists as
+    tuples); ValueError with every reason when it is not usable."""
     try:
-        kwargs["preset_buttons"] = tuple(int(b) for b in p["preset_buttons"])
+        buttons = tuple(int(b) for b in p["preset_buttons"])
     except (TypeError, ValueError) as err:
         raise ValueError(f"preset_buttons must be a list of integers: {err}") from None
-    kwargs["preset_names"] = tuple(str(n) for n in p["preset_names"])
-    kwargs["timeout"] = float(p["joy_timeout"])
-    return JoyMap(**kwargs)
+    names = tuple(str(n) for n in p["preset_names"])
+    return snapshot(JoyMap, PARAMS, {**p, "preset_buttons": buttons, "preset_names": names})
 
 
 class JoyTeleopNode(Node):

@@ -21,9 +21,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Final
 
 #: characters VAPIX refuses in a preset name (vapix.md; the PTZ node checks again)
 _BAD_PRESET_CHARS = set('"<>~:')
+#: rad/s: the largest pan or tilt speed a map may ask for (either sign)
+MAX_PAN_TILT_SPEED: Final = 10.0
+#: the largest zoom speed, as a fraction of the camera's (either sign)
+MAX_ZOOM_SPEED: Final = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,7 +99,11 @@ class JoyMap:
             v = getattr(self, name)
             if v < -1:
                 out.append(f"{name}={v}: an index ≥ 0, or −1 for none")
-        for name, lim in (("pan_speed", 10.0), ("tilt_speed", 10.0), ("zoom_speed", 1.0)):
+        for name, lim in (
+            ("pan_speed", MAX_PAN_TILT_SPEED),
+            ("tilt_speed", MAX_PAN_TILT_SPEED),
+            ("zoom_speed", MAX_ZOOM_SPEED),
+        ):
             v = getattr(self, name)
             if not math.isfinite(v) or abs(v) > lim:
                 out.append(f"{name}={v}: must be finite and within ±{lim:g}")
