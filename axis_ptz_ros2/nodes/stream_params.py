@@ -3,7 +3,8 @@ ranges, descriptions; the README's table and ``config/*.yaml`` are checked again
 
 Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.controller.VideoSettings` and the
 reader's timings from :class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`, field for field; ranges come from the
-VAPIX models and the H.264 stage.
+VAPIX models, the H.264 stage and :mod:`~axis_ptz_ros2.streaming.limits` (the budget's, which the console's
+API checks too).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
 from axis_ptz_ros2.streaming.controller import H264_BUDGET_FRACTION, VideoSettings
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
+from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
 
 
@@ -48,7 +50,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "under it (0 = off); "
         "codec h264: caps the encoder's bitrate instead",
         "kbit/s",
-        int_range=(0, 1_000_000),
+        int_range=BUDGET_RANGE_KBPS,
     ),
     _live(
         "budget_max_compression",

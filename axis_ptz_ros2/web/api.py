@@ -2,8 +2,10 @@
 
 :data:`ROUTES` lists what the server answers (method, path, who may call it); :data:`COMMANDS` the JSON fields
 of every ``POST /api/<command>`` with their type and accepted range. The same table drives the parsing here
-(every number bounded before it is used, so nothing wraps in a uint32 message field or overflows a float)
-and the property-based tests in ``tests/fuzz`` (which generate values in, at and beyond every range).
+(every number bounded before it is used, so nothing wraps in a uint32 message field or overflows a float),
+the page's form limits (:func:`video_limits`, sent with the page's state) and the property-based tests in
+``tests/fuzz`` (which generate values in, at and beyond every range). The video fields' ranges are the stream
+node's parameter ranges, from the same constants.
 
 Every refusal is a :class:`BadRequest` whose message names the field, what was wrong and what is accepted.
 """
@@ -14,10 +16,11 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
+from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
+
 #: largest value of a ``uint32`` message field (image sizes of ``PixelTarget``)
 UINT32_MAX = 2**32 - 1
-#: the stream node's ``max_bitrate_kbps`` range upper end (``nodes/stream_node.PARAMS``; a test keeps them equal)
-MAX_BITRATE_KBPS = 1_000_000
 #: zoom of the Axis PTZ heads in VAPIX units is 1..9999, so a relative zoom is within ±9998
 MAX_ZOOM_DELTA = 9999.0
 #: longest ``key`` / ``resolution`` string accepted
@@ -90,10 +93,11 @@ COMMANDS: dict[str, tuple[Field, ...]] = {
     "look_panorama": (Field("x", "float", 0.0), Field("y", "float", 0.0), *_SIZE),
     "key": (Field("key", "str", 1, MAX_TEXT),),
     "video": (
-        Field("fps", "int", 1, 30, 0, keep=0),
+        # the stream node's parameter ranges (nodes/stream_params.py takes them from the same constants)
+        Field("fps", "int", *FPS_RANGE, 0, keep=0),
         Field("resolution", "str", 0, MAX_TEXT, ""),
-        Field("compression", "int", 0, 100, -1, keep=-1),
-        Field("max_bitrate_kbps", "int", 0, MAX_BITRATE_KBPS, -1, keep=-1),
+        Field("compression", "int", *COMPRESSION_RANGE, -1, keep=-1),
+        Field("max_bitrate_kbps", "int", *BUDGET_RANGE_KBPS, -1, keep=-1),
     ),
     "home": (),
     "decoder": (
@@ -104,6 +108,12 @@ COMMANDS: dict[str, tuple[Field, ...]] = {
         Field("note", "str", 0, MAX_NOTE, ""),
     ),
 }
+
+
+def video_limits() -> dict[str, tuple[float, float]]:
+    """The accepted range ``(lo, hi)`` of every number of ``POST /api/video``, for the page's form (which keeps no
+    copy of them: ``GET /api/state`` carries them as ``limits``)."""
+    return {f.name: (f.lo, f.hi) for f in COMMANDS["video"] if f.kind != "str"}
 
 
 def _num(x: float) -> str:

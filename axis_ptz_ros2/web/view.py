@@ -18,7 +18,7 @@ from typing import Any, Protocol
 
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.teleop import keymap
-from axis_ptz_ros2.web.api import BadRequest
+from axis_ptz_ros2.web.api import BadRequest, video_limits
 from axis_ptz_ros2.web.server import CommandResult
 
 #: Browser ``KeyboardEvent.key`` for the key map's special keys (letters and digits are themselves).
@@ -276,6 +276,7 @@ class ConsoleModel:
             "step": step,
             "errors": errors,
             "decoder": dec,
+            "limits": video_limits(),  # the quality form's ranges: the page keeps no copy
             "time": self._wall(),
         }
         for k, val in extra.items():

@@ -287,7 +287,14 @@ def test_keyboard_shortcut_moves_the_camera(demo: Demo, page: Any) -> None:
     assert wait_still(demo)["pan"] == pytest.approx(-9.0, abs=0.2)
 
 
+FORM_RANGES_JS = "['q-fps', 'q-comp', 'q-budget'].map((id) => document.getElementById(id)).map((e) => [e.min, e.max])"
+
+
 def test_quality_controls_change_the_stream(demo: Demo, page: Any) -> None:
+    # the form's ranges come with the console's state (the stream node's parameter ranges); the page has no copy
+    ranges = wait_for(lambda: (r := page.evaluate(FORM_RANGES_JS))[0][1] and r, 10.0, "the form's ranges")
+    assert ranges == [["1", "30"], ["0", "100"], ["0", "1000000"]]
+    assert page.locator("#q-comp-note").text_content() == "(0 best – 100 smallest)"
     page.fill("#q-fps", "5")
     page.select_option("#q-res", "352x288")
     page.fill("#q-budget", "0")

@@ -12,6 +12,7 @@ import pytest
 
 from axis_ptz_ros2.config import load_robot
 from axis_ptz_ros2.geometry import direction_to_equirect
+from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.api import BadRequest
@@ -104,11 +105,21 @@ def test_video_keep_values_and_full_ranges() -> None:
     assert only_budget.max_bitrate_kbps == 0
 
 
-def test_budget_range_is_the_stream_nodes_parameter_range() -> None:
+def test_video_ranges_are_the_stream_nodes_parameter_ranges() -> None:
     from axis_ptz_ros2.nodes.stream_node import PARAMS  # noqa: PLC0415 - the ROS tier may be missing
 
-    spec = next(p for p in PARAMS if p.name == "max_bitrate_kbps")
-    assert spec.int_range == (0, api.MAX_BITRATE_KBPS)
+    specs = {p.name: p for p in PARAMS}
+    limits = api.video_limits()
+    assert set(limits) == {"fps", "compression", "max_bitrate_kbps"}
+    for name, (lo, hi) in limits.items():
+        assert specs[name].int_range == (lo, hi), name
+    assert limits["max_bitrate_kbps"] == BUDGET_RANGE_KBPS == (0, 1_000_000)
+
+
+def test_the_page_gets_the_video_ranges_with_the_state() -> None:
+    limits = ConsoleModel().state(False, {})["limits"]
+    assert limits == {"fps": [1, 30], "compression": [0, 100], "max_bitrate_kbps": [0, 1_000_000]}
+    assert all(isinstance(x, int) for pair in limits.values() for x in pair)  # JSON 1, not 1.0
 
 
 def test_route_table_covers_every_command() -> None:

@@ -3,7 +3,12 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { mouse: { shift_zoom_delta: 2000, ctrl_zoom_delta: -5000 }, keys: new Map(), formDirty: false };
+const state = {
+  mouse: { shift_zoom_delta: 2000, ctrl_zoom_delta: -5000 },
+  keys: new Map(),
+  formDirty: false,
+  limits: null,
+};
 
 // ------------------------------------------------------------------------------------------------------
 // message line and HTTP helpers
@@ -377,6 +382,21 @@ function onKeyDown(ev) {
 // ------------------------------------------------------------------------------------------------------
 // quality controls
 // ------------------------------------------------------------------------------------------------------
+// the accepted ranges come with the state (the console's API table: the stream node's parameter ranges)
+function applyLimits(limits) {
+  if (!limits) return;
+  state.limits = limits;
+  for (const [id, name] of [["q-fps", "fps"], ["q-comp", "compression"], ["q-budget", "max_bitrate_kbps"]]) {
+    const range = limits[name];
+    if (!range) continue;
+    const el = $(id);
+    if (el.min !== String(range[0])) el.min = range[0];
+    if (el.max !== String(range[1])) el.max = range[1];
+  }
+  const c = limits.compression;
+  if (c) $("q-comp-note").textContent = `(${c[0]} best – ${c[1]} smallest)`;
+}
+
 function fillQuality(video, resolutions) {
   if (!video || state.formDirty) return;
   $("q-fps").value = video.fps;
@@ -418,8 +438,9 @@ async function onQualitySubmit(ev) {
   };
   const body = {};
   for (const [k, v] of Object.entries(form)) if (v !== shown[k]) body[k] = v;
-  if ("fps" in body && !(body.fps >= 1 && body.fps <= 30)) {
-    say("frame rate must be 1..30", false);
+  const fpsRange = state.limits && state.limits.fps;  // unknown yet: the console refuses with its reason
+  if ("fps" in body && fpsRange && !(body.fps >= fpsRange[0] && body.fps <= fpsRange[1])) {
+    say(`frame rate must be ${fpsRange[0]}..${fpsRange[1]}`, false);
     return;
   }
   if ("max_bitrate_kbps" in body && !(body.max_bitrate_kbps >= 0)) delete body.max_bitrate_kbps;
@@ -475,6 +496,7 @@ function render(s) {
     $("r-video").textContent = v.text;  // worded by the console (web/view.py video_text), as its answers are
     $("r-budget").textContent = v.max_bitrate_kbps ? `${v.max_bitrate_kbps} kbit/s` : "off";
   }
+  applyLimits(s.limits);
   fillQuality(v, s.resolutions);
   const c = s.last_click;
   $("r-depth").textContent = c ? `${c.depth_source}, ${fmt(c.range_m, 1, " m")}` : "–";
