@@ -18,14 +18,13 @@ import sys
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, PointField
 
 from axis_ptz_ros2.geometry import FloatArray
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher, transform_msg
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.nodes.runner import run_nodes
-from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
+from axis_ptz_ros2.nodes.tf_publish import publish_fixed_transform
 from axis_ptz_ros2.sim.laser import StaticScan, scan_directions
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
@@ -100,12 +99,9 @@ class LaserSim(Node):
         )
         self.get_logger().info(f"{dirs.shape[0]} rays, {self._returns.ranges.size} returns per scan")
         self._pub = publisher(self, PointCloud2, "laser/points", LATCHED_QOS)
-        self._tf_pub = publisher(self, TransformStamped, "laser/transform", LATCHED_QOS)
-        tf_msg = transform_msg(self.T_base_laser, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
-        self._tf_pub.publish(tf_msg)
-        _, static_tf = make_tf_broadcasters(self)
-        if static_tf is not None:
-            static_tf.sendTransform(tf_msg)
+        self._tf_pub = publish_fixed_transform(
+            self, self.T_base_laser, p["parent_frame"], self._frame_id, "laser/transform"
+        )
         self._scan()
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)
 

@@ -18,22 +18,12 @@ from typing import Any
 
 import cv2
 import numpy as np
-from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
-from axis_ptz_ros2.nodes.common import (
-    LATCHED_QOS,
-    STREAM_QOS,
-    ParamSpec,
-    declare_params,
-    jpeg_image_msg,
-    publisher,
-    stamp_from_ns,
-    transform_msg,
-)
+from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, jpeg_image_msg, publisher, stamp_from_ns
 from axis_ptz_ros2.nodes.runner import run_nodes
-from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
+from axis_ptz_ros2.nodes.tf_publish import publish_fixed_transform
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
 
@@ -66,12 +56,9 @@ class PanoramaSim(Node):
         )
         self._count = 0
         self._pub = publisher(self, CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
-        self._tf_pub = publisher(self, TransformStamped, "panorama/transform", LATCHED_QOS)
-        tf_msg = transform_msg(self.T_base_pano, p["parent_frame"], self._frame_id, self.get_clock().now().to_msg())
-        self._tf_pub.publish(tf_msg)
-        _, static_tf = make_tf_broadcasters(self)
-        if static_tf is not None:
-            static_tf.sendTransform(tf_msg)
+        self._tf_pub = publish_fixed_transform(
+            self, self.T_base_pano, p["parent_frame"], self._frame_id, "panorama/transform"
+        )
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._tick)
 
     def frame(self, stamp_ns: int) -> np.ndarray[Any, np.dtype[np.uint8]]:

@@ -18,10 +18,12 @@ from collections.abc import Iterable
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 
-from axis_ptz_ros2.nodes.common import publisher
+from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, publisher, transform_msg
 
 #: tf2_ros.TransformBroadcaster's QoS.
 TF_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
@@ -76,3 +78,13 @@ def make_tf_broadcasters(node: Node, enabled: bool = True) -> tuple[TfBroadcaste
     if not enabled:
         return None, None
     return TfBroadcaster(node), StaticTfBroadcaster(node)
+
+
+def publish_fixed_transform(node: Node, T_parent_child: Transform, parent: str, child: str, topic: str) -> Publisher:
+    """A fixed pose, sent once at start-up: latched as ``geometry_msgs/TransformStamped`` on ``topic`` and on
+    ``/tf_static`` (a :class:`StaticTfBroadcaster` of ``node``), stamped now. Returns the ``topic`` publisher."""
+    pub = publisher(node, TransformStamped, topic, LATCHED_QOS)
+    msg = transform_msg(T_parent_child, parent, child, node.get_clock().now().to_msg())
+    pub.publish(msg)
+    StaticTfBroadcaster(node).sendTransform(msg)
+    return pub

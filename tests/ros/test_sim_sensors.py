@@ -10,11 +10,13 @@ import pytest
 from geometry_msgs.msg import TransformStamped
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, PointCloud2
+from tf2_msgs.msg import TFMessage
 
 from axis_ptz_ros2.geometry import Transform, quaternion_to_matrix
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.nodes.laser_sim import LaserSim, cloud_points
 from axis_ptz_ros2.nodes.panorama_sim import PanoramaSim
+from axis_ptz_ros2.nodes.tf_publish import TF_STATIC_QOS
 from axis_ptz_ros2.pointing import project_to_panorama
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
@@ -45,13 +47,16 @@ def test_panorama_shows_the_scene_from_its_own_pose_and_every_frame_is_new(ros):
     tfs: list[TransformStamped] = []
     probe.create_subscription(CompressedImage, "panorama/image_raw/compressed", frames.append, STREAM_QOS)
     probe.create_subscription(TransformStamped, "panorama/transform", tfs.append, LATCHED_QOS)
-    ros.wait_for(lambda: len(frames) >= 3 and tfs, timeout=20)
+    static: list[TFMessage] = []
+    probe.create_subscription(TFMessage, "/tf_static", static.append, TF_STATIC_QOS)
+    ros.wait_for(lambda: len(frames) >= 3 and tfs and static, timeout=20)
 
-    # Latched pose = the simulated world's true panorama pose.
+    # Latched pose = the simulated world's true panorama pose, the same message on /tf_static.
     tf = tfs[0]
     assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "panorama_link")
     T = _tf(tf)
     np.testing.assert_allclose(T.matrix(), WORLD.T_base_pano.matrix(), atol=1e-9)
+    assert list(static[-1].transforms) == [tf]
 
     a, b = frames[-2], frames[-1]
     assert a.header.frame_id == "panorama_link"
@@ -99,7 +104,11 @@ def test_laser_cloud_lies_on_the_ground_and_the_targets_at_their_true_positions(
     # Subscribe after the node published its first scan: the latched cloud still arrives.
     probe.create_subscription(PointCloud2, "laser/points", clouds.append, LATCHED_QOS)
     probe.create_subscription(TransformStamped, "laser/transform", tfs.append, LATCHED_QOS)
-    ros.wait_for(lambda: clouds and tfs, timeout=15)
+    static: list[TFMessage] = []
+    probe.create_subscription(TFMessage, "/tf_static", static.append, TF_STATIC_QOS)
+    ros.wait_for(lambda: clouds and tfs and static, timeout=15)
+    assert list(static[-1].transforms) == [tfs[0]]  # the scanner pose on /tf_static too
+    assert (tfs[0].header.frame_id, tfs[0].child_frame_id) == ("base_link", "laser_link")
     msg = clouds[0]
     assert msg.header.frame_id == "laser_link"
     assert [f.name for f in msg.fields] == ["x", "y", "z", "intensity"]
