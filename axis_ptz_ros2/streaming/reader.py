@@ -60,13 +60,14 @@ class StreamOpener(Protocol):
 
 @dataclass(frozen=True, slots=True)
 class ReaderConfig:
-    """Timing of the reader (seconds)."""
+    """Timing of a stream reader (seconds): this MJPEG reader's, and the RTSP pass-through's
+    (:class:`~axis_ptz_ros2.streaming.rtsp_source.RtspH264Source`, which has no meter)."""
 
     backoff_initial_s: float = 0.1
     backoff_max_s: float = 1.0
     auth_retry_s: float = 10.0
     auth_grace_s: float = 120.0  #: a 401 this soon after frames flowed is a rebooting camera: retry on back-off
-    stall_timeout_s: float = 1.0
+    stall_timeout_s: float = 1.0  #: no frame for this long (at least 3 frame periods): the stream is dead
     read_timeout_s: float = 5.0
     meter_window_s: float = 2.0
 

@@ -92,22 +92,6 @@ class RtspSession(Protocol):
         ...
 
 
-@dataclass(frozen=True, slots=True)
-class RtspSourceConfig:
-    """Timing of the source (seconds)."""
-
-    backoff_initial_s: float = 0.1
-    backoff_max_s: float = 1.0
-    auth_retry_s: float = 10.0
-    read_timeout_s: float = 5.0
-    stall_timeout_s: float = 1.0  #: no access unit for this long (at least 3 frame periods): the session is dead
-    auth_grace_s: float = 120.0  #: a refused login this soon after access units flowed: retry on the back-off
-
-    def read_timeout(self, fps: int) -> float:
-        """How long to wait for an access unit at ``fps`` (as the MJPEG reader: a stall is seen inside the read)."""
-        return min(self.read_timeout_s, max(self.stall_timeout_s, 3.0 / max(fps, 1)))
-
-
 @dataclass(slots=True)
 class RtspSourceStats:
     """Counters since the source was made (diagnostics)."""
@@ -194,18 +178,20 @@ class RtspH264Source:
         supports_h264: Callable[[], bool],
         on_supported: Callable[[bool], None],
         on_event: Callable[[str], None] | None = None,
-        config: RtspSourceConfig | None = None,
+        config: ReaderConfig | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """``connect(request, read_timeout_s)``: an unopened session for ``request``; ``supports_h264()``: ask the
-        camera (raises :class:`AxisPtzError` when it cannot say); ``on_event(text)``: errors and reconnects."""
+        camera (raises :class:`AxisPtzError` when it cannot say); ``on_event(text)``: errors and reconnects;
+        ``config``: the MJPEG reader's timing (:class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`; its meter
+        window is not used here)."""
         self._connect = connect
         self._request = request
         self._sink = sink
         self._supports = supports_h264
         self._on_supported = on_supported
         self._on_event = on_event
-        self._config = config or RtspSourceConfig()
+        self._config = config or ReaderConfig()
         self._clock = clock
         cfg = self._config
         self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
@@ -392,12 +378,5 @@ def passthrough_source(
         supports_h264=lambda: camera_streams_h264(client),
         on_supported=on_supported,
         on_event=on_event,
-        config=RtspSourceConfig(
-            timing.backoff_initial_s,
-            timing.backoff_max_s,
-            timing.auth_retry_s,
-            timing.read_timeout_s,
-            timing.stall_timeout_s,
-            timing.auth_grace_s,
-        ),
+        config=timing,
     )

@@ -14,9 +14,9 @@ import numpy as np
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
 from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage, StagedFrame
+from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.streaming.rtsp_source import (
     RtspH264Source,
-    RtspSourceConfig,
     media_request,
     needs_reconnect,
 )
@@ -42,6 +42,17 @@ def test_a_small_or_recent_bitrate_move_does_not_reconnect() -> None:
     assert not needs_reconnect(a, MediaStreamRequest(max_bitrate_kbps=500), 0.5)
     assert needs_reconnect(a, MediaStreamRequest(max_bitrate_kbps=500), 10.0)
     assert needs_reconnect(a, MediaStreamRequest(resolution="640x360", max_bitrate_kbps=1000), 0.0)
+
+
+def _timing(*, read_timeout_s: float, stall_timeout_s: float) -> ReaderConfig:
+    """Quick reconnects for a test."""
+    return ReaderConfig(
+        backoff_initial_s=0.01,
+        backoff_max_s=0.05,
+        auth_retry_s=1.0,
+        read_timeout_s=read_timeout_s,
+        stall_timeout_s=stall_timeout_s,
+    )
 
 
 def _stream(n: int) -> list[bytes]:
@@ -91,23 +102,26 @@ def test_plays_renews_reconnects_and_never_publishes_a_dead_sessions_frames() ->
     units = _stream(40)
     sessions = [Session(units, CameraTimeout("stall"), 1_000), Session(units[:5], CameraTimeout("stall"), 9_000)]
     made: list[Session] = []
+    read_timeouts: list[float] = []
     out: list[StagedFrame] = []
     stage = H264Stage(lambda: H264Settings(), out.append)
     stage.set_active(True)
 
-    def connect(_req: MediaStreamRequest, _t: float) -> Session:
+    def connect(_req: MediaStreamRequest, read_timeout_s: float) -> Session:
         s = sessions[min(len(made), len(sessions) - 1)]
         made.append(s)
+        read_timeouts.append(read_timeout_s)
         return s
 
     told: list[bool] = []
+    timing = _timing(read_timeout_s=0.5, stall_timeout_s=0.1)
     src = RtspH264Source(
         connect,
         lambda: MediaStreamRequest(resolution="64x48", fps=15),
         stage,
         supports_h264=lambda: True,
         on_supported=told.append,
-        config=RtspSourceConfig(0.01, 0.05, 1.0, 0.2, 0.1),
+        config=timing,
     )
     src.start()
     try:
@@ -133,6 +147,8 @@ def test_plays_renews_reconnects_and_never_publishes_a_dead_sessions_frames() ->
     assert made[0].renews == 1  # the held request, once the rate limit ended: one Renew-Stream
     assert made[1].renews == 0  # a new session starts with an IDR: no Renew-Stream for it
     assert src.stats.reconnects >= 1
+    # the MJPEG reader's stall limit: 3 frame periods at 15 fps (0.2 s) over a shorter stall_timeout_s
+    assert read_timeouts[0] == timing.read_timeout(15) == 0.2
 
 
 def test_a_camera_without_h264_is_never_asked_for_rtsp() -> None:
@@ -196,7 +212,7 @@ def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_i
             stage,
             supports_h264=lambda: True,
             on_supported=lambda _ok: None,
-            config=RtspSourceConfig(0.01, 0.05, 1.0, 0.5, 0.3),
+            config=_timing(read_timeout_s=0.5, stall_timeout_s=0.3),
         )
         src.start()
         try:
