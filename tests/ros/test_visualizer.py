@@ -16,7 +16,7 @@ from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import MountConfig, save_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, transform_msg
-from axis_ptz_ros2.nodes.visualizer import Visualizer, footprint_polylines
+from axis_ptz_ros2.nodes.visualizer import Visualizer
 
 pytestmark = pytest.mark.ros
 
@@ -149,21 +149,6 @@ def test_ptz_transform_wins_and_the_footprint_wraps_at_the_seam(ros):
     assert not np.any((fx > 200) & (fx < W - 200))  # no line drawn across the whole panorama
 
 
-def test_footprint_polylines_unwrap_and_pole():
-    # A box straddling the seam.
-    pts = np.array([[1000.0, 100.0], [20.0, 100.0], [20.0, 200.0], [1000.0, 200.0]])
-    lines, closed = footprint_polylines(pts, 1024)
-    assert closed
-    mid = lines[1]
-    assert np.allclose(mid[:, 0], [1000.0, 1044.0, 1044.0, 1000.0])
-    # A ring around the zenith (camera looking straight up): open band spanning the full width.
-    xs = np.linspace(0, 1024, 16, endpoint=False)
-    ring = np.stack([xs, np.full_like(xs, 30.0)], -1)
-    lines, closed = footprint_polylines(ring, 1024)
-    assert not closed
-    assert lines[1][-1, 0] - lines[1][0, 0] == pytest.approx(1024.0)
-
-
 def test_latched_panorama_transform_is_used(ros):
     rig = _Rig(ros, [Parameter("depth", value=5.0)])
     pano = _grey_panorama()
@@ -202,7 +187,7 @@ def test_state_is_in_joint_coordinates_so_mount_offsets_are_not_added_again(ros,
     path = tmp_path / "mount_offsets.yaml"
     save_mount(mount, path)
     rig = _Rig(ros, [Parameter("depth", value=5.0), Parameter("mount_file", value=str(path))])
-    assert rig.node._mount.pan_offset == pytest.approx(0.35)  # the file was really used
+    assert rig.node.overlay.mount.pan_offset == pytest.approx(0.35)  # the file was really used
     pano = _grey_panorama()
     rig.subscribe()
     pan, tilt = 0.6, 0.2
