@@ -19,6 +19,7 @@ from axis_ptz_ros2.sim.renderer import PtzRenderer, insert_comment
 from axis_ptz_ros2.sim.scene import SimWorld
 
 MAX_FPS = 30  #: the highest ``fps=`` the cameras accept (what they deliver: ``Persona.frame_rate``)
+MAX_COMPRESSION = 100  #: the highest ``compression=`` the cameras accept (0 = best quality … this = smallest)
 
 
 def stamp(jpeg: bytes, seq: int) -> bytes:

@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 
+from axis_ptz_ros2.sim.frames import MAX_COMPRESSION
 from tests.support.sim import blob, decode
 
 pytestmark = pytest.mark.integration
@@ -65,6 +66,16 @@ def test_errors_are_200_error_text_and_change_nothing(cam, client, query, messag
     assert r.text == f"Error:\n{message}\n"
     time.sleep(0.05)
     assert cam.position() == pytest.approx(before)
+
+
+@pytest.mark.parametrize(
+    ("compression", "status"), [(0, 200), (MAX_COMPRESSION, 200), (MAX_COMPRESSION + 1, 400), (-1, 400)]
+)
+def test_image_compression_runs_from_0_to_the_cameras_top(client, compression, status):
+    r = client.get("/axis-cgi/jpg/image.cgi", params={"resolution": "176x144", "compression": compression})
+    assert r.status_code == status
+    if status == 400:
+        assert r.text == f"Error:\nInvalid compression: {compression}\n"
 
 
 def test_in_range_beyond_limits_is_clamped(cam, client):

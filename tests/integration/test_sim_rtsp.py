@@ -19,6 +19,7 @@ import pytest
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.rtsp.server import RtspListener
 
 pytestmark = pytest.mark.integration
@@ -276,6 +277,20 @@ def test_renew_stream_makes_the_next_frame_an_idr(raw: RawRtsp) -> None:
     assert status == 454
 
 
+def test_adjustable_stream_fps_runs_to_the_cameras_top(raw: RawRtsp) -> None:
+    session, _ = raw.play(QUERY + "&adjustablelivestream=1")
+
+    def adjust(value: str) -> int:
+        return raw.request(
+            "SET_PARAMETER",
+            f"{raw.base}/axis-media/media.amp",
+            {"Session": session, "Content-Type": "text/parameters"},
+            f"Adjustable-Stream-Configuration: {value}\r\n".encode(),
+        )[0]
+
+    assert [adjust(f"fps={f}") for f in (1, MAX_FPS, MAX_FPS + 1, 0)] == [200, 200, 400, 400]
+
+
 def test_wrong_password_gets_the_http_sides_digest_challenge(cam: SimulatedCamera) -> None:
     r = RawRtsp(cam, password="wrong")
     try:
@@ -293,6 +308,9 @@ def test_wrong_password_gets_the_http_sides_digest_challenge(cam: SimulatedCamer
     [
         ("videocodec=h264&resolution=123x45", 400),
         ("videocodec=h264&fps=99", 400),
+        (f"videocodec=h264&fps={MAX_FPS}", 200),
+        (f"videocodec=h264&compression={MAX_COMPRESSION + 1}", 400),
+        (f"videocodec=h264&compression={MAX_COMPRESSION}", 200),
         ("videocodec=h264&videokeyframeinterval=0", 400),
         ("videocodec=h264&videomaxbitrate=1000", 400),  # a rate option without videobitratemode
         ("videocodec=h264&videobitratemode=mbr&videomaxbitrate=10", 400),

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from axis_ptz_ros2.sim.frames import MAX_FPS, stamp
+from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS, stamp
 from axis_ptz_ros2.sim.http.pages import ERROR_HTML, NOT_FOUND_HTML
 from axis_ptz_ros2.sim.params import READ_ONLY_PREFIXES, list_params
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
@@ -87,7 +87,7 @@ def image_args(cam: SimulatedCamera, args: Args, video: bool) -> ImageRequest:
         raise ValueError(f"Camera {a['camera']} not available")
     squarepixel = int_arg(a, "squarepixel", 0, 1, 0)
     w, h = cam.persona.parse_resolution(a.get("resolution", p["Image.I0.Appearance.Resolution"]), squarepixel == 1)
-    compression = int_arg(a, "compression", 0, 100, int(p["Image.I0.Appearance.Compression"]))
+    compression = int_arg(a, "compression", 0, MAX_COMPRESSION, int(p["Image.I0.Appearance.Compression"]))
     int_arg(a, "rotation", 0, 0, 0)
     fps, duration, nbrofframes = cam.default_fps, 0, 0
     if video:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Final
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, EncoderConfig, H264Encoder
-from axis_ptz_ros2.sim.frames import MAX_FPS
+from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
 
@@ -96,7 +96,7 @@ def parse_media_args(cam: SimulatedCamera, args: list[tuple[str, str]]) -> Media
     choice("h264profile", H264_PROFILES)
     choice("videozprofile", ("classic", "storage", "low", "high", "higher", "extreme"))
     mode = choice("videobitratemode", BITRATE_MODES)
-    integer("compression", 0, 100, 30)
+    integer("compression", 0, MAX_COMPRESSION, 30)
     integer("audio", 0, 1, 0)
     adjustable = integer("adjustablelivestream", 0, 1, 0) == 1
     rate_given = any(k in a for k in ("videomaxbitrate", "videobitrate", "videobitratepriority"))

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.sim.frames import MAX_FPS
 from axis_ptz_ros2.sim.rtsp.media import MEDIA_PATH, MediaError, MediaRequest, parameter_sets, parse_media_args, sdp
 from axis_ptz_ros2.sim.rtsp.session import RtspSession, StreamClosedError
 
@@ -436,7 +437,7 @@ def _adjustment(value: str) -> tuple[int | None, int | None] | None:
         k, _, v = item.strip().partition("=")
         if not v.isdigit():
             return None
-        if k == "fps" and 1 <= int(v) <= 30:
+        if k == "fps" and 1 <= int(v) <= MAX_FPS:
             fps = int(v)
         elif k == "videomaxbitrate" and 50 <= int(v) <= 50_000:
             kbps = int(v)
