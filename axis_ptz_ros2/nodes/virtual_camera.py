@@ -60,6 +60,7 @@ from axis_ptz_ros2.nodes.common import (
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
+from axis_ptz_ros2.virtual.decode import U8, decode_compressed, decode_raw
 from axis_ptz_ros2.virtual.render import ViewSpec, VirtualCameraRenderer
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -96,39 +97,6 @@ _SPECS = {s.name: s for s in PARAMS}
 _FIXED_PTZ_PARAMS = ("image_width", "image_height", "follow_video_params")
 
 FloatArray = npt.NDArray[np.float64]
-U8 = npt.NDArray[np.uint8]
-
-
-def decode_compressed(msg: CompressedImage) -> U8 | None:
-    """A JPEG/PNG ``CompressedImage`` as a BGR (or grey) uint8 array; None if it cannot be decoded."""
-    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
-    if buf.size == 0:
-        return None
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-    if img is None or img.dtype != np.uint8:
-        return None
-    if img.ndim == 3 and img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-    return np.asarray(img, dtype=np.uint8)
-
-
-_RAW_CHANNELS = {"mono8": 1, "8UC1": 1, "bgr8": 3, "rgb8": 3, "8UC3": 3, "bgra8": 4, "rgba8": 4, "8UC4": 4}
-
-
-def decode_raw(msg: Image) -> U8 | None:
-    """An 8-bit ``sensor_msgs/Image`` (mono8, bgr8, rgb8, bgra8, rgba8) as BGR or grey; None if unsupported."""
-    ch = _RAW_CHANNELS.get(msg.encoding)
-    h, w, step = int(msg.height), int(msg.width), int(msg.step)
-    if ch is None or h == 0 or w == 0 or step < w * ch or len(msg.data) < step * h:
-        return None
-    rows = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=step * h).reshape(h, step)
-    img = rows[:, : w * ch].reshape(h, w, ch) if ch > 1 else rows[:, :w]
-    if msg.encoding == "rgb8":
-        return np.asarray(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), dtype=np.uint8)
-    if ch == 4:
-        code = cv2.COLOR_RGBA2BGR if msg.encoding == "rgba8" else cv2.COLOR_BGRA2BGR
-        return np.asarray(cv2.cvtColor(img, code), dtype=np.uint8)
-    return np.ascontiguousarray(img)
 
 
 @dataclass
@@ -273,7 +241,10 @@ class VirtualCameraNode(Node):
         if msg is None:
             return
         t0 = time.perf_counter()
-        img = decode_compressed(msg) if isinstance(msg, CompressedImage) else decode_raw(msg)
+        if isinstance(msg, CompressedImage):
+            img = decode_compressed(bytes(msg.data))
+        else:
+            img = decode_raw(bytes(msg.data), msg.encoding, msg.width, msg.height, msg.step)
         if img is None or img.shape[0] < 2 or img.shape[1] < 2:
             self.stats.decode_failures += 1
             fmt = msg.format if isinstance(msg, CompressedImage) else msg.encoding
