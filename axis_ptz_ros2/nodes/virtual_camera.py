@@ -16,9 +16,11 @@ Two nodes in one process:
 The view sits at the panorama's origin; its pan/tilt are REP-103 angles about ``base_link`` axes (the
 ``virtual_camera_base`` frame is ``base_link`` translated to the panorama origin), so the renderer gets
 ``R_pano_base`` from the panorama pose in ``config/robot.yaml``. A panorama frame is decoded once (when it is
-first needed) and kept; a view is rendered only when the panorama or the pose changed (or ``min_rate`` asks
-for a refresh), at most at ``rate`` Hz, and only while ``image_raw/compressed`` or ``camera_info`` has a
-subscriber. Images are stamped with the render time (the pose they show; ``ptz/transform`` at that stamp).
+first needed: :mod:`axis_ptz_ros2.virtual.decode`) and kept; a view is rendered only when the panorama or the
+pose changed (or a new subscriber came, or ``min_rate`` asks for a refresh), at most at ``rate`` Hz, and only
+while ``image_raw/compressed`` or ``camera_info`` has a subscriber (:class:`~axis_ptz_ros2.virtual.camera.RenderGate`;
+the square-pixel camera model is :func:`~axis_ptz_ros2.virtual.camera.view_model_dict`). Images are stamped with
+the time the pose was read (the pose they show; ``ptz/transform`` at that stamp).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from axis_ptz_ros2.nodes.common import (
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
+from axis_ptz_ros2.virtual.camera import RenderGate, view_model_dict
 from axis_ptz_ros2.virtual.decode import U8, decode_compressed, decode_raw
 from axis_ptz_ros2.virtual.render import ViewSpec, VirtualCameraRenderer
 
@@ -127,10 +130,7 @@ class VirtualCameraNode(Node):
         self.width, self.height = int(p["width"]), int(p["height"])
 
         model_path = Path(p["camera_model"]) if p["camera_model"] else default_config_path("virtual_camera.yaml")
-        raw = yaml.safe_load(model_path.read_text(encoding="utf-8")) or {}
-        # Square pixels: the zoom model's intrinsics must equal the render's (fy = fx needs aspect = w/h).
-        raw.setdefault("zoom", {})["image_aspect"] = self.width / self.height
-        raw["head"] = {"h_tilt": 0.0, "d_opt": [0.0, 0.0, 0.0]}  # the optical centre is the panorama origin
+        raw = view_model_dict(yaml.safe_load(model_path.read_text(encoding="utf-8")) or {}, self.width, self.height)
         self.model = camera_model_from_dict(raw)
         self.zoom_model = self.model.zoom
         robot = load_robot(p["robot_file"] or None)
@@ -167,9 +167,7 @@ class VirtualCameraNode(Node):
         self._pano_seq = 0
         self._renderer: VirtualCameraRenderer | None = None
         self._out: U8 | None = None
-        self._last_key: tuple[int, ViewSpec] | None = None
-        self._last_pub_mono = -math.inf
-        self._last_subs = 0
+        self._gate = RenderGate()
         self.last_view: ViewSpec | None = None
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._on_timer, callback_group=self._group)
         self.get_logger().info(
@@ -268,9 +266,7 @@ class VirtualCameraNode(Node):
         return ViewSpec(self.width, self.height, pan, tilt, self.zoom_model.hfov(zoom))
 
     def _on_timer(self) -> None:
-        subs = self.subscribers
-        new_sub, self._last_subs = subs > self._last_subs, subs
-        if subs == 0:
+        if not self._gate.watch(self.subscribers):
             return
         self._decode_pending()
         if self._pano is None or self._renderer is None:
@@ -279,16 +275,13 @@ class VirtualCameraNode(Node):
         view = self.view()
         key = (self._pano_seq, view)
         now = time.monotonic()
-        min_rate = float(self._p["min_rate"])
-        stale = min_rate > 0.0 and now - self._last_pub_mono >= 1.0 / min_rate
-        if key == self._last_key and not new_sub and not stale:
+        if not self._gate.due(key, now, float(self._p["min_rate"])):
             return
-        self._publish(self._pano, self._renderer, view, now, t_view_ns)
-        self._last_key = key
+        published = self._publish(self._pano, self._renderer, view, t_view_ns)
+        self._gate.rendered(key, now if published else None)
 
-    def _publish(
-        self, pano: U8, renderer: VirtualCameraRenderer, view: ViewSpec, now_mono: float, t_view_ns: int
-    ) -> None:
+    def _publish(self, pano: U8, renderer: VirtualCameraRenderer, view: ViewSpec, t_view_ns: int) -> bool:
+        """Render, encode and publish ``view``; False when the JPEG encoding failed (nothing published)."""
         shape = (view.height, view.width, *pano.shape[2:])
         if self._out is None or self._out.shape != shape:
             self._out = np.empty(shape, np.uint8)
@@ -299,15 +292,15 @@ class VirtualCameraNode(Node):
         t2 = time.perf_counter()
         if not ok:  # pragma: no cover - cv2 fails only on invalid images
             self.get_logger().error("JPEG encoding failed", throttle_duration_sec=5.0)
-            return
+            return False
         stamp = stamp_from_ns(t_view_ns)
         msg = jpeg_image_msg(buf, self.optical_frame, stamp)
         self._info_pub.publish(camera_info_msg(view.intrinsics, self.optical_frame, stamp))
         self._image_pub.publish(msg)
         self.stats.render_s, self.stats.encode_s = t1 - t0, t2 - t1
         self.stats.frames_published += 1
-        self._last_pub_mono = now_mono
         self.last_view = view
+        return True
 
 
 def main(args: list[str] | None = None) -> int:
