@@ -61,6 +61,16 @@ from axis_ptz_ros2.ptz.requests import Requests, stream_size
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop
 
+#: The frame and joint names (the virtual camera declares the same parameters with its own defaults).
+FRAME_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("frame_prefix", "", "prefix of every frame name (e.g. 'robot1/')", read_only=True),
+    ParamSpec("base_frame", "", "mount parent frame ('' = the mount file's, base_link)", read_only=True),
+    ParamSpec("ptz_base_frame", "", "PTZ base frame ('' = the mount file's, axis_ptz_base)", read_only=True),
+    ParamSpec("optical_frame", "axis_ptz_optical_frame", "optical frame of the PTZ camera", read_only=True),
+    ParamSpec("pan_joint", "axis_ptz_pan_joint", "JointState name of the pan joint", read_only=True),
+    ParamSpec("tilt_joint", "axis_ptz_tilt_joint", "JointState name of the tilt joint", read_only=True),
+)
+
 PARAMS: tuple[ParamSpec, ...] = (
     *CONNECTION_PARAMS,
     ParamSpec("timeout", 5.0, "command request timeout", "s", float_range=(0.1, 60.0), read_only=True),
@@ -79,12 +89,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("image_width", 704, "stream width for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
     ParamSpec("image_height", 576, "stream height for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
     ParamSpec("follow_video_params", True, "take the stream size from video/params when published"),
-    ParamSpec("frame_prefix", "", "prefix of every frame name (e.g. 'robot1/')", read_only=True),
-    ParamSpec("base_frame", "", "mount parent frame ('' = the mount file's, base_link)", read_only=True),
-    ParamSpec("ptz_base_frame", "", "PTZ base frame ('' = the mount file's, axis_ptz_base)", read_only=True),
-    ParamSpec("optical_frame", "axis_ptz_optical_frame", "optical frame of the PTZ camera", read_only=True),
-    ParamSpec("pan_joint", "axis_ptz_pan_joint", "JointState name of the pan joint", read_only=True),
-    ParamSpec("tilt_joint", "axis_ptz_tilt_joint", "JointState name of the tilt joint", read_only=True),
+    *FRAME_PARAMS,
     ParamSpec("publish_tf", True, "the mount on /tf_static, the pan/tilt head on /tf (tf2_msgs)", read_only=True),
     ParamSpec("drive_topic", "", "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
               read_only=True),

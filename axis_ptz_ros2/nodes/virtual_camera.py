@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -59,12 +59,24 @@ from axis_ptz_ros2.nodes.common import (
     publisher,
     stamp_from_ns,
 )
-from axis_ptz_ros2.nodes.ptz_node import PtzNode
+from axis_ptz_ros2.nodes.ptz_node import FRAME_PARAMS, PtzNode
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
 from axis_ptz_ros2.virtual.camera import RenderGate, view_model_dict
 from axis_ptz_ros2.virtual.decode import U8, decode_compressed, decode_raw
 from axis_ptz_ros2.virtual.render import ViewSpec, VirtualCameraRenderer
+
+_PTZ_FRAMES = {s.name: s for s in FRAME_PARAMS}
+#: The PTZ node's frame and joint parameters, with the virtual camera's defaults; handed on to its PTZ node.
+_FRAME_PARAMS: tuple[ParamSpec, ...] = (
+    _PTZ_FRAMES["frame_prefix"],
+    replace(_PTZ_FRAMES["ptz_base_frame"], default="virtual_camera_base",
+            description="pan/tilt base frame at the panorama origin"),
+    replace(_PTZ_FRAMES["optical_frame"], default="virtual_camera_optical_frame",
+            description="optical frame of the view"),
+    replace(_PTZ_FRAMES["pan_joint"], default="virtual_camera_pan_joint"),
+    replace(_PTZ_FRAMES["tilt_joint"], default="virtual_camera_tilt_joint"),
+)  # fmt: skip
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("camera_model", "", "virtual camera model YAML ('' = config/virtual_camera.yaml)", read_only=True),
@@ -88,11 +100,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         choices=("compressed", "raw"),
         read_only=True,
     ),
-    ParamSpec("frame_prefix", "", "prefix of every frame name (e.g. 'robot1/')", read_only=True),
-    ParamSpec("ptz_base_frame", "virtual_camera_base", "pan/tilt base frame at the panorama origin", read_only=True),
-    ParamSpec("optical_frame", "virtual_camera_optical_frame", "optical frame of the view", read_only=True),
-    ParamSpec("pan_joint", "virtual_camera_pan_joint", "JointState name of the pan joint", read_only=True),
-    ParamSpec("tilt_joint", "virtual_camera_tilt_joint", "JointState name of the tilt joint", read_only=True),
+    *_FRAME_PARAMS,
     ParamSpec("ptz_node_name", "axis_virtual_camera_ptz", "name of the PTZ node in this process", read_only=True),
 )
 _SPECS = {s.name: s for s in PARAMS}
@@ -186,12 +194,8 @@ class VirtualCameraNode(Node):
             "image_width": self.width,
             "image_height": self.height,
             "follow_video_params": False,  # video/params of another camera must not resize this view
-            "frame_prefix": str(p["frame_prefix"]),
-            "ptz_base_frame": str(p["ptz_base_frame"]),
             "base_frame": "",  # the mount's parent: the robot base frame
-            "optical_frame": str(p["optical_frame"]),
-            "pan_joint": str(p["pan_joint"]),
-            "tilt_joint": str(p["tilt_joint"]),
+            **{s.name: str(p[s.name]) for s in _FRAME_PARAMS},
         }
         overrides = [o for o in (kwargs.get("parameter_overrides") or []) if o.name not in forced]
         overrides += [Parameter(k, value=v) for k, v in forced.items()]
