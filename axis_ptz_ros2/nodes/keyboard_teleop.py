@@ -47,6 +47,7 @@ from axis_ptz_ros2.nodes.common import (
 )
 from axis_ptz_ros2.nodes.runner import close_own_loop
 from axis_ptz_ros2.teleop import keymap as km
+from axis_ptz_ros2.teleop import status
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("step", 1, "initial step size x (keys 1-9)", "deg", int_range=(1, 9)),
@@ -182,27 +183,8 @@ class KeyboardTeleop(Node):
         self._drawn = ""
 
     def status_line(self) -> str:
-        """``pan … tilt … zoom … | fps res compression | step``."""
-        if self.ptz is None:
-            ptz = "PTZ: waiting for ptz/state"
-        else:
-            s = self.ptz
-            ptz = (
-                f"pan {_deg(s.pan):+7.2f} deg  tilt {_deg(s.tilt):+6.2f} deg  "
-                f"zoom {s.zoom:5.0f} ({s.magnification:.1f}x, hfov {math.degrees(s.hfov):.1f} deg)"
-                + ("  moving" if s.moving else "")
-            )
-        v = self.video
-        if v is None:
-            video = "video: waiting"
-        elif v.codec == "h264":
-            video = (
-                f"video: {v.fps} fps {v.resolution} h264 {v.h264_bitrate_kbps} kbit/s"
-                f" (up to {v.h264_max_bitrate_kbps} with feedback)"
-            )
-        else:
-            video = f"video: {v.fps} fps {v.resolution} compression {v.compression}"
-        return f"{ptz} | {video} | step {self.state.step} | ? help"
+        """``pan … tilt … zoom … | video: … | step …`` (:func:`axis_ptz_ros2.teleop.status.status_line`)."""
+        return status.status_line(self.ptz, self.video, self.state.step)
 
     def draw_status(self, force: bool = False) -> None:
         """Redraw the status line if its text changed (or after a message was printed above it)."""
@@ -215,12 +197,6 @@ class KeyboardTeleop(Node):
         self._drawn = line
         self.out.write(CSI_CLEAR_LINE + line)
         self.out.flush()
-
-
-def _deg(rad: float) -> float:
-    """Degrees for display, without a "-0.00"."""
-    d = round(math.degrees(rad), 2)
-    return d + 0.0 if d != 0.0 else 0.0
 
 
 class _Terminal:

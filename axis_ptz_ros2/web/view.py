@@ -4,7 +4,8 @@
 behind one lock; the node feeds it and asks it for :meth:`ConsoleModel.state`, the JSON of ``GET /api/state``.
 The PTZ video is metered with the package's one meter (:class:`axis_ptz_ros2.streaming.meter.BitrateMeter`).
 Messages are read through small protocols (attribute names of ``PtzState`` / ``VideoParams``), so tests
-use plain objects. The answers to the operator's commands are worded here too (:func:`service_answer` & co.).
+use plain objects. The answers to the operator's commands are worded here too (:func:`service_answer` & co.); the
+video parameters in words are the keyboard teleop's (:func:`axis_ptz_ros2.teleop.status.video_text`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any, Protocol
 
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.teleop import keymap
+from axis_ptz_ros2.teleop.status import video_text  # the keyboard teleop's wording too
 from axis_ptz_ros2.web.api import BadRequest, video_limits
 from axis_ptz_ros2.web.server import CommandResult
 
@@ -112,16 +114,6 @@ def video_answer(success: bool, message: str, in_effect: str) -> CommandResult:
     if not success:
         return CommandResult(False, message or "video parameters refused", 409)
     return CommandResult(True, f"video {in_effect}" + _note(message))
-
-
-def video_text(p: VideoParamsLike) -> str:
-    """The parameters a stream streams with, in words: the JPEG compression, or in H.264 mode the bitrates."""
-    quality = (
-        f"H.264 {p.h264_bitrate_kbps} kbit/s (up to {p.h264_max_bitrate_kbps} with feedback)"
-        if p.codec == "h264"
-        else f"compression {p.compression}"
-    )
-    return f"{p.resolution} at {p.fps} fps, {quality}"
 
 
 def budget_answer(successful: bool, reason: str, kbps: int) -> CommandResult:

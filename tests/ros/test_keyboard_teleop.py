@@ -149,7 +149,7 @@ def test_keys_move_the_simulated_head_and_change_the_stream_and_the_terminal_is_
     pty = Pty()
     try:
         # Live status line once ptz/state and video/params are in.
-        pty.wait_output("video: 15 fps 704x576 compression 30")
+        pty.wait_output("video: 704x576 at 15 fps, compression 30")
         pty.wait_output("pan   +0.00 deg")
         assert termios.tcgetattr(pty.slave) != pty.attrs_before  # raw mode while running
         # The PTZ node has discovered the teleop's relative-move publisher (volatile topic: a move sent
@@ -186,26 +186,26 @@ def test_keys_move_the_simulated_head_and_change_the_stream_and_the_terminal_is_
         m = pty.type("r")
         ros.wait_for(lambda: param("fps") == 18)
         ros.wait_for(lambda: seen["video"] and seen["video"][-1].fps == 18)
-        pty.wait_output("video: 18 fps 704x576 compression 30", since=m)
+        pty.wait_output("video: 704x576 at 18 fps, compression 30", since=m)
         m = pty.type("g")
         ros.wait_for(lambda: param("resolution") == "704x288")
         ros.wait_for(lambda: seen["video"][-1].resolution == "704x288")
-        pty.wait_output("video: 18 fps 704x288 compression 30", since=m)
+        pty.wait_output("video: 704x288 at 18 fps, compression 30", since=m)
         m = pty.type("t")
         ros.wait_for(lambda: param("resolution") == "704x576")
-        pty.wait_output("video: 18 fps 704x576 compression 30", since=m)
+        pty.wait_output("video: 704x576 at 18 fps, compression 30", since=m)
         m = pty.type("t")  # already the largest: a notice, no request
         pty.wait_output("resolution already at the top", since=m)
         m = pty.type("y")
         ros.wait_for(lambda: param("compression") == 40)
         ros.wait_for(lambda: seen["video"][-1].compression == 40 and seen["video"][-1].source == "service")
-        pty.wait_output("video: 18 fps 704x576 compression 40", since=m)
+        pty.wait_output("video: 704x576 at 18 fps, compression 40", since=m)
         m = pty.type("F")
         ros.wait_for(lambda: param("fps") == 15)
-        pty.wait_output("video: 15 fps 704x576 compression 40", since=m)
+        pty.wait_output("video: 704x576 at 15 fps, compression 40", since=m)
         m = pty.type("h")
         ros.wait_for(lambda: param("compression") == 30)
-        pty.wait_output("video: 15 fps 704x576 compression 30 | step 1", since=m)
+        pty.wait_output("video: 704x576 at 15 fps, compression 30 | step 1", since=m)
 
         # SPACE: home (the simulator's home is pan 0, tilt 0, zoom 1).
         pty.type(" ")
@@ -284,19 +284,19 @@ def test_quality_keys_step_the_h264_bitrates_when_the_stream_is_h264(ros, cam):
 
     pty = Pty()
     try:
-        pty.wait_output("h264 1000 kbit/s (up to 1500 with feedback)")
+        pty.wait_output("H.264 1000 kbit/s (up to 1500 with feedback)")
         compression = param("compression")
         m = pty.type("h")
         ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (1500, 2000))
         ros.wait_for(lambda: seen and (seen[-1].h264_bitrate_kbps, seen[-1].h264_max_bitrate_kbps) == (1500, 2000))
         assert seen[-1].codec == "h264"
-        pty.wait_output("h264 1500 kbit/s (up to 2000 with feedback)", since=m)
+        pty.wait_output("H.264 1500 kbit/s (up to 2000 with feedback)", since=m)
         m = pty.type("y")
         ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (1000, 1500))
-        pty.wait_output("h264 1000 kbit/s (up to 1500 with feedback)", since=m)
+        pty.wait_output("H.264 1000 kbit/s (up to 1500 with feedback)", since=m)
         m = pty.type("Y")
         ros.wait_for(lambda: (param("h264_bitrate_kbps"), param("h264_max_bitrate_kbps")) == (700, 1000))
-        pty.wait_output("h264 700 kbit/s (up to 1000 with feedback)", since=m)
+        pty.wait_output("H.264 700 kbit/s (up to 1000 with feedback)", since=m)
         assert param("compression") == compression  # the MJPEG key's parameter is left alone
         m = pty.type("?")
         pty.wait_output("the stream is h264: Y/H act on the H.264 bitrate", since=m)
