@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.teleop import keymap
-from axis_ptz_ros2.teleop.status import video_text  # the keyboard teleop's wording too
+from axis_ptz_ros2.teleop.status import video_text as video_text  # re-exported: the keyboard teleop's words
 from axis_ptz_ros2.web.api import BadRequest, video_limits
 from axis_ptz_ros2.web.server import CommandResult
 
