@@ -155,12 +155,11 @@ class StreamReader:
             self._fixed = params()
             self._params_of = params
         self._attempt: VideoParams | None = None  # what the latest connection asked for
-        self._active = active
         cfg = self._config
         self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
         self.meter = meter if meter is not None else BitrateMeter(cfg.meter_window_s)
         self._lock = threading.Lock()
-        self._worker = Worker("reader", "axis-mjpeg-reader", self._run, self._interrupt)
+        self._worker = Worker("reader", "axis-mjpeg-reader", self._run, self._interrupt, active=active)
         self._stop = self._worker.stopping
         self._wake = threading.Event()
         self._source: FrameSource | None = None
@@ -223,11 +222,7 @@ class StreamReader:
 
     def set_active(self, active: bool) -> None:
         """Lazy mode: inactive closes the stream and idles without any HTTP traffic."""
-        with self._lock:
-            if active == self._active:
-                return
-            self._active = active
-        self._interrupt()
+        self._worker.set_active(active)
 
     def check_watchdog(self, now: float | None = None) -> bool:
         """Close a stream whose newest frame is older than the stall limit; True if it did."""
@@ -295,7 +290,7 @@ class StreamReader:
         while not self._stop.is_set():
             self._wake.clear()
             with self._lock:
-                active = self._active
+                active = self._worker.active
                 params = self._params_of()
                 self._attempt = params
             if not active:
@@ -336,7 +331,7 @@ class StreamReader:
 
     def _read(self, source: FrameSource, params: VideoParams) -> None:
         with self._lock:
-            if self._stop.is_set() or not self._active or params != self._params_of():
+            if self._stop.is_set() or not self._worker.active or params != self._params_of():
                 discard = True
             else:
                 discard = False

@@ -197,9 +197,8 @@ class RtspH264Source:
         self._backoff = Backoff(cfg.backoff_initial_s, max(cfg.backoff_max_s, cfg.backoff_initial_s))
         self._lock = threading.Lock()
         self._wake = threading.Event()
-        self._worker = Worker("RTSP source", "axis-rtsp-h264", self._run, self._interrupt)
+        self._worker = Worker("RTSP source", "axis-rtsp-h264", self._run, self._interrupt, active=False)
         self._stop = self._worker.stopping
-        self._active = False
         self._session: RtspSession | None = None
         self._last_au: float | None = None
         self._adjustable = True  #: ask for adjustablelivestream=1 until the camera refuses it
@@ -210,7 +209,7 @@ class RtspH264Source:
     @property
     def active(self) -> bool:
         """Whether the source is to play."""
-        return self._active
+        return self._worker.active
 
     def start(self) -> None:
         """Start the thread (once); it idles until :meth:`set_active`."""
@@ -222,11 +221,7 @@ class RtspH264Source:
 
     def set_active(self, active: bool) -> None:
         """Play (asking the camera first whether it can) or stop playing."""
-        with self._lock:
-            if active == self._active:
-                return
-            self._active = active
-        self._interrupt()
+        self._worker.set_active(active)
 
     # -- the thread ----------------------------------------------------------------------------------------------
     def _interrupt(self) -> None:
@@ -244,7 +239,7 @@ class RtspH264Source:
     def _run(self) -> None:
         while not self._stop.is_set():
             self._wake.clear()
-            if not self._active or self.supported is False:
+            if not self.active or self.supported is False:
                 self._backoff.reset()
                 self._wake.wait()
                 continue
@@ -290,7 +285,7 @@ class RtspH264Source:
 
     def _play(self, session: RtspSession, request: MediaStreamRequest) -> None:
         with self._lock:
-            if self._stop.is_set() or not self._active:
+            if self._stop.is_set() or not self.active:
                 session.close()
                 return
             self._session = session
@@ -301,7 +296,7 @@ class RtspH264Source:
         read_timeout = self._config.read_timeout(request.fps)
         error = ""
         try:
-            while not self._stop.is_set() and self._active:
+            while not self._stop.is_set() and self.active:
                 wanted = replace(self._request(), adjustable=request.adjustable)
                 if wanted != request and request.adjustable and same_but_rate(request, wanted):
                     try:
@@ -334,7 +329,7 @@ class RtspH264Source:
             with self._lock:
                 self._session = None
             session.close()
-        if error and not self._stop.is_set() and self._active:
+        if error and not self._stop.is_set() and self.active:
             self.stats.reconnects += 1
             self._event(f"RTSP H.264 stream lost: {error}")
             self._wake.wait(self._backoff.next())

@@ -551,3 +551,18 @@ def test_a_worker_starts_once_and_stop_interrupts_and_joins():
     never = Worker("idle", "test-idle", lambda: None)
     assert never.stop(0.1) is True
     assert not never.started
+
+
+def test_a_worker_is_interrupted_only_when_its_activity_changes():
+    from axis_ptz_ros2.streaming.worker import Worker  # noqa: PLC0415
+
+    interrupted: list[bool] = []
+    w = Worker("lazy", "test-lazy", lambda: None, lambda: interrupted.append(w.active), active=False)
+    assert not w.active
+    w.set_active(False)
+    assert interrupted == []
+    w.set_active(True)
+    w.set_active(True)
+    w.set_active(False)
+    assert interrupted == [True, False]  # once per change, the new value already in place
+    assert Worker("plain", "test-plain", lambda: None).active  # active unless told otherwise
