@@ -24,6 +24,7 @@ from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
+from rclpy.time import Time as RosTime
 from sensor_msgs.msg import CameraInfo, CompressedImage
 
 from axis_ptz_ros2.geometry import Intrinsics, Pose, Transform, quaternion_to_matrix
@@ -337,6 +338,12 @@ def camera_config_from_params(p: Mapping[str, Any], timeout_s: float) -> CameraC
 def stamp_from_ns(ns: int) -> Time:
     """A ROS time from integer nanoseconds (e.g. ``time.time_ns()``)."""
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def stamp_s(stamp: Time) -> float:
+    """Seconds of a message stamp through rclpy's ``Time.from_msg`` (integer nanoseconds, divided exactly; the clock
+    type is not kept): :func:`stamp_from_ns` back, in seconds. A negative ``sec`` (rclpy refuses it) is 0.0: none."""
+    return RosTime.from_msg(stamp).nanoseconds / 1_000_000_000 if stamp.sec >= 0 else 0.0
 
 
 def camera_info_msg(intr: Intrinsics, frame_id: str, stamp: Time) -> CameraInfo:

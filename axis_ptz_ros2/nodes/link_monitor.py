@@ -28,7 +28,15 @@ from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
-from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.common import (
+    FEEDBACK_QOS,
+    STREAM_QOS,
+    VIDEO_QOS,
+    ParamSpec,
+    declare_params,
+    publisher,
+    stamp_s,
+)
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
 from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
@@ -99,7 +107,7 @@ class FeedbackPublisher:
         self.watch()
         if self._first_rx is None:
             self._first_rx = rx
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_s(msg.header.stamp)
         if stamp <= 0:
             return
         self._meter.add(rx, stamp, len(msg.data) if nbytes is None else nbytes)

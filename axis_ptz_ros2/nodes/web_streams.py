@@ -19,7 +19,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
-from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS
+from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, stamp_s
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.web.h264relay import H264Slot
 from axis_ptz_ros2.web.server import FrameSlot
@@ -97,7 +97,7 @@ class ConsoleStreams:
 
     def _on_h264(self, msg: FFMPEGPacket) -> None:
         data = _payload(msg.data)
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_s(msg.header.stamp)
         self.feedback.add(msg, len(data))
         self._model.ptz_frame(len(data), stamp)
         if not self.h264.publish(data, bool(msg.flags & 1), stamp):
@@ -110,7 +110,7 @@ class ConsoleStreams:
             data = _payload(msg.data)
             if name == "ptz":
                 self.feedback.add(msg, len(data))
-                self._model.ptz_frame(len(data), msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+                self._model.ptz_frame(len(data), stamp_s(msg.header.stamp))
             slot.publish(data)
 
         return cb
