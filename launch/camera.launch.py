@@ -50,16 +50,8 @@ def generate_launch_description() -> LaunchDescription:
                 default_value="",
                 description="robot_state_publisher's frame_prefix: the params file's frame_prefix (e.g. robot2/)",
             ),
-            Node(
-                package="axis_ptz_ros2",
-                executable="axis_camera",
-                namespace=namespace,
-                output="screen",
-                parameters=[
-                    params_file,
-                    {"publish_tf": ParameterValue(PythonExpression(["'", use_rsp, "' != 'true'"]), value_type=bool)},
-                ],
-            ),
+            # first: if robot_state_publisher is missing, launch fails before it has started axis_camera, which it
+            # would otherwise leave running (an orphan: seen under the real Jazzy launch)
             Node(
                 package="robot_state_publisher",
                 executable="robot_state_publisher",
@@ -74,6 +66,16 @@ def generate_launch_description() -> LaunchDescription:
                         ),
                         "frame_prefix": frame_prefix,
                     }
+                ],
+            ),
+            Node(
+                package="axis_ptz_ros2",
+                executable="axis_camera",
+                namespace=namespace,
+                output="screen",
+                parameters=[
+                    params_file,
+                    {"publish_tf": ParameterValue(PythonExpression(["'", use_rsp, "' != 'true'"]), value_type=bool)},
                 ],
             ),
         ]

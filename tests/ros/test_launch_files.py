@@ -191,6 +191,8 @@ def test_camera_launch_hands_the_head_frames_to_robot_state_publisher_exclusivel
         nodes = [a for a in ls.actions(ld) if isinstance(a, ls.Node) and ls.condition_true(a, args)]
         exes = [n.kwargs["executable"] for n in nodes]
         assert ("robot_state_publisher" in exes) is rsp_expected
+        if rsp_expected:  # declared first: a missing package then fails launch before axis_camera runs (no orphan)
+            assert exes.index("robot_state_publisher") < exes.index("axis_camera"), exes
         cam = next(n for n in nodes if n.kwargs["executable"] == "axis_camera")
         d = next(p for p in cam.kwargs["parameters"] if isinstance(p, dict))
         assert ls.resolve(d["publish_tf"], args) == publish_tf
