@@ -22,7 +22,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CompressedImage, PointCloud2
 
 from axis_ptz_interfaces.msg import PtzState
@@ -36,6 +36,7 @@ from axis_ptz_ros2.calibration.capture import (
     still_view,
 )
 from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 
 
@@ -45,16 +46,17 @@ class _Stamped:
     value: Any
 
 
+#: ``laser_qos`` ``best_effort``: :data:`STREAM_QOS` (the newest scan only), best effort
+_BEST_EFFORT_QOS = QoSProfile(
+    depth=STREAM_QOS.depth, history=STREAM_QOS.history, reliability=ReliabilityPolicy.BEST_EFFORT
+)
+
+
 def _laser_qos(laser_qos: str) -> QoSProfile:
     if laser_qos == "reliable":  # matches reliable publishers; gets a latched scan at once
-        return QoSProfile(
-            depth=1,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
+        return LATCHED_QOS
     if laser_qos == "best_effort":  # matches every publisher (sensor-data QoS scanners)
-        return QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
+        return _BEST_EFFORT_QOS
     raise ValueError(f"laser_qos must be 'reliable' or 'best_effort', got {laser_qos!r}")
 
 
@@ -95,11 +97,10 @@ class CaptureSession:
         self._states: list[_Stamped] = []
         self._image: _Stamped | None = None
         self._cloud: _Stamped | None = None
-        stream = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
         lq = _laser_qos(laser_qos)
         self._subs = [
-            node.create_subscription(PtzState, "ptz/state", self._on_state, stream),
-            node.create_subscription(CompressedImage, "image_raw/compressed", self._on_image, stream),
+            node.create_subscription(PtzState, "ptz/state", self._on_state, STREAM_QOS),
+            node.create_subscription(CompressedImage, "image_raw/compressed", self._on_image, STREAM_QOS),
             node.create_subscription(PointCloud2, "laser/points", self._on_cloud, lq),
         ]
         self._move = node.create_client(MovePtz, "ptz/move_absolute")

@@ -27,6 +27,7 @@ pytest.importorskip("rclpy")
 
 from geometry_msgs.msg import TransformStamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import HistoryPolicy, ReliabilityPolicy  # noqa: E402
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
     CaptureError,
@@ -39,9 +40,9 @@ from axis_ptz_ros2.calibration.picking import picking_noise  # noqa: E402
 from axis_ptz_ros2.calibration.solver import rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.geometry import quaternion_to_matrix  # noqa: E402
-from axis_ptz_ros2.nodes.calibration_capture import CaptureSession  # noqa: E402
+from axis_ptz_ros2.nodes.calibration_capture import CaptureSession, _laser_qos  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import main as cli_main  # noqa: E402
-from axis_ptz_ros2.nodes.common import LATCHED_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
@@ -116,6 +117,15 @@ def system(ros: Any, cam: SimulatedCamera, model_file: Path) -> dict[str, Any]:
 def _errors(T) -> tuple[float, float]:
     truth = WORLD.T_base_ptz
     return float(np.linalg.norm(T.t - truth.t)), math.degrees(rotation_angle(T.R.T @ truth.R))
+
+
+def test_laser_qos_reliable_is_latched_and_best_effort_keeps_the_newest_scan() -> None:
+    assert _laser_qos("reliable") == LATCHED_QOS  # a latched scan at once
+    be = _laser_qos("best_effort")
+    assert (be.history, be.depth, be.reliability) == (HistoryPolicy.KEEP_LAST, 1, ReliabilityPolicy.BEST_EFFORT)
+    assert be.durability == STREAM_QOS.durability
+    with pytest.raises(ValueError, match="laser_qos"):
+        _laser_qos("sensor_data")
 
 
 def test_capture_pick_and_calibrate_recovers_the_true_mount(ros, cam, system, tmp_path, capsys):
