@@ -19,7 +19,7 @@ from collections.abc import Iterable
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 
 from axis_ptz_ros2.geometry import Transform
@@ -27,13 +27,9 @@ from axis_ptz_ros2.nodes.common import LATCHED_QOS, publisher, transform_msg
 
 #: tf2_ros.TransformBroadcaster's QoS.
 TF_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-#: tf2_ros.StaticTransformBroadcaster's QoS (tf2_ros.qos.StaticBroadcasterQoS).
-TF_STATIC_QOS = QoSProfile(
-    depth=1,
-    history=HistoryPolicy.KEEP_LAST,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+#: tf2_ros.StaticTransformBroadcaster's QoS (tf2_ros.qos.StaticBroadcasterQoS: reliable, transient local, keep
+#: last 1) is our latched QoS, value for value (tests/ros/test_tf_topics.py pins tf2's values).
+TF_STATIC_QOS = LATCHED_QOS
 
 
 def _as_list(transforms: TransformStamped | Iterable[TransformStamped]) -> list[TransformStamped]:

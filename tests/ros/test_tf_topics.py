@@ -19,7 +19,7 @@ yourdfpy = pytest.importorskip("yourdfpy", reason="scripts/bootstrap installs yo
 
 from builtin_interfaces.msg import Time  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
@@ -70,6 +70,18 @@ class Inbox:
 
 def stamp(msg: Any) -> int:
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def test_tf_static_qos_is_tf2s_static_broadcaster_qos() -> None:
+    """tf2_ros.qos.StaticBroadcasterQoS, value for value (``TF_STATIC_QOS`` is ``LATCHED_QOS``: a change to that one
+    must not change what tf2's listeners match)."""
+    q = TF_STATIC_QOS
+    assert (q.history, q.depth, q.reliability, q.durability) == (
+        HistoryPolicy.KEEP_LAST,
+        1,
+        ReliabilityPolicy.RELIABLE,
+        DurabilityPolicy.TRANSIENT_LOCAL,
+    )
 
 
 def test_tf_and_tf_static_match_the_urdf(ros: Any, cam: SimulatedCamera) -> None:
