@@ -42,6 +42,7 @@ from rclpy.executors import (
 )
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import get_default_context
 
 
 def wait_for_running_callbacks(executor: Executor, timeout: float) -> bool:
@@ -214,10 +215,12 @@ class Spinner:
     build (see :func:`spin_once`) does not end the spin, and an exception from a callback is kept in
     :attr:`error` for the owner to raise."""
 
-    def __init__(self, executor: Executor, name: str = "executor") -> None:
+    def __init__(self, executor: Executor, name: str = "executor", on_end: Callable[[], None] | None = None) -> None:
+        """``on_end`` is called in the spin thread when it ends, however it ends (the owner's wake-up)."""
         self.executor = executor
         self.error: BaseException | None = None
         self._stopping = False
+        self._on_end = on_end
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> Spinner:
@@ -239,6 +242,9 @@ class Spinner:
         except BaseException as err:  # noqa: BLE001 - handed to the owner (a callback's exception ends the spin)
             if not self._stopping and ctx.ok():
                 self.error = err
+        finally:
+            if self._on_end is not None:
+                self._on_end()
 
     def alive(self) -> bool:
         return self.thread.is_alive()
@@ -268,11 +274,13 @@ class _Stop(BaseException):
 
 class _Signals:
     """SIGINT/SIGTERM for :func:`run_nodes`: raise while nodes are being built (a constructor may wait on the
-    camera), only set a flag once spinning (the main thread sees it within its 0.1 s wait). An exception
-    raised inside the executor's own code could leave its state or a lock half-done; the flag cannot."""
+    camera), only set a flag once spinning (and :attr:`wake` the main thread). An exception raised inside the
+    executor's own code could leave its state or a lock half-done; the flag cannot."""
 
     def __init__(self) -> None:
         self.stop = threading.Event()
+        #: what the main thread waits on: a stop signal, a spin thread ending or the context shutting down
+        self.wake = threading.Event()
         self.spinning = False
         self.previous: dict[int, Any] = {}
 
@@ -283,6 +291,7 @@ class _Signals:
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.stop.set()
+        self.wake.set()
         if not self.spinning:
             raise _Stop(signum)
 
@@ -307,7 +316,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     Each node has an executor of its own (:func:`executor_for`: a wake-up rebuilds the wait set of one node's
     entities, not of every node in the process, and one node's blocking callbacks never hold up another's),
     spinning in a thread of its own and blocking until there is work (:class:`Spinner`); the main thread only
-    waits for a signal, a spin ending or the context going (a 0.1 s wait that costs nothing measurable).
+    sleeps until a signal, a spin ending or the context going wakes it (no periodic wake-up).
     Shutdown order: the executor stops, callbacks still running finish, every node is destroyed (joining its
     threads) while the context is still valid, and only then the context is shut down. rclpy's own signal
     handler is not installed: it shuts the context down inside the signal, so nodes would be destroyed after it,
@@ -331,12 +340,17 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
             # only, and one node's blocking callbacks never hold up another's
             executor = executor_for(n)
             executor.add_node(n)
-            spinners.append(Spinner(executor, f"executor:{n.get_name()}"))
+            spinners.append(Spinner(executor, f"executor:{n.get_name()}", on_end=signals.wake.set))
+        context = get_default_context()
+        context.on_shutdown(signals.wake.set)
         signals.spinning = True
         for s in spinners:
             s.start()
-        while rclpy.ok() and not signals.stop.is_set() and all(s.alive() for s in spinners):
-            spinners[0].thread.join(0.1)  # wakes this thread only; a signal's flag is seen within 0.1 s
+        # The main thread sleeps until woken (a signal's handler runs here and sets the event; a blocked lock
+        # wait is interrupted for it): no periodic wake-up, which took the GIL from the reader 10 times a second.
+        # The 1 s timeout is only a safety net.
+        while context.ok() and not signals.stop.is_set() and all(s.alive() for s in spinners):
+            signals.wake.wait(1.0)
         for s in spinners:
             if s.error is not None:
                 raise s.error

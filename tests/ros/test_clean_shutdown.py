@@ -120,3 +120,38 @@ def test_sigint_exits_cleanly(ros: Any, camera: SimulatedCamera, tmp_path: Path,
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
+
+
+def main_thread_switches(pid: int) -> int:
+    """Voluntary context switches of a process's main thread so far (each sleep/wake-up is one)."""
+    status = Path(f"/proc/{pid}/task/{pid}/status").read_text(encoding="utf-8")
+    return int(next(line.split()[1] for line in status.splitlines() if line.startswith("voluntary_ctxt_switches")))
+
+
+def test_the_main_thread_sleeps_until_woken_instead_of_polling(camera, tmp_path):
+    """run_nodes' main thread waits for a signal, a spin ending or the context going without a periodic wake-up:
+    a 10 Hz poll took the GIL from the stream reader ten times a second. Its 1 s safety-net timeout allows a
+    few switches; the poll it replaced made about 10 a second."""
+    argv, _ = command("axis_ptz", camera, tmp_path)
+    proc = subprocess.Popen(
+        [str(BIN / argv[0]), *argv[1:]],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
+        start_new_session=True,
+    )
+    try:
+        time.sleep(4.0)  # built and spinning
+        assert proc.poll() is None
+        before = main_thread_switches(proc.pid)
+        time.sleep(4.0)
+        woke = main_thread_switches(proc.pid) - before
+        assert woke <= 8, f"main thread woke {woke} times in 4 s"
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(10) == 0
+        assert time.monotonic() - t0 <= EXIT_WITHIN_S
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
