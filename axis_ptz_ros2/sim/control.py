@@ -10,6 +10,7 @@ starts only after that reply went out: :meth:`ControlReply.start_reboot`.
 from __future__ import annotations
 
 import json
+import math
 import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -39,6 +40,14 @@ def _truthy(v: str) -> bool:
     return v.lower() in ("1", "true", "yes", "on")
 
 
+def _seconds(name: str, value: str) -> float:
+    """A duration argument: a finite number of seconds >= 0 (a refused one gets a 400 with this reason)."""
+    s = float(value)
+    if not math.isfinite(s) or s < 0:
+        raise ValueError(f"{name} must be >= 0 and finite (seconds), got {value!r}")
+    return s
+
+
 def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> ControlReply:
     """Answer a ``/sim/…`` request (``args``: query string pairs, in order)."""
     if path == "/sim/state":
@@ -55,11 +64,11 @@ def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> Cont
             elif k == "reset_counts":
                 cam.reset_counts()
             elif k == "reboot":
-                reboot = float(v)
+                reboot = _seconds(k, v)
             elif k == "reboot_blackhole":
                 reboot_opts["blackhole"] = _truthy(v)
             elif k == "reboot_errors_s":
-                reboot_opts["errors_s"] = float(v)
+                reboot_opts["errors_s"] = _seconds(k, v)
             elif k == "reboot_error":
                 if v not in REBOOT_ERROR_KINDS:
                     raise ValueError(f"reboot_error must be one of {REBOOT_ERROR_KINDS}")

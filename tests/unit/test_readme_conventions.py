@@ -28,8 +28,10 @@ def table_rows() -> dict[str, str]:
 
 def test_topic_and_service_rows_for_tf_and_camera_info_manager() -> None:
     rows = table_rows()
-    assert "tf2_msgs/TFMessage" in rows["/tf"] and "volatile" in rows["/tf"]
-    assert "tf2_msgs/TFMessage" in rows["/tf_static"] and "transient local" in rows["/tf_static"]
+    assert "tf2_msgs/TFMessage" in rows["/tf"]
+    assert "volatile" in rows["/tf"]
+    assert "tf2_msgs/TFMessage" in rows["/tf_static"]
+    assert "transient local" in rows["/tf_static"]
     assert "sensor_msgs/SetCameraInfo" in rows["~/set_camera_info"]
     for name in ("camera_info_url", "camera_name", "frame_prefix", "frame_id"):
         assert name in rows, f"README: no parameter row for {name}"
@@ -53,7 +55,9 @@ def test_the_two_robot_example_names_keys_of_the_shipped_file() -> None:
     doc = yaml.safe_load((ROOT / "config" / "axis_camera.params.yaml").read_text(encoding="utf-8"))
     stream = doc["/**/axis_stream"]["ros__parameters"]
     ptz = doc["/**/axis_ptz"]["ros__parameters"]
-    assert "frame_prefix" in stream and "frame_prefix" in ptz and "camera_name" in stream
+    assert "frame_prefix" in stream
+    assert "frame_prefix" in ptz
+    assert "camera_name" in stream
     example = README[README.index("Two robots, each with its own copy of the file") :][:1200]
     for needle in ("frame_prefix", "camera_name", "namespace:=robot2", "frame_prefix:=robot2/"):
         assert needle in example, needle
