@@ -62,6 +62,21 @@ _NO_SUPPORT = [
 READ_ONLY_PREFIXES = ("Properties.", "Brand.")
 
 
+def _ptz_various(auth: str, *, iris: bool) -> dict[str, str]:
+    """The ``PTZ.Various`` switches both personas report (all on but iris and the lock), and who may view."""
+    return {
+        "PTZ.UserAdv.U1.MoveSpeed": "100",
+        "PTZ.Various.V1.PanEnabled": "true",
+        "PTZ.Various.V1.TiltEnabled": "true",
+        "PTZ.Various.V1.ZoomEnabled": "true",
+        "PTZ.Various.V1.FocusEnabled": "true",
+        "PTZ.Various.V1.IrisEnabled": "true" if iris else "false",
+        "PTZ.Various.V1.HomePresetSet": "true",
+        "PTZ.Various.V1.Locked": "false",
+        "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
+    }
+
+
 def _limit_l1(limits: PtzLimits, zoom: ZoomModel, narrowest: float, floor: int) -> dict[str, str]:
     """The ``PTZ.Limit.L1`` group both personas list: ranges in VAPIX units, field angles in tenths of a degree
     (the narrowest at zoom ``narrowest``, at least ``floor``)."""
@@ -124,15 +139,7 @@ def axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str,
         p[f"PTZ.Support.S1.{cap}"] = "false"
     p.update(
         {
-            "PTZ.UserAdv.U1.MoveSpeed": "100",
-            "PTZ.Various.V1.PanEnabled": "true",
-            "PTZ.Various.V1.TiltEnabled": "true",
-            "PTZ.Various.V1.ZoomEnabled": "true",
-            "PTZ.Various.V1.FocusEnabled": "true",
-            "PTZ.Various.V1.IrisEnabled": "true",
-            "PTZ.Various.V1.HomePresetSet": "true",
-            "PTZ.Various.V1.Locked": "false",
-            "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
+            **_ptz_various(auth, iris=True),
         }
     )
     return p
@@ -278,17 +285,9 @@ def modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, 
         p[f"PTZ.Support.S1.{cap}"] = "true" if on else "false"
     p.update(
         {
-            "PTZ.UserAdv.U1.MoveSpeed": "100",
-            "PTZ.Various.V1.PanEnabled": "true",
-            "PTZ.Various.V1.TiltEnabled": "true",
-            "PTZ.Various.V1.ZoomEnabled": "true",
-            "PTZ.Various.V1.FocusEnabled": "true",
-            "PTZ.Various.V1.IrisEnabled": "false",
-            "PTZ.Various.V1.HomePresetSet": "true",
-            "PTZ.Various.V1.Locked": "false",
+            **_ptz_various(auth, iris=False),
             "PTZ.Various.V1.ProportionalSpeedEnabled": "true",
             "PTZ.Various.V1.MaxProportionalSpeed": "200",
-            "System.BoaProtViewer": "anonymous" if auth == "none" else "password",
         }
     )
     return p
