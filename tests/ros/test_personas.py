@@ -264,7 +264,7 @@ def test_keyboard_teleop_drives_either_camera(ros: Any, cam: SimulatedCamera, co
     top, below = (f"{w}x{h}" for w, h in (listed[-1], listed[-2]))
     pty = Pty()
     try:
-        pty.wait_output(f"video: 15 fps {top} compression 30", timeout=30)
+        pty.wait_output(f"video: {top} at 15 fps, compression 30", timeout=30)
         pty.wait_output("pan   +0.00 deg")
         # the PTZ node has discovered the teleop's relative-move publisher (volatile: a move sent before is lost)
         ros.wait_for(lambda: ptz.count_publishers("/ptz/cmd/relative") > 0)
@@ -272,7 +272,7 @@ def test_keyboard_teleop_drives_either_camera(ros: Any, cam: SimulatedCamera, co
         ros.wait_for(lambda: abs(cam.position()[0] + 5.0) < 0.05 and not cam.state.moving(), timeout=10)
         m = pty.type("g")
         ros.wait_for(lambda: stream.get_parameter("resolution").value == below, timeout=10)
-        pty.wait_output(f"video: 15 fps {below} compression 30", since=m, timeout=15)
+        pty.wait_output(f"video: {below} at 15 fps, compression 30", since=m, timeout=15)
         pty.type("\x03")
         assert pty.proc.wait(10) == 0
     finally:
