@@ -136,3 +136,19 @@ def test_invalid_override_is_a_clear_start_up_error(camera: SimulatedCamera, exe
     assert f"invalid QoS override {name}" in proc.stderr, out
     assert "Traceback" not in out
     assert took < 30, f"took {took:.1f} s to give up"
+
+
+def test_invalid_override_in_a_params_file_is_a_clear_start_up_error(camera: SimulatedCamera, tmp_path: Path) -> None:
+    """The same refusal when the override comes the way launch passes it: nested keys in a parameter file."""
+    path = tmp_path / "bad_qos.yaml"
+    path.write_text(
+        f"/**/axis_stream:\n  ros__parameters:\n    port: {camera.port}\n    qos_overrides:\n"
+        "      /camera_info:\n        publisher:\n          reliability: sometimes\n",
+        encoding="utf-8",
+    )
+    argv = [str(BIN / "axis_stream"), "--ros-args", "--params-file", str(path)]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 2, out
+    assert "invalid QoS override qos_overrides./camera_info.publisher.reliability" in proc.stderr, out
+    assert "Traceback" not in out
