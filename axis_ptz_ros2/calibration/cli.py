@@ -268,10 +268,15 @@ def _relpath(target: Path, start: Path) -> str:
 
 
 def _interrupt_once(signum: int, frame: object) -> None:
-    """SIGINT: stop the capture once; a second signal (under launch, terminal and launch both send one) must not
-    cut the clean-up short, and SIG_IGN also outlives the interpreter's finalisation (no exit by signal)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """SIGINT or SIGTERM (launch's second step, a service manager's stop): stop the capture once; a second signal
+    (under launch, terminal and launch both send one) must not cut the clean-up short, and SIG_IGN also outlives
+    the interpreter's finalisation (no exit by signal)."""
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
     raise KeyboardInterrupt
+
+
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
@@ -322,7 +327,8 @@ def _cmd_capture(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
-    signal.signal(signal.SIGINT, _interrupt_once)
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, _interrupt_once)
     try:
         with open_capture(
             args.namespace,
