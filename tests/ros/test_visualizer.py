@@ -17,26 +17,9 @@ from axis_ptz_ros2.config import MountConfig, save_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, transform_msg
 from axis_ptz_ros2.nodes.visualizer import Visualizer
+from tests.support.panorama_expect import H_TILT, PANO, PTZ_BASE, H, W, expected_pixel  # noqa: E402
 
 pytestmark = pytest.mark.ros
-
-W, H = 1024, 512
-# Nominal configuration (config/mount.yaml, config/robot.yaml, config/axis214.yaml), written out here so the
-# expected pixel is computed independently of the node's code path.
-PTZ_BASE = np.array([-0.214, -0.044, 0.455])
-H_TILT = 0.0687
-D_OPT = 0.03  # optical centre ahead of the tilt axis (config/axis214.yaml head.d_opt)
-PANO = np.array([0.216, -0.044, 0.75])
-
-
-def _expected_pixel(pan: float, tilt: float, depth: float) -> tuple[float, float]:
-    ray = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
-    c = PTZ_BASE + [0.0, 0.0, H_TILT] + D_OPT * ray
-    P = c + depth * ray
-    d = P - PANO
-    az = math.atan2(d[1], d[0])
-    el = math.atan2(d[2], math.hypot(d[0], d[1]))
-    return (0.5 - az / (2 * math.pi)) * W - 0.5, (0.5 - el / math.pi) * H - 0.5
 
 
 def _grey_panorama() -> CompressedImage:
@@ -106,7 +89,7 @@ def test_red_mark_lands_on_the_ptz_look_point_seen_from_the_panorama(ros):
         assert img.shape == (H, W, 3)
         ys, xs = np.nonzero(_mask(img, "red"))
         assert xs.size > 20
-        ex, ey = _expected_pixel(pan, tilt, depth)
+        ex, ey = expected_pixel(pan, tilt, depth)
         assert abs(xs.mean() - ex) < 1.5, (xs.mean(), ex)
         assert abs(ys.mean() - ey) < 1.5, (ys.mean(), ey)
         # The naive thesis mapping (PTZ pan/tilt as panorama az/el) would put it elsewhere at 1 m.
@@ -159,7 +142,7 @@ def test_latched_panorama_transform_is_used(ros):
     rig.subscribe()
     img = rig.frame_after(lambda: (rig.pano_pub.publish(pano), rig.state_pub.publish(_state(0.0, 0.0))))
     ys, xs = np.nonzero(_mask(img, "red"))
-    ex, _ = _expected_pixel(0.0, 0.0, 5.0)
+    ex, _ = expected_pixel(0.0, 0.0, 5.0)
     shifted = ex + W / 4  # azimuth -90 deg in the yawed panorama = a quarter width to the right
     assert abs(xs.mean() - shifted) < 1.5
 
@@ -172,10 +155,10 @@ def test_auto_depth_uses_the_ground_when_there_is_no_laser(ros):
     img = rig.frame_after(lambda: (rig.pano_pub.publish(pano), rig.state_pub.publish(_state(pan, tilt))))
     ys, xs = np.nonzero(_mask(img, "red"))
     ground = (PTZ_BASE[2] + H_TILT) / math.sin(-tilt)  # range along the axis to z = 0
-    ex, ey = _expected_pixel(pan, tilt, ground)
+    ex, ey = expected_pixel(pan, tilt, ground)
     assert abs(xs.mean() - ex) < 1.5
     assert abs(ys.mean() - ey) < 1.5
-    far_x, far_y = _expected_pixel(pan, tilt, 50.0)
+    far_x, far_y = expected_pixel(pan, tilt, 50.0)
     assert math.hypot(far_x - ex, far_y - ey) > 10  # the fixed depth would be visibly elsewhere
 
 
@@ -194,6 +177,6 @@ def test_state_is_in_joint_coordinates_so_mount_offsets_are_not_added_again(ros,
     img = rig.frame_after(lambda: (rig.pano_pub.publish(pano), rig.state_pub.publish(_state(pan, tilt))))
     ys, xs = np.nonzero(_mask(img, "red"))
     assert xs.size > 20
-    ex, ey = _expected_pixel(pan, tilt, 5.0)
+    ex, ey = expected_pixel(pan, tilt, 5.0)
     assert abs(xs.mean() - ex) < 1.5, (xs.mean(), ex)
     assert abs(ys.mean() - ey) < 1.5, (ys.mean(), ey)

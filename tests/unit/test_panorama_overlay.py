@@ -17,26 +17,11 @@ from axis_ptz_ros2.panorama_overlay import (
     footprint_polylines,
     intrinsics_from_state,
 )
+from tests.support.panorama_expect import PANO, H, W, expected_pixel  # noqa: E402
 
 pytestmark = pytest.mark.unit
 
-W, H = 1024, 512
-# Nominal configuration (config/mount.yaml, config/robot.yaml, config/axis214.yaml), written out here so the
-# expected pixel is computed independently of the module's code path.
-PTZ_BASE = np.array([-0.214, -0.044, 0.455])
-H_TILT = 0.0687
-D_OPT = 0.03  # optical centre ahead of the tilt axis (config/axis214.yaml head.d_opt)
-PANO = np.array([0.216, -0.044, 0.75])
 HFOV = math.radians(47.98)
-
-
-def _expected_pixel(pan: float, tilt: float, depth: float, pano=PANO) -> tuple[float, float]:
-    ray = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
-    c = PTZ_BASE + [0.0, 0.0, H_TILT] + D_OPT * ray
-    d = c + depth * ray - pano
-    az = math.atan2(d[1], d[0])
-    el = math.atan2(d[2], math.hypot(d[0], d[1]))
-    return (0.5 - az / (2 * math.pi)) * W - 0.5, (0.5 - el / math.pi) * H - 0.5
 
 
 def _state(pan: float = 0.0, tilt: float = 0.0, zoom: float = 1.0, hfov: float = HFOV, vfov: float | None = None):
@@ -163,7 +148,7 @@ def test_the_red_mark_lands_on_the_look_point_seen_from_the_panorama(pan, tilt, 
     assert np.array_equal(GREY, np.full((H, W, 3), 128, np.uint8))  # the input is not drawn on
     ys, xs = np.nonzero(_mask(img, "red"))
     assert xs.size > 20
-    ex, ey = _expected_pixel(pan, tilt, depth)
+    ex, ey = expected_pixel(pan, tilt, depth)
     assert abs(xs.mean() - ex) < 1.5, (xs.mean(), ex)
     assert abs(ys.mean() - ey) < 1.5, (ys.mean(), ey)
     assert ov.last_look_pixel == pytest.approx((ex, ey), abs=0.05)
@@ -210,4 +195,4 @@ def test_the_footprint_wraps_at_the_seam_and_the_panorama_pose_is_used():
     yawed.panorama_pose(Transform(rot_z(math.pi / 2), PANO.copy()))
     yawed.ptz_state(_state(0.0, 0.0))
     xs = np.nonzero(_mask(yawed.draw(GREY, OverlaySettings(depth=5.0)), "red"))[1]
-    assert abs(xs.mean() - (_expected_pixel(0.0, 0.0, 5.0)[0] + W / 4)) < 1.5
+    assert abs(xs.mean() - (expected_pixel(0.0, 0.0, 5.0)[0] + W / 4)) < 1.5
