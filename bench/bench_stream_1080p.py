@@ -120,7 +120,7 @@ def main() -> int:
         mini = start_minimal(port)
         procs.append(mini)
         load_min = measure_load(sub, mini, "/minimal", window)
-        side = measure_cpu_side_by_side(sub, ours, mini, window, repeats=3)
+        side = measure_cpu_side_by_side(sub, ours, mini, window, repeats=5)
         ours.stop()
         mini.stop()
         print("  pipeline    | frames | fps  | latency median | p99      | CPU %core | RSS MB")
