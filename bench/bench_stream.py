@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import re
 import signal
@@ -431,6 +432,66 @@ def side_by_side_median(side: list[tuple[float, float]]) -> tuple[float, float, 
     return o, m, o / m
 
 
+SHARED_WINDOWS = "3 shared windows each, a simulator per pipeline"
+
+
+@dataclass
+class CpuComparison:
+    """:func:`measure_cpu_both_orders`: the shared windows of each start order and the judged ratio."""
+
+    ours_first: list[tuple[float, float]]
+    minimal_first: list[tuple[float, float]]
+
+    @property
+    def ratio(self) -> float:
+        """Geometric mean of the two orders' median ratios: a cost of being started first cancels out."""
+        return math.sqrt(side_by_side_median(self.ours_first)[2] * side_by_side_median(self.minimal_first)[2])
+
+    @property
+    def cpu(self) -> tuple[float, float]:
+        """(ours, minimal) % of a core, the mean of both orders' median windows."""
+        a, b = side_by_side_median(self.ours_first), side_by_side_median(self.minimal_first)
+        return (a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0
+
+    def describe(self) -> str:
+        def one(side: list[tuple[float, float]]) -> str:
+            return ", ".join(f"{o:.2f} vs {m:.2f} % ({o / m:.2f}x)" for o, m in side)
+
+        return f"axis_stream started first: {one(self.ours_first)}; minimal first: {one(self.minimal_first)}"
+
+
+def measure_cpu_both_orders(
+    sub: Subscriber,
+    start_ours_fn: Callable[[], Proc],
+    start_minimal_fn: Callable[[], Proc],
+    seconds: float,
+    repeats: int = 3,
+) -> CpuComparison:
+    """The judged CPU comparison: each pipeline on a simulator of its own (the caller's starters), side by side
+    over shared windows (:func:`measure_cpu_side_by_side`), once started ours-first and once minimal-first.
+
+    Two *identical* pipelines side by side do not cost the same: the one started first cost 16 % more on one
+    simulator and 6 % more with one simulator each (two minimal pipelines, 30 s windows of the scheduler's run
+    time, 8868dbf). With one fixed order that bias is the size of the target's margin, so both orders are
+    measured and their ratios averaged (geometric mean)."""
+    rounds: list[list[tuple[float, float]]] = []
+    for ours_first in (True, False):
+        procs: list[Proc] = []
+        try:
+            for which in ("ours", "minimal") if ours_first else ("minimal", "ours"):
+                procs.append(start_ours_fn() if which == "ours" else start_minimal_fn())
+                if which == "ours":
+                    sub.call_ready("/ours/video/set_params")
+                time.sleep(1.0)
+            ours = procs[0] if ours_first else procs[1]
+            mini = procs[1] if ours_first else procs[0]
+            rounds.append(measure_cpu_side_by_side(sub, ours, mini, seconds, repeats))
+        finally:
+            for proc in procs:
+                proc.stop()
+    return CpuComparison(rounds[0], rounds[1])
+
+
 def measure_ingest(sub: Subscriber, proc: Proc, sim_port: int, ns: str, seconds: float) -> tuple[float, float]:
     """(sim frames/s with no subscriber, subscriber frames/s with one)."""
     time.sleep(1.5)
@@ -628,8 +689,15 @@ def main() -> int:
         mini = start_minimal(port)
         procs.append(mini)
         load_min = measure_load(sub, mini, "/minimal", window)
-        side = measure_cpu_side_by_side(sub, ours, mini, window, repeats=5)
         mini.stop()
+        ours.stop()
+        sim_b, port_b = start_sim()  # the minimal pipeline's own simulator for the judged comparison
+        procs.append(sim_b)
+        comparison = measure_cpu_both_orders(sub, lambda: start_ours(port), lambda: start_minimal(port_b), window)
+        sim_b.stop()
+        ours = start_ours(port)
+        procs.append(ours)
+        sub.call_ready("/ours/video/set_params")
         print(
             "  pipeline    | frames | camera_info | fps  | latency median | p99     | CPU %core | RSS MB"
             " | CPU, 0 subscribers"
@@ -652,15 +720,15 @@ def main() -> int:
             f"(p99 {load_ours.lat_p99:.2f} vs {load_min.lat_p99:.2f} ms)",
         )
         print(
-            "  CPU side by side (both streaming to a subscriber, the same windows): "
-            + ", ".join(f"{o:.2f} vs {m:.2f} % ({o / m:.2f}x)" for o, m in side)
+            "  CPU side by side (a simulator each, both streaming to a subscriber, the same windows): "
+            + comparison.describe()
         )
-        cpu_ours, cpu_min, cpu_ratio = side_by_side_median(side)
+        (cpu_ours, cpu_min), cpu_ratio = comparison.cpu, comparison.ratio
         verdict(
             "CPU at 30 fps <= 1.2x minimal",
             cpu_ratio <= 1.2,
-            f"{cpu_ours:.2f} vs {cpu_min:.2f} % of a core = {cpu_ratio:.2f}x (median of {len(side)} shared windows; "
-            f"separate windows above: {load_ours.cpu:.1f} vs {load_min.cpu:.1f} %)",
+            f"{cpu_ours:.2f} vs {cpu_min:.2f} % of a core = {cpu_ratio:.2f}x (geometric mean of both start orders' "
+            f"medians; separate windows above: {load_ours.cpu:.1f} vs {load_min.cpu:.1f} %)",
         )
         verdict(
             "CPU with zero subscribers ~ 0 (< 1 % core)",
@@ -776,7 +844,7 @@ def main() -> int:
         row(
             "stream node CPU at 30 fps / with no subscriber",
             f"{cpu_ours:.1f} % / {lo.cpu_idle:.2f} % of a core (minimal {cpu_min:.1f} % / {lm.cpu_idle:.1f} %; "
-            f"{cpu_ratio:.2f}×, median of {len(side)} shared windows)",
+            f"{cpu_ratio:.2f}×, both start orders, {SHARED_WINDOWS}",
             "≤ 1.2× minimal / ≈ 0",
             ok["CPU at 30 fps <= 1.2x minimal"] and ok["CPU with zero subscribers ~ 0 (< 1 % core)"],
         )
