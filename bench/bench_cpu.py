@@ -1,5 +1,7 @@
-"""What the driver's processes cost, side by side in one run: CPU of each process (utime + stime of all its
-threads from ``/proc/<pid>/stat``) over the same fixed windows, so every process sees the same machine load.
+"""What the driver's processes cost, side by side in one run: CPU of each process (the scheduler's run time of
+all its threads, ns) over the same fixed windows, so every process sees the same machine load; sections (1) and
+(2) run twice, the processes started in one order and then the reverse, and report the mean (the process started
+first costs more: ``bench_stream.measure_cpu_both_orders``).
 
 Processes are started as the robot would (console scripts, each in its own namespace) against simulated cameras
 (``axis_camera_sim`` subprocesses); this process is the only subscriber.
@@ -29,7 +31,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -211,23 +213,43 @@ class Composition:
     fps: dict[str, float]
 
 
-def composition(
+def composition_both_orders(
     sub: Subscriber, label: str, sim_args: list[str], resolution: str, model: str, secs: float
 ) -> Composition:
-    """Section (1)/(2): every arrangement of one camera's driver, idle then streaming, side by side."""
+    """:func:`composition` with the processes started in one order, then in the reverse one; every figure is the
+    mean of the two. Identical pipelines side by side do not cost the same: the one started first cost 6-16 %
+    more (bench_stream.measure_cpu_both_orders), a bias the size of the targets' margins."""
+    a = composition(sub, label, sim_args, resolution, model, secs, reverse=False)
+    b = composition(sub, label, sim_args, resolution, model, secs, reverse=True)
+
+    def mean(x: Window, y: Window) -> Window:
+        cpu = {n: (x.cpu[n] + y.cpu[n]) / 2.0 for n in x.cpu}
+        return Window(cpu, x.seconds + y.seconds, (x.machine_busy + y.machine_busy) / 2.0, y.loadavg)
+
+    fps = {ns: (a.fps[ns] + b.fps[ns]) / 2.0 for ns in a.fps}
+    return Composition(mean(a.idle, b.idle), mean(a.streaming, b.streaming), fps)
+
+
+def composition(
+    sub: Subscriber, label: str, sim_args: list[str], resolution: str, model: str, secs: float, reverse: bool = False
+) -> Composition:
+    """Section (1)/(2): every arrangement of one camera's driver, idle then streaming, side by side (started in
+    the order listed, or ``reverse``)."""
     procs: list[Proc] = []
     try:
         sim, port = start_sim(*sim_args, name=f"sim {label}")
         procs.append(sim)
-        print(f"simulator ({label}) on port {port}", flush=True)
-        procs += [
-            start_exe("axis_stream", "/alone_s", port, resolution, 30, model, "axis_stream"),
-            start_exe("axis_ptz", "/alone_p", port, resolution, 30, model, "axis_ptz"),
-            start_exe("axis_camera", "/cam", port, resolution, 30, model, "axis_camera"),
-            start_exe("axis_stream", "/pair", port, resolution, 30, model, "pair: axis_stream"),
-            start_exe("axis_ptz", "/pair", port, resolution, 30, model, "pair: axis_ptz"),
-            start_minimal(port, "/minimal", resolution, 30),
+        print(f"simulator ({label}) on port {port}; processes started {'last to first' if reverse else 'in order'}",
+              flush=True)  # fmt: skip
+        starters: list[Callable[[], Proc]] = [
+            lambda: start_exe("axis_stream", "/alone_s", port, resolution, 30, model, "axis_stream"),
+            lambda: start_exe("axis_ptz", "/alone_p", port, resolution, 30, model, "axis_ptz"),
+            lambda: start_exe("axis_camera", "/cam", port, resolution, 30, model, "axis_camera"),
+            lambda: start_exe("axis_stream", "/pair", port, resolution, 30, model, "pair: axis_stream"),
+            lambda: start_exe("axis_ptz", "/pair", port, resolution, 30, model, "pair: axis_ptz"),
+            lambda: start_minimal(port, "/minimal", resolution, 30),
         ]
+        procs += [start() for start in (reversed(starters) if reverse else starters)]
         wait_up(sub, ("/alone_s", "/cam", "/pair"), ("/alone_p", "/cam", "/pair"))
         measured = [p for p in procs if p is not sim]
         time.sleep(3.0)  # start-up work done (camera discovery, DDS discovery)
@@ -434,7 +456,7 @@ def main() -> int:
     try:
         if "704" in only:
             print("\n== (1) 704x576 (Axis 214 persona): idle, and streaming 30 fps to one subscriber", flush=True)
-            c = composition(sub, "704x576", [], "704x576", MODEL_214, secs)
+            c = composition_both_orders(sub, "704x576", [], "704x576", MODEL_214, secs)
             ok_i, ok_p, ok_c, ok_s = report_composition("704x576", c, "704x576")
             i, s = c.idle.cpu, c.streaming.cpu
             pair_i = i["pair: axis_stream"] + i["pair: axis_ptz"]
@@ -459,7 +481,7 @@ def main() -> int:
         if "1080" in only:
             print("\n== (2) 1920x1080 (current-Axis persona, plain HTTP): idle, and streaming 30 fps", flush=True)
             sim_args = ["--model", "q6075", "--no-https", "--auth", "none"]
-            c = composition(sub, "1920x1080", sim_args, "1920x1080", "", secs)
+            c = composition_both_orders(sub, "1920x1080", sim_args, "1920x1080", "", secs)
             _, _, ok_c, ok_s = report_composition("1920x1080", c, "1920x1080")
             s = c.streaming.cpu
             base = s["minimal/minimal"] + s["axis_ptz"]
