@@ -64,6 +64,12 @@ from bench_link import LineReader, pct  # noqa: E402  (the two-host bench's help
 SIM_PORT = 8080
 NS = 1_000_000_000
 W, H = 704, 576
+#: The 214 is a PAL camera: asked for 704x576 @ 30 it serves 25 pictures/s (vapix.md; the simulator does the
+#: same). The issue's ">= 29 fps" was written against a simulator that served 30; a viewer cannot see more
+#: pictures than the camera takes, so the frame-rate target is 29 fps or 97 % of the camera's rate, whichever
+#: is lower, and the README row says which.
+CAMERA_FPS = 25.0
+FPS_TARGET = min(29.0, 0.97 * CAMERA_FPS)
 ASK = ["-p", "fps:=30", "-p", f"resolution:={W}x{H}"]
 SETTLE_S = 10.0  # the first seconds of a measurement (the MJPEG ladder finding its rate) are reported apart
 PSNR_EVERY = 3
@@ -444,7 +450,7 @@ def print_table(results: list[dict[str, Any]], seconds: float) -> None:
     print(f"2 Mbit/s, 2 % loss each way, camera still, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
     row("  pictures shown [fps]", "{:.1f}", "fps")
     row("  H.264 access units sent by the stream node [/s]", "{:.1f}", "sent_fps")
-    row(f"  of which {W}x{H} [fps]", "{:.1f}", "fps_full", f">= 29 fps of {W}x{H}")
+    row(f"  of which {W}x{H} [fps]", "{:.1f}", "fps_full", f">= {FPS_TARGET:.2f} fps of {W}x{H} (29; PAL camera)")
     row("  frame age p50 [ms]", "{:.0f}", "age_p50")
     row("  frame age p95 [ms]", "{:.0f}", "age_p95", "<= 100 ms (with feedback)")
     row("  frame age max [ms]", "{:.0f}", "age_max")
@@ -567,7 +573,9 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
     )
     m, h = results.get("mjpeg"), results.get("h264")
     if h:
-        ok = h["fps_full"] >= 29 and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
+        ok = (
+            h["fps_full"] >= FPS_TARGET and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
+        )
         mj = ""
         if m:
             mj = (
@@ -579,7 +587,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
             "(vs the camera's view before noise and compression, still)",
             f"{h['fps_full']:.1f} fps (of {h['sent_fps']:.1f} sent) / {h['age_p95']:.0f} ms / "
             f"{h['psnr_soft_p50']:.1f}, {h['psnr_soft_p5']:.1f} dB{mj}",
-            "≥ 29 fps / ≤ 100 ms / ≥ 37, ≥ 34 dB",
+            f"≥ 29 fps (a PAL camera: ≥ {FPS_TARGET:.2f} of its {CAMERA_FPS:.0f}) / ≤ 100 ms / ≥ 37, ≥ 34 dB",
             bool(ok),
         )
     n = results.get("h264-nofb")
@@ -587,8 +595,8 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264, viewer without feedback: {W}x{H} fps / PSNR median",
             f"{n['fps_full']:.1f} fps (of {n['sent_fps']:.1f} sent) / {n['psnr_soft_p50']:.1f} dB",
-            "≥ 29 fps / ≥ 36 dB",
-            bool(n["fps_full"] >= 29 and n["psnr_soft_p50"] >= 36),
+            f"≥ 29 fps (a PAL camera: ≥ {FPS_TARGET:.2f} of its {CAMERA_FPS:.0f}) / ≥ 36 dB",
+            bool(n["fps_full"] >= FPS_TARGET and n["psnr_soft_p50"] >= 36),
         )
         row(
             f"two hosts, 2 Mbit/s 2 % loss, H.264: first picture after the viewer starts, worst of {n['starts']}",
@@ -649,9 +657,11 @@ def main() -> int:
     h, n = by.get("h264"), by.get("h264-nofb")
     ok = True
     if h:
-        ok &= h["fps_full"] >= 29 and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
+        ok &= (
+            h["fps_full"] >= FPS_TARGET and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
+        )
     if n:
-        ok &= n["fps_full"] >= 29 and n["psnr_soft_p50"] >= 36 and n["first_s"] <= 2
+        ok &= n["fps_full"] >= FPS_TARGET and n["psnr_soft_p50"] >= 36 and n["first_s"] <= 2
     print(f"H.264: {'all targets met' if ok else 'some targets missed'}")
     return 0 if ok else 1
 
