@@ -87,6 +87,7 @@ class FeedbackPublisher:
         self._since: float | None = None
         self._first_rx: float | None = None  # the first frame since watching began
         self._errors: deque[tuple[float, int]] = deque()
+        self.lost = 0  # access units that never arrived, a running count (H.264: set by the node)
         self._last_urgent = -1e18
         self.reports = 0
 
@@ -147,6 +148,7 @@ class FeedbackPublisher:
         msg.delay_min_s = float(r.delay_min_s)
         msg.gap_s = float(min(r.gap_s, now - since))
         msg.decode_errors = sum(n for _t, n in self._errors)
+        msg.lost = self.lost
         self._pub.publish(msg)
         self.reports += 1
 
@@ -179,6 +181,7 @@ class LinkMonitorNode(Node):
         rx = time.time()  # the arrival: the decoding's time is no delay on the link
         data = bytes(msg.data)
         shown = self.receiver.feed(data, int(msg.pts)) is not None
+        self.feedback.lost = self.receiver.stats.lost
         self.feedback.add(msg, len(data), rx)
         self.feedback.add_errors(self.receiver.take_unusable(), urgent=self._showing and not shown)
         self._showing = shown

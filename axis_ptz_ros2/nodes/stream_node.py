@@ -284,6 +284,7 @@ class StreamNode(Node):
             delay_min_s=float(msg.delay_min_s),
             gap_s=float(msg.gap_s),
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
+            lost=int(msg.lost),
         )
         self._h264.on_decode_errors(str(msg.consumer), int(msg.decode_errors))
         judgement = self._video.feedback(report, self._subscribed)

@@ -475,6 +475,10 @@ def test_link_monitor_reports_a_loss_at_once_not_at_its_period(ros: RosHarness, 
     first_loss = next(tr for tr, m in reports if m.decode_errors > 0)
     assert first_loss - t < 1.0, f"loss reported {first_loss - t:.2f} s after it (period 5 s)"
     assert receiver.stats.lost == 1
+    # ``lost`` (the running count of access units that never arrived: the stream node's congestion signal) says
+    # the same; the reports before it said 0
+    assert all(m.lost == 0 for _t, m in reports if m.decode_errors == 0)
+    assert next(m for _t, m in reports if m.decode_errors > 0).lost == 1
 
 
 def test_link_monitor_reports_no_decode_errors_on_a_clean_stream(ros: RosHarness, camera: SimulatedCamera) -> None:
@@ -487,6 +491,7 @@ def test_link_monitor_reports_no_decode_errors_on_a_clean_stream(ros: RosHarness
     ros.wait_for(lambda: sum(r.frames > 10 for r in reports) >= 3, timeout=10)
     steady = [r for r in reports if r.frames > 10][-2:]
     assert all(r.decode_errors == 0 for r in steady), [r.decode_errors for r in steady]
+    assert all(r.lost == 0 for r in reports), [r.lost for r in reports]
 
 
 def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
@@ -530,6 +535,44 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     assert kbps_after > 1.25 * kbps_before, (kbps_before, kbps_after)
     assert node._video.h264_settings().bitrate_kbps <= 600  # a clear link holds at the ceiling
     assert video_args(camera.request_counts.video_log[-1].query)["compression"] == "0"  # the camera's ask: as is
+
+
+def test_access_units_lost_on_the_way_lower_the_bitrate_although_delay_and_bytes_read_clear(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """A consumer whose running ``lost`` count grows (access units that never arrived: the writer dropped them from
+    its history before their repair finished, i.e. a queue on the link) is congested even while its delay and the
+    bytes it receives look clean: the encoder's bitrate comes down at once, and a steady count lets it climb again."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=600)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)  # the consumer's image subscription, discovered by the stream node
+    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
+    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
+    consumer = probe.get_fully_qualified_name()
+
+    def report(lost: int) -> None:
+        sent = node._video._h264_meter.rate(time.monotonic())  # what the node sent: every byte arrived, no queue
+        pub.publish(
+            LinkFeedback(
+                consumer=consumer, window_s=1.0, frames=max(int(sent.fps), 10), fps=sent.fps, kbps=sent.kbps,
+                delay_p95_s=0.02, delay_min_s=0.01, gap_s=0.02, lost=lost,
+            )
+        )  # fmt: skip
+
+    seen: list[int] = []
+
+    def climbed() -> bool:
+        report(3)  # a steady count (its first value: the consumer's join) is no news
+        time.sleep(0.3)
+        seen.append(node._video.h264_settings().bitrate_kbps)
+        return seen[-1] > 400
+
+    ros.wait_for(climbed, timeout=20)
+    high = node._video.h264_settings().bitrate_kbps
+    assert node._video.state().link_state == "clear"
+    report(5)  # two more lost
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps < high, timeout=3)
+    assert node._video.state().link_state == "congested"
 
 
 def test_the_ceiling_is_refused_below_the_start_with_the_reason(ros: RosHarness, camera: SimulatedCamera) -> None:

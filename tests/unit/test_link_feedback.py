@@ -376,3 +376,36 @@ def test_h264_adapter_takes_repair_tails_for_no_congestion_but_a_byte_shortfall_
     assert h2.report(10.0, _report(fps=30.0, kbps=860.0, queue=0.7, frames=60), 30, 860).state == "congested"
     # and a clean link with some repairs grows the budget back
     assert h264.report(40.0, _report(fps=30.0, kbps=860.0, queue=0.1, frames=60), 30, 860).state == "clear"
+
+
+def test_h264_adapter_takes_access_units_lost_on_the_way_for_congestion_and_returns_to_the_clean_rate():
+    """A reliable writer repairs every packet a lossy link drops unless a queue delays the repair past its history:
+    an access unit that never arrived (the consumer's running ``lost`` count grew) means the last step up was
+    too far, even while delay and delivery still read clear. Its growth is judged, not the count: a consumer that
+    joined with losses behind it, or whose count restarted, is no congestion."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    def rep(lost: int, kbps: float = 1000.0, who: str = "op") -> FeedbackReport:
+        r = _report(fps=25.0, kbps=kbps, queue=0.05, frames=50, who=who)
+        return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
+
+    a = LinkAdapter(h264_adapter_config())
+    assert a.report(10.0, rep(7), sent_fps=25, sent_kbps=1000, step_up_kbps=1667, grow_from_kbps=1000).state == "clear"
+    assert a.budget_kbps == pytest.approx(1200.0)  # the first report's 7 are its join, not news: the budget climbs
+    assert a.report(12.5, rep(7, 1200), 25, 1200, 1667, 1000).state == "clear"  # nothing new lost
+    assert a.budget_kbps == pytest.approx(1440.0)
+    d = a.report(15.0, rep(8, 1430), 25, 1440, 1667, 1000)  # one more lost: the step to 1440 was too far
+    assert d.state == "congested"  # by the loss alone:
+    assert d.delivery > 0.99
+    assert d.queue_delay_s < 0.25
+    # back to a rate received cleanly (1.15 x the 1000 sent at 10 s; 1200 is not under 0.8 x the 1440 that lost)
+    assert a.budget_kbps == pytest.approx(1.15 * 1000.0)
+    # a steady count is no news; a count that went down (the consumer restarted) is none either
+    assert a.report(17.0, rep(8, 1150), 25, 1150, 1667, 1000).state == "clear"
+    assert a.report(17.5, rep(0, 1150), 25, 1150, 1667, 1000).state == "clear"
+    # JPEG consumers report 0 and MJPEG's adapter does not judge losses
+    jpeg = LinkAdapter(AdapterConfig())
+    jpeg.report(10.0, rep(0), 25, 1000)
+    assert jpeg.report(11.0, rep(50), 25, 1000).state != "congested"
+    with pytest.raises(ValueError, match="lost_congested"):
+        AdapterConfig(lost_congested=-1)
