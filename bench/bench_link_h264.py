@@ -195,6 +195,10 @@ def viewer(codec: str, feedback: bool, refdir: str) -> int:
             def take_unusable(self) -> int:
                 return int(self.inner.take_unusable())
 
+            @property
+            def stats(self) -> Any:
+                return self.inner.stats
+
         lm.FeedbackPublisher = Recording  # type: ignore[misc]
         node = lm.LinkMonitorNode(parameter_overrides=[Parameter("codec", value=codec)])
         if node.receiver is not None:
