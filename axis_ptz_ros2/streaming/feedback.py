@@ -256,6 +256,12 @@ class LinkAdapter:
                 good = [k for t, k in self._good if now - t <= cfg.good_memory_s and k < cfg.decrease * sent_kbps]
                 if good:  # a step up congested: the rate before it was received cleanly, go back there
                     new = max(new, min(cfg.good_margin * max(good), cfg.decrease * sent_kbps))
+                if 0 < grow_from_kbps < current:
+                    # a probe past the start (H.264 above h264_bitrate_kbps) congested: back towards the start, the
+                    # rate that runs without any feedback, one ``decrease`` step at most, not to what the swamped link
+                    # delivered meanwhile (weak-link bench at 4d580ab: a probe to 1300 kbit/s fell to 280-600 kbit/s
+                    # for 10 s); under the start, the received rate decides again
+                    new = max(new, min(grow_from_kbps, cfg.decrease * current))
                 self._good.clear()
                 self._budget = max(new, cfg.min_kbps)
                 # remember the rate that congested; a new try soon after that congests again backs off longer
@@ -331,11 +337,17 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
     """The adapter's tuning for H.264 (see the module docstring): delivery by bytes, a queue only when the
     delay's p95 stands 500 ms over its minimum (clear under 250 ms: on 2 Mbit/s with 2 % loss and a loaded
     2-core robot the repair tails alone read 100-190 ms at 100-250 kbit/s, where no queue can stand), and an
-    access unit that never arrived is congestion (``lost_congested`` 1): on a lossy link a reliable writer repairs
-    every lost packet unless a queue delays the repair past its history (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`,
-    four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %: no access unit lost in 30 s at a fixed 1000 kbit/s;
+    access unit that never arrived is congestion (``lost_congested`` 1; a probe past the start that congests goes
+    back towards the start, and the next decrease waits for a report window of its own): on a lossy link a
+    reliable writer repairs every lost packet unless a queue delays the repair past its history
+    (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`, four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %: no access unit lost in 30 s at a fixed 1000 kbit/s;
     climbing on delay alone, the budget reached 1300-1400 kbit/s, lost 45 access units in 21 losses (each costing
     the pictures to the next IDR) and fell to 280-500 kbit/s before climbing again."""
     return AdapterConfig(
-        delay_high_s=0.5, delay_low_s=0.25, delivery_by_bytes=True, release_s=release_s, lost_congested=1
+        delay_high_s=0.5,
+        delay_low_s=0.25,
+        delivery_by_bytes=True,
+        release_s=release_s,
+        lost_congested=1,
+        decrease_hold_s=2.5,  # past a report window (2 s): the next judgement no longer holds the congested rate
     )

@@ -111,15 +111,18 @@ def test_a_sender_that_can_go_past_its_start_gets_a_budget_from_a_clear_link_one
         budgets.append(round(a.budget_kbps))
     assert budgets[0] == 1200
     assert budgets == [1200] * 4 + [1440] * 4 + [1728] * 4
-    # congested: back under the start, then clear again: no hold under the start
-    a.report(
-        7.0, _report(fps=25.0, frames=50, kbps=500.0, queue=0.8), sent_fps=25, sent_kbps=1000.0, grow_from_kbps=1000
-    )
+    # congested: the probe goes back towards the start (here to a rate received cleanly: 1.15 x 1000); congested
+    # again there: a step under it; then clear again: no hold under the start
+    swamped = _report(fps=25.0, frames=50, kbps=500.0, queue=0.8)
+    a.report(7.0, swamped, sent_fps=25, sent_kbps=1500.0, grow_from_kbps=1000)
+    assert a.budget_kbps == pytest.approx(1150.0)
+    a.report(9.0, swamped, sent_fps=25, sent_kbps=1000.0, grow_from_kbps=1000)
     low = a.budget_kbps
     assert low < 1000
-    a.report(9.0, _report(fps=25.0, frames=50, kbps=500.0), sent_fps=25, sent_kbps=500.0, grow_from_kbps=1000)
+    # (after the probe back-off, which doubled to 10 s: the second congestion came within 5 s of the first)
+    a.report(20.0, _report(fps=25.0, frames=50, kbps=low), sent_fps=25, sent_kbps=low, grow_from_kbps=1000)
     assert a.budget_kbps == pytest.approx(1.2 * low)
-    a.report(9.5, _report(fps=25.0, frames=50, kbps=500.0), sent_fps=25, sent_kbps=500.0, grow_from_kbps=1000)
+    a.report(20.5, _report(fps=25.0, frames=50, kbps=low), sent_fps=25, sent_kbps=low, grow_from_kbps=1000)
     assert a.budget_kbps == pytest.approx(1.44 * low)
 
 
@@ -409,3 +412,29 @@ def test_h264_adapter_takes_access_units_lost_on_the_way_for_congestion_and_retu
     assert jpeg.report(11.0, rep(50), 25, 1000).state != "congested"
     with pytest.raises(ValueError, match="lost_congested"):
         AdapterConfig(lost_congested=-1)
+
+
+def test_h264_probe_past_the_start_that_congests_returns_to_the_start_not_to_what_the_swamped_link_delivered():
+    """Above ``h264_bitrate_kbps`` the budget probes; when a probe congests, what the consumer received meanwhile
+    (whole access units of a swamped link) reads far below the link's capacity. The budget goes back to the start
+    (the rate that runs without feedback); below the start, the received rate decides as before."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    a = LinkAdapter(h264_adapter_config())
+    now, sent = 10.0, 1000.0
+    while a.budget_kbps < 1400.0:  # clear reports: the probe climbs past the start (1000)
+        a.report(now, _report(fps=25.0, kbps=sent, queue=0.05, frames=50), 25, sent, 1667, 1000)
+        sent = max(sent, 0.9 * a.budget_kbps)
+        now += 2.5
+    swamped = _report(fps=12.0, kbps=450.0, queue=0.7, frames=24)  # the queue and the losses of the probe
+    assert a.report(now, swamped, 25, 1300, 1667, 1000).state == "congested"
+    back = a.budget_kbps  # the start, or a rate received cleanly on the way up if that is higher
+    assert 1000.0 <= back <= 0.8 * 1300.0  # not 0.8 x 450
+    assert a.report(now + 1.0, swamped, 25, 1000, 1667, 1000).state == "congested"
+    assert a.budget_kbps == back  # within the hold (a report window): no second decrease
+    # a link that cannot carry the start either: one decrease step at a time above the start, then by what it
+    # delivers
+    assert a.report(now + 3.0, swamped, 25, 1000, 1667, 1000).state == "congested"
+    assert a.budget_kbps == pytest.approx(max(0.8 * 450.0, min(1000.0, 0.8 * back)))
+    assert a.report(now + 6.0, swamped, 25, 1000, 1667, 1000).state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 450.0)
