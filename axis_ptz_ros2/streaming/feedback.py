@@ -340,9 +340,10 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
     access unit that never arrived is congestion (``lost_congested`` 1; a probe past the start that congests goes
     back towards the start, and the next decrease waits for a report window of its own): on a lossy link a
     reliable writer repairs every lost packet unless a queue delays the repair past its history
-    (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`, four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %: no access unit lost in 30 s at a fixed 1000 kbit/s;
-    climbing on delay alone, the budget reached 1300-1400 kbit/s, lost 45 access units in 21 losses (each costing
-    the pictures to the next IDR) and fell to 280-500 kbit/s before climbing again."""
+    (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`, four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %:
+    no access unit lost in 30 s at a fixed 1000 kbit/s; climbing on delay alone, the budget reached 1300-1400
+    kbit/s, lost 45 access units in 21 losses (each costing the pictures to the next IDR) and fell to 280-500
+    kbit/s before climbing again."""
     return AdapterConfig(
         delay_high_s=0.5,
         delay_low_s=0.25,
