@@ -343,7 +343,8 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             "robot",
             "axis_camera",
             ["axis_camera", "--ros-args", "-p", "hostname:=127.0.0.1", "-p", f"port:={SIM_PORT}", *ASK, *codec_args]
-            + ["-p", "adapt_to_link:=true", "--log-level", os.environ.get("BENCH_LINK_LOG_LEVEL", "warn")],
+            + ["-p", "adapt_to_link:=true", "--log-level", os.environ.get("BENCH_LINK_LOG_LEVEL", "warn")]
+            + os.environ.get("BENCH_LINK_ROBOT_ARGS", "").split(),  # experiments: more -p name:=value for the robot
             env,
         )
         time.sleep(6.0)  # the robot side up (nodes, discovery on its loopback) before the viewer starts
