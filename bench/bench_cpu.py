@@ -1,7 +1,8 @@
 """What the driver's processes cost, side by side in one run: CPU of each process (the scheduler's run time of
 all its threads, ns) over the same fixed windows, so every process sees the same machine load; sections (1) and
 (2) run twice, the processes started in one order and then the reverse, and report the mean (the process started
-first costs more: ``bench_stream.measure_cpu_both_orders``).
+first costs more: ``bench_stream.measure_cpu_both_orders``), each state (idle, streaming) as every process's
+median over three windows.
 
 Processes are started as the robot would (console scripts, each in its own namespace) against simulated cameras
 (``axis_camera_sim`` subprocesses); this process is the only subscriber.
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 import sys
 import tempfile
 import threading
@@ -75,6 +77,17 @@ def measure(procs: Iterable[Proc], seconds: float) -> Window:
     cpu = {n: 100.0 * (c1[n] - c0[n]) / dt for n in c0}
     load = " ".join(Path("/proc/loadavg").read_text().split()[:3])
     return Window(cpu, dt, 100.0 * (b1 - b0) / max(1, t1j - t0j), load)
+
+
+def measure_median(procs: Iterable[Proc], seconds: float, n: int = 3) -> Window:
+    """``n`` consecutive windows of ``seconds``; each process's figure is its median over them (one window of a
+    ~2 % process moved its ratios by ±20 % from run to run: 704×576 idle 1.16× and 1080p idle 0.89× for the same
+    code in one run at ae710b6)."""
+    procs = list(procs)
+    windows = [measure(procs, seconds) for _ in range(n)]
+    cpu = {name: statistics.median(w.cpu[name] for w in windows) for name in windows[0].cpu}
+    busy = statistics.median(w.machine_busy for w in windows)
+    return Window(cpu, sum(w.seconds for w in windows), busy, windows[-1].loadavg)
 
 
 def say_load(w: Window) -> str:
@@ -253,13 +266,13 @@ def composition(
         wait_up(sub, ("/alone_s", "/cam", "/pair"), ("/alone_p", "/cam", "/pair"))
         measured = [p for p in procs if p is not sim]
         time.sleep(3.0)  # start-up work done (camera discovery, DDS discovery)
-        idle = measure(measured, secs)
+        idle = measure_median(measured, secs)
         watches = {ns: watch(sub, ns) for ns in ("/alone_s", "/cam", "/pair", "/minimal")}
         try:
             wait_frames(watches)
             time.sleep(2.0)
             t0 = time.monotonic()
-            streaming = measure(measured, secs)
+            streaming = measure_median(measured, secs)
             t1 = time.monotonic()
             fps = {ns: fps_since(w, t0, t1) for ns, w in watches.items()}
         finally:
