@@ -35,11 +35,12 @@ class VideoLike(Protocol):
 
 def video_text(p: VideoLike) -> str:
     """The parameters a stream streams with, in words: the JPEG compression, or in H.264 mode the bitrates."""
-    quality = (
-        f"H.264 {p.h264_bitrate_kbps} kbit/s (up to {p.h264_max_bitrate_kbps} with feedback)"
-        if p.codec == "h264"
-        else f"compression {p.compression}"
-    )
+    if p.codec != "h264":
+        quality = f"compression {p.compression}"
+    elif p.h264_max_bitrate_kbps > p.h264_bitrate_kbps:
+        quality = f"H.264 {p.h264_bitrate_kbps} kbit/s (up to {p.h264_max_bitrate_kbps} with feedback)"
+    else:
+        quality = f"H.264 {p.h264_bitrate_kbps} kbit/s"
     return f"{p.resolution} at {p.fps} fps, {quality}"
 
 

@@ -405,21 +405,22 @@ def test_ceiling_equal_to_start_keeps_the_old_rule() -> None:
             assert h264_target_kbps(1000, 1000, link, hand)[0] == old, (link, hand)
 
 
-def test_ceiling_below_start_is_refused_with_the_reason() -> None:
+def test_a_ceiling_at_or_below_the_start_is_accepted_and_never_raises_the_bitrate() -> None:
+    """The default ceiling is the start (no probing: README, weak link); a start set above the ceiling alone is
+    accepted, and the ceiling then means "never above the start", as a ceiling equal to it does."""
+    assert VideoSettings().h264_max_bitrate_kbps == VideoSettings().h264_bitrate_kbps
     c, _ = controller(codec="h264")
-    reason = c.check(VideoSettings(codec="h264", h264_max_bitrate_kbps=800), {"h264_max_bitrate_kbps"})
-    assert reason is not None
-    assert "h264_max_bitrate_kbps=800 is below h264_bitrate_kbps=1000" in reason
-    reason = c.check(VideoSettings(h264_bitrate_kbps=2000), {"h264_bitrate_kbps"})
-    assert reason is not None
-    assert "below h264_bitrate_kbps=2000" in reason
+    assert c.check(VideoSettings(codec="h264", h264_max_bitrate_kbps=800), {"h264_max_bitrate_kbps"}) is None
+    assert c.check(VideoSettings(h264_bitrate_kbps=2000), {"h264_bitrate_kbps"}) is None
+    VideoController(VideoSettings(h264_bitrate_kbps=3000), BitrateMeter(2.0))  # starts
+    for link in (0.0, 300.0, 2000.0, 4000.0, 10_000.0):
+        assert h264_target_kbps(2000, 800, link)[0] == h264_target_kbps(2000, 2000, link)[0], link
+        assert h264_target_kbps(2000, 800, link)[0] <= 2000
     assert "outside 100…20000" in (
         c.check(VideoSettings(h264_max_bitrate_kbps=30_000), {"h264_max_bitrate_kbps"}) or ""
     )
     both = VideoSettings(h264_bitrate_kbps=2000, h264_max_bitrate_kbps=3000)
     assert c.check(both, {"h264_bitrate_kbps", "h264_max_bitrate_kbps"}) is None
-    with pytest.raises(ValueError, match="h264_max_bitrate_kbps"):
-        VideoController(VideoSettings(h264_bitrate_kbps=3000), BitrateMeter(2.0))
 
 
 def _clear_reports(c: VideoController, clock: Clock, seconds: float, *, report: bool = True) -> list[int]:

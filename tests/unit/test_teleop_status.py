@@ -29,6 +29,9 @@ def _ptz(**kw):
 def test_video_wording_for_both_codecs():
     assert video_text(_video()) == "704x576 at 15 fps, compression 30"
     assert video_text(_video(codec="h264")) == "704x576 at 15 fps, H.264 1000 kbit/s (up to 1500 with feedback)"
+    # a ceiling at (or below) the start: feedback never raises the bitrate, so no "up to"
+    assert video_text(_video(codec="h264", h264_max_bitrate_kbps=1000)) == "704x576 at 15 fps, H.264 1000 kbit/s"
+    assert video_text(_video(codec="h264", h264_max_bitrate_kbps=800)) == "704x576 at 15 fps, H.264 1000 kbit/s"
     assert view.video_text is video_text  # the console's page line and answers use the same words
 
 
