@@ -1,13 +1,15 @@
 """MJPEG → H.264 transcoding cost at 704×576 @ 30 (issue 21's robot-CPU target: ≤ 25 % of one core).
 
-The simulated camera's own JPEGs (compression 0, the camera panning 0.2° per frame and back) go through
-:class:`axis_ptz_ros2.media.transcoder.MjpegTranscoder` paced at 30 fps, as the stream node would feed it, for
-both JPEG decoders (``cv2`` and ``pyav``). Reported per frame: process CPU (user + system, all threads) as
-% of one core at 30 fps, the JPEG decode and encode parts, and the wall time of one ``transcode()`` call (what
-transcoding adds to a frame's age). The machine's load average is printed with the figures: on a shared
-machine the wall times carry other processes' load, the CPU figures much less.
+The simulated 214's own JPEGs as it sends them (compression 0, its camera model's softness and sensor noise,
+the head panning 0.2° per frame and back) go through :class:`axis_ptz_ros2.media.transcoder.MjpegTranscoder`
+paced at 30 fps, as the stream node would feed it, for both JPEG decoders (``cv2`` and ``pyav``), with the stream
+node's defaults (``H264Settings``: preset, bitrate, keyframe interval) unless told otherwise; the target is
+judged on the node's own decoder (``pyav``). Reported per frame: process CPU (user + system, all threads) as % of
+one core at 30 fps, the JPEG decode and encode parts, and the wall time of one ``transcode()`` call (what
+transcoding adds to a frame's age). The machine's load average is printed with the figures: on a shared machine
+the wall times carry other processes' load, the CPU figures much less.
 
-    .venv/bin/python bench/bench_transcode.py [--seconds 10] [--bitrate 1500000] [--preset veryfast]
+    .venv/bin/python bench/bench_transcode.py [--seconds 10] [--bitrate BPS] [--preset NAME]
 """
 
 from __future__ import annotations
@@ -24,9 +26,8 @@ from report import inputs, row  # bench/report.py (bench/ is on sys.path when ru
 
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
 from axis_ptz_ros2.media.transcoder import JPEG_DECODERS, MjpegTranscoder, TranscoderConfig
-from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
-from axis_ptz_ros2.sim.scene import shared_scene
-from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.streaming.h264 import H264Settings
 
 FPS = 30
 W, H = 704, 576
@@ -105,19 +106,33 @@ def parts(jpegs: list[bytes], preset: str, bitrate: int, n: int = 150) -> dict[s
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=10.0)
-    ap.add_argument("--bitrate", type=int, default=1_500_000)
-    ap.add_argument("--preset", default="veryfast")
+    defaults = H264Settings()
+    ap.add_argument("--bitrate", type=int, default=defaults.bitrate_kbps * 1000)
+    ap.add_argument("--preset", default=defaults.preset)
     args = ap.parse_args()
-    inputs("axis_ptz_ros2/media", "bench/bench_transcode.py")
+    inputs("axis_ptz_ros2/media", "axis_ptz_ros2/sim", "axis_ptz_ros2/streaming/h264.py", "bench/bench_transcode.py")
     print(f"load average before: {loadavg()}")
-    world = load_world()
-    renderer = PtzRenderer(world, shared_scene(world))
+    camera = SimulatedCamera(host="127.0.0.1", port=0)  # not started: its pictures only
+    pan0, tilt, zoom = camera.position()
     path = [0.2 * i for i in range(45)]
-    jpegs = [encode_jpeg(renderer.render(-20.0 + p, -3.0, 1.0, W, H), 0) for p in path + path[::-1]]
-    print(f"{len(jpegs)} JPEGs {W}x{H} at compression 0, mean {statistics.mean(map(len, jpegs)) / 1e3:.0f} kB")
+    jpegs = []
+    for p in path + path[::-1]:
+        camera.teleport(pan0 + p, tilt, zoom)
+        jpegs.append(camera.frame_jpeg(W, H, 0))
+    print(
+        f"{len(jpegs)} JPEGs of the simulated 214 (softness, sensor noise), {W}x{H} at compression 0, "
+        f"mean {statistics.mean(map(len, jpegs)) / 1e3:.0f} kB; preset {args.preset}, {args.bitrate // 1000} kbit/s, "
+        f"keyframe every {defaults.keyframe_interval} frames"
+    )
     results = {}
     for dec in JPEG_DECODERS:
-        cfg = TranscoderConfig(fps=FPS, bitrate_bps=args.bitrate, preset=args.preset, jpeg_decoder=dec)
+        cfg = TranscoderConfig(
+            fps=FPS,
+            bitrate_bps=args.bitrate,
+            keyframe_interval=defaults.keyframe_interval,
+            preset=args.preset,
+            jpeg_decoder=dec,
+        )
         r = run(jpegs, cfg, args.seconds)
         results[dec] = r
         print(
@@ -131,11 +146,11 @@ def main() -> None:
         f"CPU/frame, encode() wall p50 {p['encode_wall_p50']:.1f} ms p95 {p['encode_wall_p95']:.1f} ms"
     )
     print(f"load average after: {loadavg()}")
-    best = min(results, key=lambda d: results[d]["cpu_pct"])
-    b = results[best]
+    node = TranscoderConfig().jpeg_decoder  # the decoder the stream node uses
+    b = results[node]
     row(
         f"Transcoding MJPEG → H.264 704×576 @ 30 ({args.preset}, {args.bitrate // 1000} kbit/s), CPU",
-        f"{b['cpu_pct']:.1f} % of a core ({best}; "
+        f"{b['cpu_pct']:.1f} % of a core ({node}, the node's decoder; "
         + ", ".join(f"{d} {results[d]['cpu_pct']:.1f} %" for d in results)
         + ")",
         "≤ 25 %",

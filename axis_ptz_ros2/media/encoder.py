@@ -11,6 +11,11 @@ What viewers and a weak link need, and how it is had (facts in docs/…/h264.md,
   encoder, so a bitrate above the one opened with re-opens the encoder (its next frame is an IDR).
 - Keyframes: x264's own are off (``keyint=infinite``, ``scenecut=0``); this class forces an IDR every
   ``keyframe_interval`` frames and on request (``forced-idr=1`` + ``PictureType.I``), so the interval is live too.
+- Adaptive quantisation off (``aq-mode=0``, what x264's ``tune=psnr`` does to AQ): x264's default AQ moves bits
+  from detailed blocks (edges, text) to flat ones, for the look of flat areas; an operator reading labels needs
+  the detail. On the simulated 214's noisy compression-0 pictures at 1000 kbit/s it measured +2.1 dB PSNR (median
+  35.8 → 37.9 dB against the view before noise) and ~1 ms less x264 time per 704×576 frame (README, "H.264 encoder
+  settings").
 """
 
 from __future__ import annotations
@@ -194,7 +199,7 @@ class H264Encoder:
             "forced-idr": "1",
             "maxrate": str(c.bitrate_bps),
             "bufsize": str(max(int(c.bitrate_bps * VBV_BUFFER_S), 1000)),
-            "x264-params": "keyint=infinite:min-keyint=1:scenecut=0:bframes=0",
+            "x264-params": "keyint=infinite:min-keyint=1:scenecut=0:bframes=0:aq-mode=0",
         }
         try:
             ctx.open()
