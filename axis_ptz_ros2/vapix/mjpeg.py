@@ -28,6 +28,9 @@ _SOI = b"\xff\xd8"
 _EOI = b"\xff\xd9"
 _MAX_HEADER_BYTES = 16 * 1024
 _MAX_BOUNDARY_LINE = 256
+#: a declared length up to this, or up to twice the largest frame of the stream so far, is checked once its bytes
+#: are in (SOI at the start, EOI at the end) instead of scanning the body for the boundary as it arrives
+_PLAUSIBLE_LENGTH = 64 * 1024
 
 _SEEK, _HEADERS, _BODY, _GAP = 0, 1, 2, 3
 
@@ -111,6 +114,7 @@ class MjpegParser:
         self._body_start = 0
         self._length: int | None = None
         self._scan_from = 0  # resume offset for boundary scans inside a body
+        self._largest = 0  # largest frame emitted so far (bytes)
         self._stats = MjpegStats()
 
     @property
@@ -254,18 +258,30 @@ class MjpegParser:
         self._garbage_run = True  # the rest of the broken part is skipped within this resync
         self._pos = pos
 
+    def _emit(self, frames: list[bytes], start: int, end: int) -> None:
+        frames.append(_copy(self._buf, start, end))
+        self._stats.frames += 1
+        self._largest = max(self._largest, end - start)
+
     def _emit_or_drop(self, frames: list[bytes], start: int, end: int) -> None:
         buf = self._buf
         if end - start >= 4 and buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, end):
-            frames.append(_copy(buf, start, end))
-            self._stats.frames += 1
+            self._emit(frames, start, end)
         elif end > start and buf.startswith(_SOI, start):
             self._stats.dropped_truncated += 1
         else:
             self._stats.dropped_corrupt += 1
 
     def _body(self, frames: list[bytes]) -> bool:
-        """Handle the part body; return False when more data is needed."""
+        """Handle the part body; return False when more data is needed.
+
+        A declared length that is plausible (:data:`_PLAUSIBLE_LENGTH`, or at most twice the largest frame so far)
+        is trusted until its bytes are in: a body that starts with SOI and ends with EOI there is the frame, and
+        only a body that does not is searched for the boundary (a wrong length: the part ends where the boundary
+        is). Searching every body as it arrives costs ~0.5 ns per byte (~50 µs per 108 kB frame); a wrong length
+        that still ends in EOI by chance (1 in 65,536) would pass. An implausible length is searched as it arrives,
+        so a corrupt header cannot hold the frames behind it for megabytes.
+        """
         buf = self._buf
         delim = self._delim
         start = self._body_start
@@ -273,21 +289,31 @@ class MjpegParser:
         available = len(buf)
         if length is not None and length <= self._max:
             stop = start + length
-            # A delimiter inside the declared body means the length is wrong (too long).
-            hit = buf.find(delim, max(start, self._scan_from - len(delim)), min(stop, available))
-            if hit < 0:
+            if length <= max(_PLAUSIBLE_LENGTH, 2 * self._largest):
                 if available < stop:
-                    self._scan_from = available
                     return False
                 if buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, stop):
-                    frames.append(_copy(buf, start, stop))
-                    self._stats.frames += 1
+                    self._emit(frames, start, stop)
                     self._pos = stop
                     self._state = _GAP
                     return True
-                self._scan_from = stop  # too short (or corrupt): find where the part really ends
+                hit = buf.find(delim, start, stop)  # the length is wrong: where does the part really end?
+                self._scan_from = hit if hit >= 0 else stop
             else:
-                self._scan_from = hit
+                # A delimiter inside the declared body means the length is wrong (too long).
+                hit = buf.find(delim, max(start, self._scan_from - len(delim)), min(stop, available))
+                if hit < 0:
+                    if available < stop:
+                        self._scan_from = available
+                        return False
+                    if buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, stop):
+                        self._emit(frames, start, stop)
+                        self._pos = stop
+                        self._state = _GAP
+                        return True
+                    self._scan_from = stop  # too short (or corrupt): find where the part really ends
+                else:
+                    self._scan_from = hit
             self._length = None
             self._stats.resyncs += 1
         elif length is not None:

@@ -110,10 +110,22 @@ def test_garbage_counted_and_resynced():
     assert parser.stats.resyncs == 1
 
 
-def test_wrong_content_length_detected_and_frame_salvaged():
-    frames, parser = feed_all(part(F1, length=len(F1) - 5) + part(F2, length=len(F2) + 100) + part(F3))
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 16])
+def test_wrong_content_length_detected_and_frame_salvaged(chunk):
+    frames, parser = feed_all(part(F1, length=len(F1) - 5) + part(F2, length=len(F2) + 100) + part(F3), chunk)
     assert frames == [F1, F2, F3]
     assert parser.stats.resyncs == 2
+
+
+def test_implausible_length_does_not_hold_the_frames_behind_it():
+    # A plausible length is checked once its bytes are in; one of megabytes is searched for the boundary as the
+    # bytes arrive, so the frames after a corrupt header come out as they arrive, not megabytes later.
+    parser = MjpegParser(b"myboundary")
+    assert parser.feed(part(F1)) == [F1]
+    assert parser.feed(part(F2, length=5_000_000)) == []  # the part might really be that long
+    assert parser.feed(part(F3)) == [F2, F3]
+    assert parser.stats.resyncs == 1
+    assert parser.buffered_bytes < len(part(F3))
 
 
 def test_truncated_frame_dropped_never_emitted():
