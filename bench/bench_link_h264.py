@@ -1,10 +1,11 @@
 """H.264 against today's MJPEG ladder over the weak link (issue 21's targets), side by side in one run.
 
 The two-host setting of ``bench/bench_link.py`` (``tests/netns/hosts.py`` over ``tests/support/link.py``): robot and
-operator in two network namespaces joined by a veth shaped to 2 Mbit/s with 2 % random loss each way, the shipped
-Fast DDS weak-link profile (``config/fastdds_weak_link.xml``) in every process on both sides, the simulated Axis 214
-on the robot's loopback, ``axis_camera`` asked for 704x576 @ 30 fps. The camera stays still. Sessions, one after
-another in one invocation (each on a fresh link, so they never share it):
+operator in two network namespaces joined by a veth shaped to 2 Mbit/s (``--rate-kbit``: issue 21's second case is
+1000) with 2 % random loss each way, the shipped Fast DDS weak-link profile (``config/fastdds_weak_link.xml``) in
+every process on both sides, the simulated Axis 214 on the robot's loopback, ``axis_camera`` asked for 704x576 @ 30
+fps. The camera stays still. Sessions, one after another in one
+invocation (each on a fresh link, so they never share it):
 
   mjpeg           ``codec: mjpeg`` (compression 30, ``adapt_to_link``), ``axis_link_monitor`` on the operator side
   h264            ``codec: h264`` (the stream node transcodes the camera's MJPEG), ``axis_link_monitor`` with
@@ -71,6 +72,8 @@ W, H = 704, 576
 CAMERA_FPS = 25.0
 FPS_TARGET = min(29.0, 0.97 * CAMERA_FPS)
 ASK = ["-p", "fps:=30", "-p", f"resolution:={W}x{H}"]
+#: the link's rate each way (kbit/s; ``--rate-kbit``): the thesis's link is 2000, issue 21's second case 1000
+LINK_KBIT = 2000
 SETTLE_S = 10.0  # the first seconds of a measurement (the MJPEG ladder finding its rate) are reported apart
 PSNR_EVERY = 3
 
@@ -324,7 +327,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
     env = host_env(FASTRTPS_DEFAULT_PROFILES_FILE=profile) if profile else host_env()
     refdir = logs / f"ref-{s.name}"
     try:
-        link.set_rate(2000)
+        link.set_rate(LINK_KBIT)
         link.set_loss(2)
         sim = link.popen(
             "robot",
@@ -444,6 +447,10 @@ def fmt(v: Any, f: str) -> str:
     return f.format(v)
 
 
+def link_name() -> str:
+    return f"{LINK_KBIT / 1000:g} Mbit/s"
+
+
 def print_table(results: list[dict[str, Any]], seconds: float) -> None:
     col = 22
 
@@ -452,7 +459,9 @@ def print_table(results: list[dict[str, Any]], seconds: float) -> None:
         print(f"{label:<50}{cells}" + (f"   target {target}" if target else ""))
 
     print(f"{'':<50}" + "".join(f"{r['name']:>{col}}" for r in results))
-    print(f"2 Mbit/s, 2 % loss each way, camera still, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
+    print(
+        f"{link_name()}, 2 % loss each way, camera still, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:"
+    )
     row("  pictures shown [fps]", "{:.1f}", "fps")
     row("  H.264 access units sent by the stream node [/s]", "{:.1f}", "sent_fps")
     row(f"  of which {W}x{H} [fps]", "{:.1f}", "fps_full", f">= {FPS_TARGET:.2f} fps of {W}x{H} (29; PAL camera)")
@@ -518,7 +527,7 @@ def plot(sessions: list[Session], seconds: float, path: Path) -> None:
         return int(bot - f * (bot - top))
 
     cv2.putText(
-        img, f"{W}x{H} @ 30 fps asked, 2 Mbit/s + 2 % loss each way, camera still; robot -> operator, shaped veth",
+        img, f"{W}x{H} @ 30 fps asked, {link_name()} + 2 % loss each way, camera still; robot -> operator, shaped veth",
         (left, 35), font, 0.6, (0, 0, 0), 2, cv2.LINE_AA,
     )  # fmt: skip
     for p in panels:
@@ -577,7 +586,18 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
         "config/fastdds_weak_link.xml",
     )
     m, h = results.get("mjpeg"), results.get("h264")
-    if h:
+    if h and LINK_KBIT != 2000:  # issue 21's 1 Mbit/s case: >= 29 fps at >= 35 dB (no age target there)
+        row(
+            f"two hosts, {link_name()} 2 % loss, H.264 + link monitor: {W}x{H} fps / age p95 / PSNR median, 5th pct "
+            "(vs the camera's view before noise and compression, still)",
+            f"{h['fps_full']:.1f} fps (of {h['sent_fps']:.1f} sent) / {h['age_p95']:.0f} ms / "
+            f"{h['psnr_soft_p50']:.1f}, {h['psnr_soft_p5']:.1f} dB",
+            f"≥ 29 fps (a PAL camera: ≥ {FPS_TARGET:.2f} of its {CAMERA_FPS:.0f}) / — / ≥ 35 dB"
+            if LINK_KBIT == 1000
+            else "—",
+            bool(h["fps_full"] >= FPS_TARGET and h["psnr_soft_p50"] >= 35) if LINK_KBIT == 1000 else None,
+        )
+    elif h:
         ok = (
             h["fps_full"] >= FPS_TARGET and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
         )
@@ -598,13 +618,13 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
     n = results.get("h264-nofb")
     if n:
         row(
-            f"two hosts, 2 Mbit/s 2 % loss, H.264, viewer without feedback: {W}x{H} fps / PSNR median",
+            f"two hosts, {link_name()} 2 % loss, H.264, viewer without feedback: {W}x{H} fps / PSNR median",
             f"{n['fps_full']:.1f} fps (of {n['sent_fps']:.1f} sent) / {n['psnr_soft_p50']:.1f} dB",
             f"≥ 29 fps (a PAL camera: ≥ {FPS_TARGET:.2f} of its {CAMERA_FPS:.0f}) / ≥ 36 dB",
             bool(n["fps_full"] >= FPS_TARGET and n["psnr_soft_p50"] >= 36),
         )
         row(
-            f"two hosts, 2 Mbit/s 2 % loss, H.264: first picture after the viewer starts, worst of {n['starts']}",
+            f"two hosts, {link_name()} 2 % loss, H.264: first picture after the viewer starts, worst of {n['starts']}",
             f"{fmt(n['first_s'], '{:.1f}')} s",
             "≤ 2 s",
             bool(n["first_s"] <= 2),
@@ -616,6 +636,7 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=40.0, help="measurement per session (s, >= 20)")
     ap.add_argument("--sessions", default="mjpeg,h264,h264-nofb,mjpeg-nofb")
     ap.add_argument("--starts", type=int, default=5, help="viewer starts timed in the h264-nofb session")
+    ap.add_argument("--rate-kbit", type=int, default=LINK_KBIT, help="the link's rate each way (kbit/s)")
     ap.add_argument("--plot", default=str(ROOT / "bench/results/link_h264.png"), help="PNG to write ('' = none)")
     ap.add_argument(
         "--fastdds-profile",
@@ -627,6 +648,8 @@ def main() -> int:
     ap.add_argument("--no-feedback", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--ref", default="", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    global LINK_KBIT  # noqa: PLW0603 - one run, one link
+    LINK_KBIT = a.rate_kbit
     if a.robot_sim:
         return robot_sim(a.robot_sim, a.ref)
     if a.viewer:
@@ -661,7 +684,9 @@ def main() -> int:
     readme_rows(by)
     h, n = by.get("h264"), by.get("h264-nofb")
     ok = True
-    if h:
+    if h and LINK_KBIT == 1000:
+        ok &= h["fps_full"] >= FPS_TARGET and h["psnr_soft_p50"] >= 35
+    elif h and LINK_KBIT == 2000:
         ok &= (
             h["fps_full"] >= FPS_TARGET and h["age_p95"] <= 100 and h["psnr_soft_p50"] >= 37 and h["psnr_soft_p5"] >= 34
         )
