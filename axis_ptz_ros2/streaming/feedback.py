@@ -46,6 +46,8 @@ import threading
 from collections import deque
 from dataclasses import dataclass
 
+from axis_ptz_ros2.streaming.meter import ConsumerCounts
+
 
 @dataclass(frozen=True, slots=True)
 class FeedbackReport:
@@ -185,7 +187,7 @@ class LinkAdapter:
         self._good: deque[tuple[float, float]] = deque()  # (when, what was sent) of the recent clear reports
         self._sent_kbps = 0.0  # what was sent at the last report
         self._last_climb = -1e18  # when the budget last grew past ``grow_from_kbps``
-        self._lost: dict[str, int] = {}  # each consumer's running count of access units lost, at its last report
+        self._lost = ConsumerCounts()  # each consumer's running count of access units lost, at its last report
         self.state = "off"
 
     @property
@@ -199,7 +201,7 @@ class LinkAdapter:
         self._reports.clear()
         self._last_report = -1e18
         self._good.clear()
-        self._lost.clear()
+        self._lost.forget()
         self.state = "off"
 
     def heard(self, now: float) -> None:
@@ -232,11 +234,7 @@ class LinkAdapter:
             if now - t > cfg.silence_s:
                 del self._reports[name]
         # access units lost since this consumer's last report (its first report, or a restarted count: none)
-        before = self._lost.get(report.consumer)
-        lost = report.lost - before if before is not None and report.lost >= before else 0
-        if len(self._lost) > 64 and report.consumer not in self._lost:
-            self._lost.clear()  # consumers come and go
-        self._lost[report.consumer] = report.lost
+        lost = self._lost.grew(report.consumer, report.lost)
         worst = max(
             (r for _t, r in self._reports.values()),
             key=lambda r: (self._queue_delay(r), -self._judge_delivery(r, sent_fps, sent_kbps)),

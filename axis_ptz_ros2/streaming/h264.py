@@ -59,6 +59,7 @@ from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.streaming.jpeg import jpeg_comments
+from axis_ptz_ros2.streaming.meter import ConsumerCounts
 
 CODECS: Final = ("mjpeg", "h264")
 H264_PRESETS: Final = PRESETS
@@ -194,7 +195,7 @@ class H264Stage:
         self._last_idr_request = -1e18
         self._pts = 0
         self._arrivals: deque[int] = deque(maxlen=RATE_WINDOW)
-        self._consumer_errors: dict[str, int] = {}
+        self._consumer_errors = ConsumerCounts()
         self._params = annexb.ParameterSetTracker()
         self.stats = StageStats()
 
@@ -231,14 +232,11 @@ class H264Stage:
         """A consumer reports ``errors`` access units it could not show over its report's window: ask for an IDR
         (:meth:`request_idr`) when that count grew since its last report (new losses); True when one was asked."""
         with self._lock:
-            before = self._consumer_errors.get(consumer, 0)
             if errors <= 0:
-                self._consumer_errors.pop(consumer, None)
+                self._consumer_errors.forget(consumer)
                 return False
-            if len(self._consumer_errors) > 64 and consumer not in self._consumer_errors:
-                self._consumer_errors.clear()  # consumers come and go: forget them all now and then
-            self._consumer_errors[consumer] = errors
-        if errors <= before:
+            grown = self._consumer_errors.grew(consumer, errors, first=0)
+        if not grown:
             return False
         self.request_idr()
         return True

@@ -1,4 +1,5 @@
-"""Capped exponential back-off and the sliding-window frames/s + kbit/s meter. ROS-free."""
+"""Capped exponential back-off, the sliding-window frames/s + kbit/s meter and each consumer's reported count.
+ROS-free."""
 
 from __future__ import annotations
 
@@ -95,3 +96,30 @@ class BitrateMeter:
             span_s=span,
             frames=len(samples),
         )
+
+
+class ConsumerCounts:
+    """Each consumer's latest reported count (access units lost, pictures it could not show) and how much it grew
+    since that consumer's previous report. Consumers come and go: past ``limit`` of them, all are forgotten at
+    once (the next report of each is then its first)."""
+
+    def __init__(self, limit: int = 64) -> None:
+        self._last: dict[str, int] = {}
+        self._limit = limit
+
+    def grew(self, consumer: str, count: int, first: int | None = None) -> int:
+        """Record ``count``; return how much it grew since the consumer's previous report (0 if it did not). A
+        consumer's first report is compared with ``first`` (None: it has no growth); a count below the previous
+        one (a restarted consumer) has none either."""
+        before = self._last.get(consumer, first)
+        if len(self._last) > self._limit and consumer not in self._last:
+            self._last.clear()
+        self._last[consumer] = count
+        return count - before if before is not None and count > before else 0
+
+    def forget(self, consumer: str | None = None) -> None:
+        """Forget one consumer (None: all of them)."""
+        if consumer is None:
+            self._last.clear()
+        else:
+            self._last.pop(consumer, None)

@@ -566,3 +566,20 @@ def test_a_worker_is_interrupted_only_when_its_activity_changes():
     w.set_active(False)
     assert interrupted == [True, False]  # once per change, the new value already in place
     assert Worker("plain", "test-plain", lambda: None).active  # active unless told otherwise
+
+
+def test_consumer_counts_growth_first_report_restart_and_forgetting():
+    from axis_ptz_ros2.streaming.meter import ConsumerCounts
+
+    counts = ConsumerCounts(limit=2)
+    assert counts.grew("/a", 5) == 0  # a first report has no growth...
+    assert counts.grew("/b", 3, first=0) == 3  # ...unless compared with a starting count
+    assert counts.grew("/a", 9) == 4
+    assert counts.grew("/a", 9) == 0
+    assert counts.grew("/a", 2) == 0  # a restarted consumer: no growth, and counted from here
+    assert counts.grew("/a", 4) == 2
+    counts.forget("/a")
+    assert counts.grew("/a", 7) == 0
+    assert counts.grew("/c", 1) == 0  # three consumers: within the limit of 2 + the new one
+    assert counts.grew("/d", 1) == 0  # past the limit: everyone is forgotten
+    assert counts.grew("/b", 10, first=0) == 10
