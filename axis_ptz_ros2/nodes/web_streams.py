@@ -21,6 +21,7 @@ from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, stamp_s
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
+from axis_ptz_ros2.streaming.h264 import PtsGaps
 from axis_ptz_ros2.web.h264relay import H264Slot
 from axis_ptz_ros2.web.server import FrameSlot
 from axis_ptz_ros2.web.view import ConsoleModel
@@ -52,6 +53,7 @@ class ConsoleStreams:
         # what the relayed PTZ video looks like on arrival, for the stream's link adaptation (video/feedback)
         self.feedback = FeedbackPublisher(node, self._topics["ptz"], callback_group=feedback_group)
         self.h264 = H264Slot("ptz", self._on_watchers, lambda: self.feedback.add_errors(1))
+        self._pts_gaps = PtsGaps()  # access units lost on the way (pts gaps): video/feedback's ``lost``
         self._h264_sub: Any = None
         self._group = MutuallyExclusiveCallbackGroup()
         self._reconcile_gc = node.create_guard_condition(self._reconcile, self._group)
@@ -86,6 +88,7 @@ class ConsoleStreams:
                 self._node.destroy_subscription(self._image_subs.pop(name))
         want = self.h264.watchers > 0 and bool(self._h264_topic)
         if want and self._h264_sub is None:
+            self._pts_gaps = PtsGaps()  # a new subscription joins the stream where it is: no gap to count
             self._h264_sub = self._subscribe(FFMPEGPacket, self._h264_topic, self._on_h264, VIDEO_QOS)
         elif self._h264_sub is not None and not want:
             self._node.destroy_subscription(self._h264_sub)
@@ -98,6 +101,8 @@ class ConsoleStreams:
     def _on_h264(self, msg: FFMPEGPacket) -> None:
         data = _payload(msg.data)
         stamp = stamp_s(msg.header.stamp)
+        self._pts_gaps.see(int(msg.pts))
+        self.feedback.lost = self._pts_gaps.lost
         self.feedback.add(msg, len(data))
         self._model.ptz_frame(len(data), stamp)
         if not self.h264.publish(data, bool(msg.flags & 1), stamp):

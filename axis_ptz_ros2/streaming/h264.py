@@ -375,6 +375,25 @@ class H264Stage:
             self._on_problem(text)
 
 
+class PtsGaps:
+    """Access units lost on the way, counted from the stage's ``pts`` (one more per access unit): a running count,
+    what a consumer reports as ``LinkFeedback.lost`` (the link monitor through :class:`AccessUnitReceiver`, the web
+    console, which relays the access units to the browser undecoded)."""
+
+    def __init__(self) -> None:
+        self.lost = 0
+        self._last: int | None = None
+
+    def see(self, pts: int) -> bool:
+        """Record ``pts``; True when it does not follow the previous one (access units lost, or a restarted stream
+        whose pts went back, which adds nothing to :attr:`lost`)."""
+        last, self._last = self._last, pts
+        if last is None or pts == last + 1:
+            return False
+        self.lost += max(pts - last - 1, 0)
+        return True
+
+
 @dataclass(slots=True)
 class ReceiverStats:
     """What a receiver saw since it was made."""
@@ -397,7 +416,7 @@ class AccessUnitReceiver:
     def __init__(self) -> None:
         """A fresh decoder that waits for an IDR."""
         self._decoder = H264Decoder()
-        self._last_pts: int | None = None
+        self._gaps = PtsGaps()
         self._pending_unusable = 0
         self.stats = ReceiverStats()
 
@@ -409,11 +428,9 @@ class AccessUnitReceiver:
     def feed(self, data: bytes, pts: int | None = None) -> DecodedImage | None:
         """One access unit; the picture (BGR) or None when it cannot be shown."""
         self.stats.access_units += 1
-        if pts is not None:
-            if self._last_pts is not None and pts != self._last_pts + 1:
-                self.stats.lost += max(pts - self._last_pts - 1, 0)
-                self._decoder.mark_discontinuity()  # also a restarted stream (pts back to a lower value)
-            self._last_pts = pts
+        if pts is not None and self._gaps.see(pts):
+            self.stats.lost = self._gaps.lost
+            self._decoder.mark_discontinuity()  # also a restarted stream (pts back to a lower value)
         picture = self._decoder.decode(data)
         if picture is None:
             self.stats.unusable += 1

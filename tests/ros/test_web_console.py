@@ -226,6 +226,50 @@ def test_mjpeg_passthrough_and_lazy_subscription(ros: Any) -> None:
     ros.wait_for(lambda: pub.get_subscription_count() == 0, 5.0)
 
 
+def test_h264_access_units_lost_on_the_way_count_in_the_consoles_feedback(ros: Any) -> None:
+    """The console relays H.264 to the browser undecoded; an access unit that never arrived (a gap in ``pts``)
+    still counts in its ``video/feedback`` ``lost`` (the stream node's congestion signal), as the link monitor's."""
+    from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+
+    from axis_ptz_interfaces.msg import LinkFeedback
+    from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, VIDEO_QOS
+
+    console = make_console(ros)
+    probe = ros.probe()
+    pub = probe.create_publisher(FFMPEGPacket, "image_raw/ffmpeg", VIDEO_QOS)
+    reports: list[LinkFeedback] = []
+    probe.create_subscription(LinkFeedback, "video/feedback", reports.append, FEEDBACK_QOS)
+    conn = http.client.HTTPConnection("127.0.0.1", console.server.port, timeout=10)
+    conn.request("GET", "/video/ptz.h264")  # a watcher: the console subscribes to the H.264 topic
+    resp = conn.getresponse()
+    try:
+        assert resp.status == 200
+        ros.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
+
+        def send(pts: int) -> None:
+            msg = FFMPEGPacket(encoding="h264;yuv420p;bgr8;bgr8", width=64, height=64, pts=pts, flags=int(pts == 10))
+            msg.header.stamp = probe.get_clock().now().to_msg()
+            msg.data = b"\x00\x00\x00\x01\x09\xf0"  # an access unit delimiter: the console does not decode
+            pub.publish(msg)
+
+        pts = 10
+        for _ in range(60):  # 3 s at 20 Hz: past the first report window
+            send(pts)
+            pts += 1
+            time.sleep(0.05)
+        ros.wait_for(lambda: any(r.frames > 0 for r in reports), 5.0)
+        assert all(r.lost == 0 for r in reports), [r.lost for r in reports]
+        pts += 2  # two access units never arrive
+        for _ in range(20):
+            send(pts)
+            pts += 1
+            time.sleep(0.05)
+        ros.wait_for(lambda: reports[-1].lost == 2, 5.0)
+    finally:
+        resp.close()
+        conn.close()
+
+
 def test_slow_client_gets_newest_frame_not_a_queue(ros: Any) -> None:
     console = make_console(ros)
     probe = ros.probe()

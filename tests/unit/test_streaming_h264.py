@@ -495,3 +495,15 @@ def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: 
         assert not any(f is not None and f.keyframe for f in out)
         assert h.transcoders[-1].config.bitrate_bps == kbps * 1000
     assert len(h.made) == 2
+
+
+def test_pts_gaps_count_missing_access_units_and_not_a_restart():
+    from axis_ptz_ros2.streaming.h264 import PtsGaps
+
+    gaps = PtsGaps()
+    assert [gaps.see(p) for p in (5, 6, 7)] == [False, False, False]
+    assert gaps.see(10)  # 8 and 9 never arrived
+    assert gaps.lost == 2
+    assert gaps.see(0)  # a restarted stream: a discontinuity, nothing lost
+    assert not gaps.see(1)
+    assert gaps.lost == 2
