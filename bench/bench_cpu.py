@@ -1,7 +1,7 @@
 """What the driver's processes cost, side by side in one run: CPU of each process (the scheduler's run time of
 all its threads, ns) over the same fixed windows, so every process sees the same machine load; sections (1) and
 (2) run twice, the processes started in one order and then the reverse, and report the mean (the process started
-first costs more: ``bench_stream.measure_cpu_both_orders``), each state (idle, streaming) as every process's
+first costs more: ``cpu_compare.measure_cpu_both_orders``), each state (idle, streaming) as every process's
 median over three windows.
 
 Processes are started as the robot would (console scripts, each in its own namespace) against simulated cameras
@@ -37,9 +37,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests.support (bench_stream's subscriber uses it)
-import bench_stream  # noqa: E402
-from bench_stream import ROOT, Proc, Recorder, Subscriber, fps_of, wait_until
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests.support (the pipelines' subscriber uses it)
+import pipelines  # noqa: E402
+from pipelines import ROOT, Proc, Recorder, Subscriber, fps_of, wait_until
 from report import inputs, row  # noqa: E402
 
 MODEL_214 = str(ROOT / "config" / "axis214.yaml")  # explicit: no ament index lookup needed
@@ -104,7 +104,7 @@ def verdict(name: str, ok: bool, detail: str) -> bool:
 # processes
 # --------------------------------------------------------------------------------------------------------
 def start_sim(*extra: str, name: str = "sim") -> tuple[Proc, int]:
-    proc = Proc([str(bench_stream.BIN / "axis_camera_sim"), "--port", "0", *extra], name)
+    proc = Proc([str(pipelines.BIN / "axis_camera_sim"), "--port", "0", *extra], name)
     port = int(proc.wait_line(r"https?://127\.0\.0\.1:(\d+)/").group(1))
     return proc, port
 
@@ -122,7 +122,7 @@ def start_exe(exe: str, ns: str, port: int, resolution: str, fps: int, model: st
         params.update(fps=fps, resolution=resolution, compression=30)
     if model:
         params["camera_model"] = model
-    cmd = [str(bench_stream.BIN / exe), "--ros-args", "-r", f"__ns:={ns}", *ros_args(params), "--log-level", "warn"]
+    cmd = [str(pipelines.BIN / exe), "--ros-args", "-r", f"__ns:={ns}", *ros_args(params), "--log-level", "warn"]
     return Proc(cmd, name or f"{exe}{ns}")
 
 
@@ -231,7 +231,7 @@ def composition_both_orders(
 ) -> Composition:
     """:func:`composition` with the processes started in one order, then in the reverse one; every figure is the
     mean of the two. Identical pipelines side by side do not cost the same: the one started first cost 6-16 %
-    more (bench_stream.measure_cpu_both_orders), a bias the size of the targets' margins."""
+    more (cpu_compare.measure_cpu_both_orders), a bias the size of the targets' margins."""
     a = composition(sub, label, sim_args, resolution, model, secs, reverse=False)
     b = composition(sub, label, sim_args, resolution, model, secs, reverse=True)
 
@@ -357,7 +357,7 @@ def fleet(sub: Subscriber, secs: float, n: int = 4) -> Fleet:
         results: list[tuple[Window, list[float], list[float]]] = []
         for arrangement in ("one", "several"):
             if arrangement == "one":
-                cmd = [str(bench_stream.BIN / "axis_camera"), "--cameras", ",".join(names), "--ros-args",
+                cmd = [str(pipelines.BIN / "axis_camera"), "--cameras", ",".join(names), "--ros-args",
                        "--params-file", str(params), "--log-level", "warn"]  # fmt: skip
                 procs.append(Proc(cmd, f"axis_camera --cameras ({n})"))
             else:
@@ -441,8 +441,8 @@ def main() -> int:
     ap.add_argument("--bin", default="", help="run the executables of another checkout's .venv/bin (A/B)")
     args = ap.parse_args()
     if args.bin:
-        bench_stream.BIN = Path(args.bin).resolve()
-        print(f"executables from {bench_stream.BIN}")
+        pipelines.BIN = Path(args.bin).resolve()
+        print(f"executables from {pipelines.BIN}")
     secs = 6.0 if args.quick else args.seconds
     only = {s.strip() for s in args.only.split(",") if s.strip()} or {"704", "1080", "fleet", "silent"}
     inputs(
@@ -456,7 +456,7 @@ def main() -> int:
         "axis_ptz_ros2/vapix",
         "axis_ptz_ros2/sim",
         "bench/bench_cpu.py",
-        "bench/bench_stream.py",
+        "bench/pipelines.py",
         "bench/minimal_pipeline.py",
     )
     print(

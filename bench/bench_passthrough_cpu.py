@@ -13,7 +13,7 @@ import argparse
 import threading
 import time
 
-from bench_stream import BIN, Proc, Subscriber, wait_until
+from pipelines import BIN, Proc, Subscriber, wait_until
 
 SIZE = "1920x1080"
 

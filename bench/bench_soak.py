@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_stream import BIN, ROOT, Proc, start_sim  # noqa: E402
+from pipelines import BIN, ROOT, Proc, start_sim  # noqa: E402
 from report import inputs, row  # noqa: E402
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -23,354 +23,44 @@ subscriber (a third process). Both pipelines are measured the same way, one afte
     .venv/bin/python bench/bench_stream.py [--quick]
 
 The simulator has no switch to ignore the client's ``fps=`` (the node always sends 1..30), so (c) runs a
-second simulator process in which this script forces fps=0 on the video handler (``--sim-child``).
+second simulator process in which fps=0 is forced on the video handler (``bench/pipelines.py --sim-child``). The
+processes and the subscriber are ``bench/pipelines.py``'s, the judged CPU comparison ``bench/cpu_compare.py``'s.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import math
 import os
-import re
-import signal
 import socket
 import statistics
-import subprocess
 import sys
-import threading
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
+from cpu_compare import SHARED_WINDOWS, measure_cpu_both_orders
+from pipelines import (
+    Proc,
+    Recorder,
+    Subscriber,
+    fps_of,
+    kbps,
+    pct,
+    sim_get,
+    start_minimal,
+    start_ours,
+    start_sim,
+    subscribed,
+    wait_until,
+)
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support (the subscriber reads sim stamps)
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.pop("ROS_LOCALHOST_ONLY", None)
-os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
-
-ROOT = Path(__file__).resolve().parent.parent
-BIN = Path(sys.executable).parent
-CLK = os.sysconf("SC_CLK_TCK")
-
-
-def process_cpu_s(pid: int) -> float:
-    """CPU time of a process's live threads in seconds, from the scheduler's own accounting
-    (``/proc/<pid>/task/<tid>/schedstat``, nanoseconds). ``utime + stime`` from ``/proc/<pid>/stat`` count in
-    ticks (10 ms): a 10 s window of a process at 3 % of a core then reads 3.0 ± 0.1 %, which alone moved the
-    judged ratio of two such processes by up to ±7 %. Falls back to ``/proc/<pid>/stat`` without schedstat."""
-    total_ns = 0
-    try:
-        tasks = os.listdir(f"/proc/{pid}/task")
-    except FileNotFoundError:
-        return 0.0
-    for tid in tasks:
-        try:
-            total_ns += int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[0])
-        except FileNotFoundError:  # the thread ended meanwhile
-            continue
-        except (OSError, ValueError, IndexError):
-            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-            return (int(fields[11]) + int(fields[12])) / CLK  # utime, stime (all threads)
-    return total_ns / 1e9
-
 
 RESULTS: list[tuple[str, bool, str]] = []
 STALL_LIMIT_S = 1.5  # the one recovery criterion: reboot (port open -> frame) and stall (raw gap, watchdog included)
 
 
-# --------------------------------------------------------------------------------------------------------
-# simulator child with fps forced to 0 (ingest ceiling)
-# --------------------------------------------------------------------------------------------------------
-def sim_child() -> int:
-    """Run a simulator whose video handler streams as fast as possible whatever fps= the client asks."""
-    import dataclasses
-
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
-    from axis_ptz_ros2.sim.http import mjpeg
-
-    original = mjpeg.image_args
-
-    def unlimited(cam, args, video):  # noqa: ANN001, ANN202 - bench-only shim of the stream's argument check
-        req = original(cam, args, video)
-        return dataclasses.replace(req, fps=0) if video else req
-
-    mjpeg.image_args = unlimited
-    cam = SimulatedCamera(port=0).start()
-    print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (fps forced to 0)", flush=True)
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
-    signal.signal(signal.SIGINT, lambda *_: done.set())
-    done.wait()
-    cam.stop()
-    return 0
-
-
-# --------------------------------------------------------------------------------------------------------
-# processes
-# --------------------------------------------------------------------------------------------------------
-class Proc:
-    def __init__(self, cmd: list[str], name: str) -> None:
-        self.name = name
-        self.p = subprocess.Popen(
-            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True
-        )
-        self.lines: list[str] = []
-        threading.Thread(target=self._drain, daemon=True).start()
-
-    def _drain(self) -> None:
-        assert self.p.stdout is not None
-        for line in self.p.stdout:
-            self.lines.append(line.rstrip())
-
-    def wait_line(self, pattern: str, timeout: float = 20.0) -> re.Match[str]:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for line in list(self.lines):
-                m = re.search(pattern, line)
-                if m:
-                    return m
-            if self.p.poll() is not None:
-                break
-            time.sleep(0.05)
-        raise RuntimeError(f"{self.name}: no line matching {pattern!r}; output: {self.lines[-10:]}")
-
-    def cpu_s(self) -> float:
-        return process_cpu_s(self.p.pid)
-
-    def rss_mb(self) -> float:
-        for line in Path(f"/proc/{self.p.pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-        return float("nan")
-
-    def cpu_percent(self, seconds: float) -> float:
-        c0, t0 = self.cpu_s(), time.monotonic()
-        time.sleep(seconds)
-        return 100.0 * (self.cpu_s() - c0) / (time.monotonic() - t0)
-
-    def interrupt(self, timeout: float = 10.0) -> float:
-        """SIGINT (Ctrl-C); seconds until the process exited."""
-        t0 = time.monotonic()
-        self.p.send_signal(signal.SIGINT)
-        try:
-            self.p.wait(timeout)
-        except subprocess.TimeoutExpired:
-            self.p.kill()
-            self.p.wait()
-            return float("inf")
-        return time.monotonic() - t0
-
-    def stop(self) -> None:
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGINT)
-            try:
-                self.p.wait(5)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait()
-
-
-def start_sim(force_fps0: bool = False) -> tuple[Proc, int]:
-    if force_fps0:
-        proc = Proc([sys.executable, str(Path(__file__).resolve()), "--sim-child"], "sim(fps=0)")
-    else:
-        proc = Proc([str(BIN / "axis_camera_sim"), "--port", "0"], "sim")
-    port = int(proc.wait_line(r"http://127\.0\.0\.1:(\d+)/").group(1))
-    return proc, port
-
-
-def start_ours(port: int, **params: object) -> Proc:
-    values = {
-        "port": port,
-        "fps": 30,
-        "resolution": "704x576",
-        "compression": 30,
-        "camera_model": str(ROOT / "config" / "axis214.yaml"),  # explicit: no ament index lookup needed
-        **params,
-    }
-    args = [str(BIN / "axis_stream"), "--ros-args", "-r", "__ns:=/ours"]
-    for k, v in values.items():
-        args += ["-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}"]
-    return Proc(args, "axis_stream")
-
-
-def start_minimal(port: int, fps: int = 30, skip_unsubscribed: bool = False) -> Proc:
-    cmd = [sys.executable, str(ROOT / "bench" / "minimal_pipeline.py"), "--port", str(port), "--fps", str(fps)]
-    return Proc(cmd + (["--skip-unsubscribed"] if skip_unsubscribed else []), "minimal")
-
-
-def sim_get(port: int, path: str) -> dict:
-    import httpx
-
-    return httpx.get(f"http://127.0.0.1:{port}{path}", timeout=5.0, trust_env=False).json()
-
-
-# --------------------------------------------------------------------------------------------------------
-# subscriber
-# --------------------------------------------------------------------------------------------------------
-@dataclass
-class Rx:
-    t_rx: float  # monotonic
-    latency_ms: float
-    seq: int
-    nbytes: int
-    size: tuple[int, int] | None
-
-
-@dataclass
-class Recorder:
-    frames: list[Rx] = field(default_factory=list)
-    infos: list[float] = field(default_factory=list)  # monotonic receive times of camera_info
-    lock: threading.Lock = field(default_factory=threading.Lock)
-
-    def since(self, t: float) -> list[Rx]:
-        with self.lock:
-            return [f for f in self.frames if f.t_rx >= t]
-
-    def last(self) -> Rx | None:
-        with self.lock:
-            return self.frames[-1] if self.frames else None
-
-
-class Subscriber:
-    def __init__(self) -> None:
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
-
-        rclpy.init()
-        self.node = rclpy.create_node("bench_stream_probe")
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def subscribe(self, ns: str) -> tuple[Recorder, list[object]]:
-        """Subscribe to ``<ns>/image_raw/compressed`` and ``<ns>/camera_info`` (what every consumer takes)."""
-        from sensor_msgs.msg import CameraInfo, CompressedImage
-
-        from axis_ptz_ros2.nodes.common import STREAM_QOS
-        from axis_ptz_ros2.streaming import jpeg_size
-        from tests.support.stamps import sim_stamp
-
-        rec = Recorder()
-
-        def on_image(msg: CompressedImage) -> None:
-            now_ns = time.time_ns()
-            t = time.monotonic()
-            view = memoryview(msg.data)
-            st = sim_stamp(view) or (-1, now_ns)
-            f = Rx(t, (now_ns - st[1]) / 1e6, st[0], len(view), jpeg_size(view))
-            with rec.lock:
-                rec.frames.append(f)
-
-        def on_info(msg: CameraInfo) -> None:
-            t = time.monotonic()
-            with rec.lock:
-                rec.infos.append(t)
-
-        subs = [
-            self.node.create_subscription(CompressedImage, f"{ns}/image_raw/compressed", on_image, STREAM_QOS),
-            self.node.create_subscription(CameraInfo, f"{ns}/camera_info", on_info, STREAM_QOS),
-        ]
-        return rec, subs
-
-    def unsubscribe(self, subs: list[object]) -> None:
-        for s in subs:
-            self.node.destroy_subscription(s)
-
-    def call(self, srv_type: type, name: str, request: object, timeout: float = 10.0) -> object:
-        client = self.node.create_client(srv_type, name)
-        try:
-            if not client.wait_for_service(timeout_sec=timeout):
-                raise RuntimeError(f"service {name} not available")
-            fut = client.call_async(request)
-            deadline = time.monotonic() + timeout
-            while not fut.done() and time.monotonic() < deadline:
-                time.sleep(0.005)
-            if not fut.done():
-                raise RuntimeError(f"service {name} timed out")
-            return fut.result()
-        finally:
-            self.node.destroy_client(client)
-
-    def call_ready(self, name: str, timeout: float = 15.0) -> None:
-        from axis_ptz_interfaces.srv import SetVideoParams
-
-        client = self.node.create_client(SetVideoParams, name)
-        try:
-            if not client.wait_for_service(timeout_sec=timeout):
-                raise RuntimeError(f"{name} did not come up")
-        finally:
-            self.node.destroy_client(client)
-
-    def set_video(self, fps: int = 0, resolution: str = "", compression: int = -1) -> object:
-        from axis_ptz_interfaces.srv import SetVideoParams
-
-        req = SetVideoParams.Request(fps=fps, resolution=resolution, compression=compression)
-        res = self.call(SetVideoParams, "/ours/video/set_params", req)
-        if not res.success:
-            raise RuntimeError(res.message)
-        return res
-
-    def set_param(self, name: str, value: object) -> None:
-        from rcl_interfaces.srv import SetParameters
-        from rclpy.parameter import Parameter
-
-        req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        res = self.call(SetParameters, "/ours/axis_stream/set_parameters", req)
-        if not res.results[0].successful:
-            raise RuntimeError(res.results[0].reason)
-
-    def close(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=1.0)
-        self.thread.join(2.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
-
-
-def wait_until(pred: Callable[[], object], timeout: float, period: float = 0.01) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(period)
-    return False
-
-
-def kbps(frames: list[Rx]) -> float:
-    if len(frames) < 2 or frames[-1].t_rx <= frames[0].t_rx:
-        return float("nan")
-    return sum(f.nbytes for f in frames[1:]) * 8 / 1000 / (frames[-1].t_rx - frames[0].t_rx)
-
-
-def fps_of(frames: list[Rx]) -> float:
-    if len(frames) < 2:
-        return 0.0
-    return (len(frames) - 1) / (frames[-1].t_rx - frames[0].t_rx)
-
-
-def pct(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, round(q / 100 * (len(s) - 1)))] if s else float("nan")
-
-
 def verdict(name: str, ok: bool, detail: str) -> None:
     RESULTS.append((name, ok, detail))
     print(f"  [{'PASS' if ok else 'FAIL'}] {name}: {detail}", flush=True)
-
-
-@contextlib.contextmanager
-def subscribed(sub: Subscriber, ns: str) -> Iterator[Recorder]:
-    rec, handle = sub.subscribe(ns)
-    try:
-        yield rec
-    finally:
-        sub.unsubscribe(handle)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -403,93 +93,6 @@ def measure_load(sub: Subscriber, proc: Proc, ns: str, seconds: float) -> Load:
             infos = sum(1 for t in rec.infos if t >= t0)
     lat = [f.latency_ms for f in frames]
     return Load(statistics.median(lat), pct(lat, 99), fps_of(frames), cpu, rss, cpu_idle, len(frames), infos)
-
-
-def measure_cpu_side_by_side(
-    sub: Subscriber, ours: Proc, mini: Proc, seconds: float, repeats: int
-) -> list[tuple[float, float]]:
-    """CPU of both pipelines, each streaming to a subscriber, over the same wall-clock windows.
-
-    Windows taken one after the other (as ``measure_load`` does) see different machine load and different
-    moments of each process's life; sharing the window cancels both, so the ratio is what is judged.
-    """
-    with subscribed(sub, "/ours") as r_ours, subscribed(sub, "/minimal") as r_min:
-        if not wait_until(lambda: len(r_ours.frames) >= 10 and len(r_min.frames) >= 10, 10.0):
-            raise RuntimeError("side by side: no frames")
-        time.sleep(1.5)  # warm-up
-        out = []
-        for _ in range(repeats):
-            o0, m0, t0 = ours.cpu_s(), mini.cpu_s(), time.monotonic()
-            time.sleep(seconds)
-            dt = time.monotonic() - t0
-            out.append((100.0 * (ours.cpu_s() - o0) / dt, 100.0 * (mini.cpu_s() - m0) / dt))
-    return out
-
-
-def side_by_side_median(side: list[tuple[float, float]]) -> tuple[float, float, float]:
-    """(ours, minimal, ratio) of the window with the median ratio."""
-    o, m = sorted(side, key=lambda w: w[0] / w[1])[len(side) // 2]
-    return o, m, o / m
-
-
-SHARED_WINDOWS = "3 shared windows each, a simulator per pipeline"
-
-
-@dataclass
-class CpuComparison:
-    """:func:`measure_cpu_both_orders`: the shared windows of each start order and the judged ratio."""
-
-    ours_first: list[tuple[float, float]]
-    minimal_first: list[tuple[float, float]]
-
-    @property
-    def ratio(self) -> float:
-        """Geometric mean of the two orders' median ratios: a cost of being started first cancels out."""
-        return math.sqrt(side_by_side_median(self.ours_first)[2] * side_by_side_median(self.minimal_first)[2])
-
-    @property
-    def cpu(self) -> tuple[float, float]:
-        """(ours, minimal) % of a core, the mean of both orders' median windows."""
-        a, b = side_by_side_median(self.ours_first), side_by_side_median(self.minimal_first)
-        return (a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0
-
-    def describe(self) -> str:
-        def one(side: list[tuple[float, float]]) -> str:
-            return ", ".join(f"{o:.2f} vs {m:.2f} % ({o / m:.2f}x)" for o, m in side)
-
-        return f"axis_stream started first: {one(self.ours_first)}; minimal first: {one(self.minimal_first)}"
-
-
-def measure_cpu_both_orders(
-    sub: Subscriber,
-    start_ours_fn: Callable[[], Proc],
-    start_minimal_fn: Callable[[], Proc],
-    seconds: float,
-    repeats: int = 3,
-) -> CpuComparison:
-    """The judged CPU comparison: each pipeline on a simulator of its own (the caller's starters), side by side
-    over shared windows (:func:`measure_cpu_side_by_side`), once started ours-first and once minimal-first.
-
-    Two *identical* pipelines side by side do not cost the same: the one started first cost 16 % more on one
-    simulator and 6 % more with one simulator each (two minimal pipelines, 30 s windows of the scheduler's run
-    time, 8868dbf). With one fixed order that bias is the size of the target's margin, so both orders are
-    measured and their ratios averaged (geometric mean)."""
-    rounds: list[list[tuple[float, float]]] = []
-    for ours_first in (True, False):
-        procs: list[Proc] = []
-        try:
-            for which in ("ours", "minimal") if ours_first else ("minimal", "ours"):
-                procs.append(start_ours_fn() if which == "ours" else start_minimal_fn())
-                if which == "ours":
-                    sub.call_ready("/ours/video/set_params")
-                time.sleep(1.0)
-            ours = procs[0] if ours_first else procs[1]
-            mini = procs[1] if ours_first else procs[0]
-            rounds.append(measure_cpu_side_by_side(sub, ours, mini, seconds, repeats))
-        finally:
-            for proc in procs:
-                proc.stop()
-    return CpuComparison(rounds[0], rounds[1])
 
 
 def measure_ingest(sub: Subscriber, proc: Proc, sim_port: int, ns: str, seconds: float) -> tuple[float, float]:
@@ -656,12 +259,9 @@ def measure_budget(sub: Subscriber, rec: Recorder, budget: int, seconds: float) 
 # --------------------------------------------------------------------------------------------------------
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sim-child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--quick", action="store_true", help="shorter windows (noisier numbers)")
     ap.add_argument("--reboot-seed", type=int, default=10, help="seed of the randomised reboot lengths (printed)")
     args = ap.parse_args()
-    if args.sim_child:
-        return sim_child()
     window = 5.0 if args.quick else 10.0
     inputs(
         "axis_ptz_ros2/streaming",
@@ -671,6 +271,8 @@ def main() -> int:
         "axis_ptz_ros2/vapix",
         "axis_ptz_ros2/sim",
         "bench/bench_stream.py",
+        "bench/pipelines.py",
+        "bench/cpu_compare.py",
         "bench/minimal_pipeline.py",
     )
     sub = Subscriber()
@@ -844,7 +446,7 @@ def main() -> int:
         row(
             "stream node CPU at 30 fps / with no subscriber",
             f"{cpu_ours:.1f} % / {lo.cpu_idle:.2f} % of a core (minimal {cpu_min:.1f} % / {lm.cpu_idle:.1f} %; "
-            f"{cpu_ratio:.2f}×, both start orders, {SHARED_WINDOWS}",
+            f"{cpu_ratio:.2f}×, both start orders, {SHARED_WINDOWS})",
             "≤ 1.2× minimal / ≈ 0",
             ok["CPU at 30 fps <= 1.2x minimal"] and ok["CPU with zero subscribers ~ 0 (< 1 % core)"],
         )

@@ -24,18 +24,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench_stream import (  # bench/bench_stream.py: the same processes, subscriber and load measurement
-    BIN,
-    ROOT,
-    SHARED_WINDOWS,
-    Proc,
-    Subscriber,
-    fps_of,
-    measure_cpu_both_orders,
-    measure_load,
-    subscribed,
-    wait_until,
-)
+from bench_stream import measure_load  # bench/bench_stream.py: the same load measurement
+from cpu_compare import SHARED_WINDOWS, measure_cpu_both_orders
+from pipelines import BIN, ROOT, Proc, Subscriber, fps_of, subscribed, wait_until
 from report import inputs, row
 
 SIZE = "1920x1080"
@@ -102,6 +93,8 @@ def main() -> int:
         "axis_ptz_ros2/sim",
         "bench/bench_stream_1080p.py",
         "bench/bench_stream.py",
+        "bench/pipelines.py",
+        "bench/cpu_compare.py",
         "bench/minimal_pipeline.py",
     )
     ok_all = True
