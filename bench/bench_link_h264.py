@@ -13,6 +13,8 @@ invocation (each on a fresh link, so they never share it):
   h264-nofb       ``codec: h264``, a viewer that sends no feedback (a plain subscription to ``image_raw/ffmpeg``,
                   reliable keep-last 10 as image_transport subscribes by default)
   mjpeg-nofb      ``codec: mjpeg``, a viewer that sends no feedback (plain subscription to ``image_raw/compressed``)
+  h264-step       as ``h264``, the link dropping from 2 to 1 Mbit/s 20 s into the measurement (only if asked for)
+  h264-cut        as ``h264``, the link cut 15-25 s into the measurement (only if asked for)
 
 The operator's measuring viewer is this script's ``--viewer`` mode: with feedback it *is* ``axis_link_monitor``
 (its node class, run in-process with its parameters, so the link carries one copy of the video as in the README's
@@ -272,9 +274,17 @@ class Session:
     first_node_s: list[float] = field(default_factory=list)  # viewer node up -> first picture (s)
     pose_moved: bool = False
     note: str = ""
+    events: dict[str, int] = field(default_factory=dict)  # what happened to the link, and when (ns)
 
     def t(self, ns: int) -> float:
         return (ns - self.t0) / NS
+
+
+#: scripted link changes of a session, seconds into its measurement: issue 21's step (2 -> 1 Mbit/s) and cut (10 s)
+SCRIPTS: dict[str, list[tuple[float, str]]] = {
+    "h264-step": [(20.0, "rate1000")],
+    "h264-cut": [(15.0, "down"), (25.0, "up")],
+}
 
 
 def start_viewer(hosts: Any, link: Any, s: Session, env: dict[str, str], refdir: Path, k: int) -> tuple[Any, Any]:
@@ -364,9 +374,17 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             s.note = "no picture within the start's timeout"
         s.t0 = time.time_ns()
         end = s.t0 + int(seconds * NS)
+        script = list(SCRIPTS.get(s.name, []))
         while time.time_ns() < end:
             hosts.check_alive()
-            time.sleep(0.1)
+            while script and time.time_ns() >= s.t0 + int(script[0][0] * NS):
+                _at, what = script.pop(0)
+                if what.startswith("rate"):
+                    link.set_rate(int(what[4:]))
+                else:
+                    link.set_up(what == "up")
+                s.events[what] = time.time_ns()
+            time.sleep(0.05)
         s.pics = [r for r in reader.of("pic") if s.t0 <= r["rx"] < end]
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
         s.gaps = [r for r in reader.of("gap") if s.t0 <= r["rx"] < end]
@@ -426,6 +444,77 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:
     out["settings"] = f"{last['resolution']}@{last['fps']} c{last['compression']}" if last else "?"
     out["note"] = s.note
     return out
+
+
+def event_figures(s: Session) -> dict[str, Any]:
+    """The scripted sessions (:data:`SCRIPTS`): after the step to 1 Mbit/s, seconds until the frame age stays under
+    100 ms (the last picture older than that, counted from the step) and the rate and age of the last 10 s; after
+    the cut, the first decoded picture after the heal and the pictures delivered after it that are older than 1 s
+    (stale: taken before or during the cut)."""
+    out: dict[str, Any] = {"name": s.name}
+    end = max((r["rx"] for r in s.pics), default=s.t0)
+    tail = [r for r in s.pics if r["rx"] >= end - 10 * NS]
+    ages = [x for x in (age_ms(r) for r in tail) if not math.isnan(x)]
+    out["tail_fps"], out["tail_age_p95"] = len(tail) / 10.0, pct(ages, 0.95)
+    if "rate1000" in s.events:
+        t = s.events["rate1000"]
+        late = [r["rx"] for r in s.pics if r["rx"] >= t and age_ms(r) > 100]
+        out["recovery_s"] = (max(late) - t) / NS if late else 0.0
+        out["late_pictures"] = len(late)
+    if "up" in s.events:
+        t = s.events["up"]
+        after = [r for r in s.pics if r["rx"] >= t]
+        out["first_after_heal_s"] = (after[0]["rx"] - t) / NS if after else math.inf
+        out["stale_after_heal"] = sum(1 for r in after if age_ms(r) > 1000)
+        during = [r for r in s.pics if s.events["down"] <= r["rx"] < t]
+        out["during_cut"] = len(during)
+    return out
+
+
+def print_events(ev: list[dict[str, Any]]) -> None:
+    for e in ev:
+        if "recovery_s" in e:
+            print(
+                f"{e['name']}: link 2 -> 1 Mbit/s (2 % loss) at 20 s: frame age back under 100 ms "
+                f"{e['recovery_s']:.1f} s after the step ({e['late_pictures']} pictures older than 100 ms after it); "
+                f"last 10 s {e['tail_fps']:.1f} fps, age p95 {e['tail_age_p95']:.0f} ms   target <= 3 s"
+            )
+        if "first_after_heal_s" in e:
+            print(
+                f"{e['name']}: link cut 15-25 s: first decoded picture {e['first_after_heal_s']:.2f} s after the "
+                f"heal; {e['stale_after_heal']} pictures older than 1 s delivered after it, {e['during_cut']} during "
+                f"the cut; last 10 s {e['tail_fps']:.1f} fps, age p95 {e['tail_age_p95']:.0f} ms   "
+                "target <= 1 s, no stale picture"
+            )
+
+
+def event_rows(ev: list[dict[str, Any]]) -> bool:
+    """README rows of the scripted sessions; True if they meet their targets."""
+    from report import row
+
+    ok = True
+    for e in ev:
+        if "recovery_s" in e:
+            good = e["recovery_s"] <= 3.0
+            row(
+                "two hosts, 2 % loss, H.264 + link monitor, the link dropping 2 → 1 Mbit/s mid-run: frame age back "
+                "under 100 ms after the step / the last 10 s",
+                f"{e['recovery_s']:.1f} s / {e['tail_fps']:.1f} fps, age p95 {e['tail_age_p95']:.0f} ms",
+                "≤ 3 s",
+                good,
+            )
+            ok &= good
+        if "first_after_heal_s" in e:
+            good = e["first_after_heal_s"] <= 1.0 and e["stale_after_heal"] == 0
+            row(
+                "two hosts, 2 Mbit/s 2 % loss, H.264 + link monitor, a 10 s cut healed: first decoded picture after "
+                "the heal / pictures older than 1 s delivered after it",
+                f"{e['first_after_heal_s']:.2f} s / {e['stale_after_heal']}",
+                "≤ 1 s / 0",
+                good,
+            )
+            ok &= good
+    return ok
 
 
 def ceiling(refdir: Path) -> None:
@@ -634,7 +723,9 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=40.0, help="measurement per session (s, >= 20)")
-    ap.add_argument("--sessions", default="mjpeg,h264,h264-nofb,mjpeg-nofb")
+    ap.add_argument(
+        "--sessions", default="mjpeg,h264,h264-nofb,mjpeg-nofb", help="also h264-step, h264-cut (scripted link changes)"
+    )
     ap.add_argument("--starts", type=int, default=5, help="viewer starts timed in the h264-nofb session")
     ap.add_argument("--rate-kbit", type=int, default=LINK_KBIT, help="the link's rate each way (kbit/s)")
     ap.add_argument("--plot", default=str(ROOT / "bench/results/link_h264.png"), help="PNG to write ('' = none)")
@@ -673,17 +764,23 @@ def main() -> int:
         s = Session(name, "h264" if name.startswith("h264") else "mjpeg", not name.endswith("-nofb"))
         print(f"== {name}: {seconds:.0f} s on the link ...", flush=True)
         sessions.append(run_session(s, seconds, a.starts, logs, a.fastdds_profile))
+    scripted = [s for s in sessions if s.name in SCRIPTS]
+    sessions = [s for s in sessions if s.name not in SCRIPTS]
     results = [figures(s, seconds) for s in sessions]
+    events = [event_figures(s) for s in scripted]
     print()
-    ceiling(logs / f"ref-{sessions[0].name}")
-    print_table(results, seconds)
+    if sessions:
+        ceiling(logs / f"ref-{sessions[0].name}")
+        print_table(results, seconds)
+    print_events(events)
+    sessions += scripted
     if a.plot:
         plot(sessions, seconds, Path(a.plot))
         print(f"\nplot: {os.path.relpath(a.plot, ROOT)}")
     by = {r["name"]: r for r in results}
     readme_rows(by)
+    ok = event_rows(events)
     h, n = by.get("h264"), by.get("h264-nofb")
-    ok = True
     if h and LINK_KBIT == 1000:
         ok &= h["fps_full"] >= FPS_TARGET and h["psnr_soft_p50"] >= 35
     elif h and LINK_KBIT == 2000:
