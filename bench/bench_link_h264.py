@@ -727,7 +727,7 @@ def main() -> int:
         "--sessions", default="mjpeg,h264,h264-nofb,mjpeg-nofb", help="also h264-step, h264-cut (scripted link changes)"
     )
     ap.add_argument("--starts", type=int, default=5, help="viewer starts timed in the h264-nofb session")
-    ap.add_argument("--rate-kbit", type=int, default=LINK_KBIT, help="the link's rate each way (kbit/s)")
+    ap.add_argument("--rate-kbit", type=int, default=2000, help="the link's rate each way (kbit/s)")
     ap.add_argument("--plot", default=str(ROOT / "bench/results/link_h264.png"), help="PNG to write ('' = none)")
     ap.add_argument(
         "--fastdds-profile",
