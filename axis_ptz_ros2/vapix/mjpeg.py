@@ -263,6 +263,16 @@ class MjpegParser:
         self._stats.frames += 1
         self._largest = max(self._largest, end - start)
 
+    def _take_declared(self, frames: list[bytes], start: int, stop: int) -> bool:
+        """The declared body ``buf[start:stop]`` is in: if it is a JPEG (SOI … EOI), emit it and move past it."""
+        buf = self._buf
+        if not (buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, stop)):
+            return False
+        self._emit(frames, start, stop)
+        self._pos = stop
+        self._state = _GAP
+        return True
+
     def _emit_or_drop(self, frames: list[bytes], start: int, end: int) -> None:
         buf = self._buf
         if end - start >= 4 and buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, end):
@@ -292,28 +302,22 @@ class MjpegParser:
             if length <= max(_PLAUSIBLE_LENGTH, 2 * self._largest):
                 if available < stop:
                     return False
-                if buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, stop):
-                    self._emit(frames, start, stop)
-                    self._pos = stop
-                    self._state = _GAP
+                if self._take_declared(frames, start, stop):
                     return True
                 hit = buf.find(delim, start, stop)  # the length is wrong: where does the part really end?
                 self._scan_from = hit if hit >= 0 else stop
             else:
                 # A delimiter inside the declared body means the length is wrong (too long).
                 hit = buf.find(delim, max(start, self._scan_from - len(delim)), min(stop, available))
-                if hit < 0:
-                    if available < stop:
-                        self._scan_from = available
-                        return False
-                    if buf.startswith(_SOI, start) and buf.endswith(_EOI, 0, stop):
-                        self._emit(frames, start, stop)
-                        self._pos = stop
-                        self._state = _GAP
-                        return True
-                    self._scan_from = stop  # too short (or corrupt): find where the part really ends
-                else:
+                if hit >= 0:
                     self._scan_from = hit
+                elif available < stop:
+                    self._scan_from = available
+                    return False
+                elif self._take_declared(frames, start, stop):
+                    return True
+                else:
+                    self._scan_from = stop  # too short (or corrupt): find where the part really ends
             self._length = None
             self._stats.resyncs += 1
         elif length is not None:
