@@ -156,24 +156,15 @@ class Watch:
         return (len(w) - 1) / (w[-1] - w[0]) if len(w) > 1 else 0.0
 
 
-def wait_service(sub: Subscriber, srv_type: type, name: str, timeout: float = 40.0) -> None:
-    client = sub.node.create_client(srv_type, name)
-    try:
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise RuntimeError(f"{name} did not come up")
-    finally:
-        sub.node.destroy_client(client)
-
-
 def wait_up(sub: Subscriber, stream_ns: Iterable[str] = (), ptz_ns: Iterable[str] = ()) -> None:
     from std_srvs.srv import Trigger
 
     from axis_ptz_interfaces.srv import SetVideoParams
 
     for ns in stream_ns:
-        wait_service(sub, SetVideoParams, f"{ns}/video/set_params")
+        sub.call_ready(f"{ns}/video/set_params", 40.0, srv_type=SetVideoParams)
     for ns in ptz_ns:
-        wait_service(sub, Trigger, f"{ns}/ptz/home")
+        sub.call_ready(f"{ns}/ptz/home", 40.0, srv_type=Trigger)
 
 
 def watch(sub: Subscriber, ns: str, images: bool = True, state: bool = False) -> Watch:

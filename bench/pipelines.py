@@ -1,5 +1,5 @@
 """The processes and the subscriber of the stream benches (``bench_stream``, ``bench_stream_1080p``, ``bench_cpu``,
-``bench_passthrough_cpu``, ``bench_soak``): the simulated camera, ``axis_stream`` and ``bench/minimal_pipeline.py`` as
+``bench_h264_loopback``, ``bench_soak``): the simulated camera, ``axis_stream`` and ``bench/minimal_pipeline.py`` as
 subprocesses with their CPU (the scheduler's per-thread run time) and RSS, and a ROS subscriber in this process that
 records each frame's latency from the simulator's JPEG stamp.
 
@@ -266,10 +266,13 @@ class Subscriber:
         finally:
             self.node.destroy_client(client)
 
-    def call_ready(self, name: str, timeout: float = 15.0) -> None:
-        from axis_ptz_interfaces.srv import SetVideoParams
+    def call_ready(self, name: str, timeout: float = 15.0, *, srv_type: type | None = None) -> None:
+        """Wait until the service ``name`` (of ``srv_type``; default ``SetVideoParams``) is available."""
+        if srv_type is None:
+            from axis_ptz_interfaces.srv import SetVideoParams
 
-        client = self.node.create_client(SetVideoParams, name)
+            srv_type = SetVideoParams
+        client = self.node.create_client(srv_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise RuntimeError(f"{name} did not come up")
