@@ -46,7 +46,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Final, Protocol
 
 import numpy as np
@@ -396,12 +396,17 @@ class PtsGaps:
 
 @dataclass(slots=True)
 class ReceiverStats:
-    """What a receiver saw since it was made."""
+    """What a receiver saw since it was made; :attr:`lost` is read from the receiver's :class:`PtsGaps`."""
 
     access_units: int = 0
     pictures: int = 0
-    lost: int = 0  # access units missing between two received ones (pts gaps)
     unusable: int = 0  # received but not shown: corrupt, or waiting for an IDR after a loss or on joining
+    gaps: PtsGaps = field(default_factory=PtsGaps, repr=False)  # the receiver's pts gaps
+
+    @property
+    def lost(self) -> int:
+        """Access units missing between two received ones (pts gaps)."""
+        return self.gaps.lost
 
 
 class AccessUnitReceiver:
@@ -418,7 +423,7 @@ class AccessUnitReceiver:
         self._decoder = H264Decoder()
         self._gaps = PtsGaps()
         self._pending_unusable = 0
-        self.stats = ReceiverStats()
+        self.stats = ReceiverStats(gaps=self._gaps)
 
     @property
     def decoder_errors(self) -> int:
@@ -429,7 +434,6 @@ class AccessUnitReceiver:
         """One access unit; the picture (BGR) or None when it cannot be shown."""
         self.stats.access_units += 1
         if pts is not None and self._gaps.see(pts):
-            self.stats.lost = self._gaps.lost
             self._decoder.mark_discontinuity()  # also a restarted stream (pts back to a lower value)
         picture = self._decoder.decode(data)
         if picture is None:
