@@ -12,7 +12,8 @@ Policy that lives here:
 
 * resolution ``""`` = the largest size the camera lists (704x576 while it cannot list them);
 * requests are validated against the camera's own list once known (never an assumed one);
-* the budget in force is the tighter of the hand-set ``max_bitrate_kbps`` and the link adapter's;
+* the budget in force is the tighter of the hand-set ``max_bitrate_kbps`` and the link adapter's, in either codec
+  (what :meth:`VideoController.state` advertises);
 * a consumer's report is judged only when it says something about the link (:meth:`VideoController.feedback`);
 * the budget is re-judged at most every :data:`BUDGET_PERIOD_S` on the frame path.
 
@@ -23,7 +24,9 @@ without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports not
 a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up to the
 ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under what the
 link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it. Consumers' reports are
-then judged against the H.264 bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs.
+then judged against the H.264 bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs. No
+ladder step announces a change of the budget there: it is announced (as ``bandwidth_budget``) when it moves by
+:data:`BUDGET_ANNOUNCE_SLACK` or more from the one last announced, or comes or goes.
 """
 
 from __future__ import annotations
@@ -48,6 +51,8 @@ FEEDBACK_SETTLE_S = 0.5
 SWAMPED_AFTER_STEP_UP_S = 1.0
 #: s: the budget is re-judged at most this often on the frame path
 BUDGET_PERIOD_S = 0.25
+#: h264 mode: a change of the budget in force smaller than this fraction of the one last announced is not announced
+BUDGET_ANNOUNCE_SLACK = 0.1
 #: resolution "" while the camera cannot list its sizes (discovery retries)
 AUTO_PLACEHOLDER = Resolution(704, 576)
 #: the fields of :class:`VideoSettings` that make up the request and the budget (not the link adaptation)
@@ -95,7 +100,7 @@ class VideoState:
 
     params: VideoParams
     source: str  # cause of the parameters in effect: startup, parameter, service, bandwidth_budget
-    budget_kbps: float  # the budget in force (0 = none)
+    budget_kbps: float  # the budget in force (0 = none), in either codec
     level: int  # the budget ladder's level (0 = the request)
     resolutions: tuple[Resolution, ...]  # the camera's list (the PAL 214's until learned), smallest first
     adapt: bool
@@ -184,6 +189,7 @@ class VideoController:
         self._stepped_up = False  # the budget's last switch was to better settings
         self._budget_check = -1e18
         self._decision: Decision | None = None
+        self._announced_kbps = self._budget_kbps()  # the budget in force at the last announcement
 
     # -- reading -------------------------------------------------------------------------------------------
     @property
@@ -225,7 +231,7 @@ class VideoController:
             return VideoState(
                 params=self._current,
                 source=self._source,
-                budget_kbps=self._budget.budget_kbps,
+                budget_kbps=self._budget_kbps(),
                 level=self._budget.level,
                 resolutions=tuple(dict.fromkeys(known)),
                 adapt=adapt,
@@ -254,7 +260,8 @@ class VideoController:
     def apply(self, settings: VideoSettings, changed: Collection[str], source: str = "parameter") -> VideoParams:
         """Take checked ``settings`` (``changed`` = the names that were set, even to the same value: a set
         restarts the ladder from the request); ``source`` becomes the cause of the parameters in effect, announced,
-        when the video fields were touched (the encoder's fields are announced too, the cause left as it was)."""
+        when the video fields were touched (the encoder's fields are announced too, and in h264 mode a link setting
+        that moves the budget in force: the cause left as it was)."""
         now = self._clock()
         names = set(changed)
         video = bool(VIDEO_FIELDS & names)
@@ -276,7 +283,8 @@ class VideoController:
                 self._stepped_up = False  # the user's change, not a step the link must prove
                 self._current = self._budget.current
                 self._source = source
-        if video or H264_FIELDS & names:  # (the encoder's settings are announced with the rest)
+            moved = self._h264_budget_moved()  # (adaptation switched off: the link's budget is gone)
+        if video or H264_FIELDS & names or moved:  # (the encoder's settings are announced with the rest)
             self._announce()
         return self._current
 
@@ -348,6 +356,11 @@ class VideoController:
             decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up, grow_from)
             self._decision = decision
             self._budget.set_budget(self._effective_budget(), now)
+            announce = self._h264_budget_moved()
+            if announce:
+                self._source = "bandwidth_budget"
+        if announce:
+            self._announce()
         return LinkJudgement(decision, judged, sent, level)
 
     def tick(self) -> None:
@@ -359,8 +372,15 @@ class VideoController:
                 return
             before = self._link.budget_kbps
             self._link.tick(now)
-            if self._link.budget_kbps != before:  # released after a long silence: back to the hand budget
-                self._budget.set_budget(self._effective_budget(), now)
+            if self._link.budget_kbps == before:
+                return
+            # held at what was sent through a silence, or released after a long one: back to the hand budget
+            self._budget.set_budget(self._effective_budget(), now)
+            announce = self._h264_budget_moved()
+            if announce:
+                self._source = "bandwidth_budget"
+        if announce:
+            self._announce()
 
     # -- internals -----------------------------------------------------------------------------------------
     def _known_resolutions(self) -> tuple[Resolution, ...]:
@@ -386,6 +406,17 @@ class VideoController:
         link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
         budgets = [b for b in (float(self._settings.max_bitrate_kbps), link) if b > 0]
         return min(budgets) if budgets else 0.0
+
+    def _h264_budget_moved(self) -> bool:
+        """h264 mode: whether the budget in force moved materially since the last announcement (by
+        :data:`BUDGET_ANNOUNCE_SLACK` of it, or came or went); in MJPEG mode the ladder's steps announce it. Call
+        with the lock held."""
+        if not self.h264:
+            return False
+        kbps, last = self._budget_kbps(), self._announced_kbps
+        if kbps == last:
+            return False
+        return kbps <= 0 or last <= 0 or abs(kbps - last) >= BUDGET_ANNOUNCE_SLACK * last
 
     def _judgeable(
         self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool], meter: BitrateMeter
@@ -414,6 +445,8 @@ class VideoController:
 
     def _announce(self) -> None:
         """Tell the listener; serialised, so the last announcement describes the latest state."""
+        with self._lock:
+            self._announced_kbps = self._budget_kbps()
         if self._on_change is None:
             return
         with self._notify_lock:

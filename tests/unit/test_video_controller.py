@@ -13,12 +13,13 @@ import pytest
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader
 from axis_ptz_ros2.streaming.controller import (
     AUTO_PLACEHOLDER,
+    BUDGET_ANNOUNCE_SLACK,
     VIDEO_FIELDS,
     VideoController,
     VideoSettings,
     requested_changes,
 )
-from axis_ptz_ros2.streaming.feedback import FeedbackReport
+from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport, LinkAdapter, h264_adapter_config
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 
@@ -228,6 +229,86 @@ def test_adaptation_off_ignores_feedback():
     assert ctl.state().link_state == "off"
     ctl.apply(replace(ctl.settings, adapt_to_link=True), {"adapt_to_link"})
     assert ctl.feedback(judged(queue_s=0.5), lambda _c: True) is not None
+
+
+def _send_h264(ctl: VideoController, clock: Clock, seconds: float, kbps: float) -> None:
+    """``seconds`` of 30 access units/s at ``kbps`` sent (h264 mode: what reports are judged against)."""
+    for _i in range(int(seconds * 30)):
+        clock.t += 1 / 30
+        ctl.on_h264_frame(clock.t, int(kbps * 1000 / 8 / 30))
+
+
+def test_h264_mode_advertises_the_budget_in_force_and_announces_when_it_moves():
+    """In h264 mode the ladder stands still and the budget drives the encoder's bitrate; what is advertised
+    (``video/params``' ``max_bitrate_kbps``) is still the budget in force, the tighter of ``max_bitrate_kbps`` and
+    the link's, announced when the link moves it (as a ladder step is in MJPEG), not on every report."""
+    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000)
+    assert ctl.state().budget_kbps == 5000.0, "the hand-set budget caps the encoder"
+    _send_h264(ctl, clock, 4.0, 1500.0)
+    for _i in range(4):  # a link that carries what is sent: no budget of the link's (ceiling = start), nothing new
+        ctl.feedback(FeedbackReport("/op", 60, 30.0, 1500.0, 0.02, 0.01, 0.04, 2.0), lambda _c: True)
+        _send_h264(ctl, clock, 0.5, 1500.0)
+    assert ctl.state().budget_kbps == 5000.0
+    assert seen == []
+    # a third of the access units arrive: the link's budget, under what arrived, is the one in force
+    congested = FeedbackReport("/op", 20, 10.0, 500.0, 0.02, 0.01, 0.1, 2.0)
+    j = ctl.feedback(congested, lambda _c: True)
+    assert j is not None
+    assert j.decision.state == "congested"
+    st = ctl.state()
+    assert 0 < st.budget_kbps <= 500
+    assert st.budget_kbps == st.link_budget_kbps
+    assert ctl.h264_settings().bitrate_kbps <= st.budget_kbps
+    assert (st.level, ctl.current.compression) == (0, 0), "the ladder stands still"
+    assert seen == ["bandwidth_budget"]
+    for _i in range(3):  # the same report again within the decrease hold: the budget stays, nothing announced
+        _send_h264(ctl, clock, 0.3, 500.0)
+        ctl.feedback(congested, lambda _c: True)
+    assert ctl.state().budget_kbps == st.budget_kbps
+    assert seen == ["bandwidth_budget"]
+    clock.t += 31.0  # link_release 30 s without a report: back to the hand-set budget, announced
+    ctl.tick()
+    assert ctl.state().budget_kbps == 5000.0
+    assert len(seen) == 2
+
+
+def test_h264_adaptation_switched_off_announces_the_hand_set_budget_again():
+    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000)
+    _send_h264(ctl, clock, 4.0, 1500.0)
+    assert ctl.feedback(FeedbackReport("/op", 20, 10.0, 500.0, 0.02, 0.01, 0.1, 2.0), lambda _c: True) is not None
+    assert ctl.state().budget_kbps <= 500
+    assert seen == ["bandwidth_budget"]
+    ctl.apply(replace(ctl.settings, adapt_to_link=False), {"adapt_to_link"})
+    assert ctl.state().budget_kbps == 5000.0
+    assert len(seen) == 2, "the link's budget is gone: what is in force is announced"
+
+
+def test_h264_budget_changes_are_announced_only_when_material():
+    """A change of the budget in force under BUDGET_ANNOUNCE_SLACK of the one last announced is not announced
+    (the state, and so diagnostics, still read it); one past it, or on or off, is."""
+
+    class ScriptedLink(LinkAdapter):  # the budget the test says: the rule under test is the controller's
+        next_kbps = 0.0
+
+        def report(self, now, report, *_args, **_kw):
+            self._budget = self.next_kbps
+            return Decision(self._budget, "steady", 0.0, 1.0)
+
+    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576")
+    link = ScriptedLink(h264_adapter_config())
+    ctl._link = link
+    report = FeedbackReport("/op", 60, 30.0, 1000.0, 0.02, 0.01, 0.04, 2.0)
+    announced = []
+    for kbps in (1000.0, 1050.0, 1000.0 * (1 + BUDGET_ANNOUNCE_SLACK) - 1, 1200.0, 1100.0, 1350.0, 0.0, 0.0):
+        _send_h264(ctl, clock, 0.5, 1000.0)
+        link.next_kbps = kbps
+        n = len(seen)
+        assert ctl.feedback(report, lambda _c: True) is not None
+        assert ctl.state().budget_kbps == kbps
+        if len(seen) > n:
+            announced.append(kbps)
+    assert announced == [1000.0, 1200.0, 1350.0, 0.0]
+    assert set(seen) == {"bandwidth_budget"}
 
 
 def test_settings_fields_are_the_video_parameters():
