@@ -22,7 +22,9 @@ delivers:
   better setting's predicted rate, so the stream climbs one step at a time and each step is judged; for
   ``probe_backoff_s`` after a congestion it stays under the rate that congested (doubling, up to
   ``probe_backoff_max_s``, when the next try congests again: a link that cannot carry the next step is
-  not hammered with it);
+  not hammered with it); with ``probe_increase`` under ``increase`` (H.264), from ``decrease`` × that rate on it
+  then grows by ``probe_increase`` once per ``climb_hold_s`` only, until what is sent reaches the rate that
+  congested (the link carries it again: the rate is forgotten);
 - **silent** — no report for ``silence_s`` (a cut link, or the consumer has gone): the budget is held at
   (``good_margin`` ×) what was being sent, so a healed link does not receive a burst at the full request and
   the ladder does not climb through the silence; after ``release_s`` the adapter lets go (0 = no limit from
@@ -142,6 +144,9 @@ class AdapterConfig:
     delivery_by_bytes: bool = False  # delivery = kbit/s received / sent (H.264) instead of frames
     climb_hold_s: float = 2.0  # past ``grow_from_kbps`` the budget grows at most once per this (a report window)
     lost_congested: int = 0  # this many access units newly lost (since that consumer's last report): congested
+    # from ``decrease`` x the rate that last congested on, grow by this instead of ``increase``, once per
+    # ``climb_hold_s`` (0: ``increase``, no different growth there)
+    probe_increase: float = 0.0
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -157,6 +162,8 @@ class AdapterConfig:
             raise ValueError("need climb_hold_s >= 0")
         if self.lost_congested < 0:
             raise ValueError("need lost_congested >= 0")
+        if self.probe_increase != 0.0 and not 1.0 < self.probe_increase <= self.increase:
+            raise ValueError("need probe_increase 0 (= increase) or 1 < probe_increase <= increase")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -273,19 +280,24 @@ class LinkAdapter:
             self._good.append((now, sent_kbps))
             while self._good and now - self._good[0][0] > cfg.good_memory_s:
                 self._good.popleft()
+            careful = 0.0 < cfg.probe_increase < cfg.increase
+            if careful and 0 < self._bad_kbps <= sent_kbps:
+                self._bad_kbps = 0.0  # the link now carries what congested it: nothing to be careful of
             base = self._budget if self._budget > 0 else grow_from_kbps
-            # past the start, one step per report window: each is judged on a window of its own (the sender's
-            # rate follows the budget at once, and a report covers the last ``window_s``)
-            climbing = grow_from_kbps > 0 and base >= grow_from_kbps
+            # near the rate that last congested (the back-off over), growth by ``probe_increase``
+            probing = careful and base >= cfg.decrease * self._bad_kbps > 0
+            # past the start, and when probing, one step per report window: each is judged on a window of its own
+            # (the sender's rate follows the budget at once, and a report covers the last ``window_s``)
+            climbing = probing or (grow_from_kbps > 0 and base >= grow_from_kbps)
             if climbing and now - self._last_climb < cfg.climb_hold_s:
                 base = 0.0
             elif climbing:
                 self._last_climb = now
             if base > 0:
                 ceiling = max(cfg.headroom * max(sent_kbps, received, cfg.min_kbps), cfg.step_margin * step_up_kbps)
-                if now < self._bad_until:
+                if now < self._bad_until and self._bad_kbps > 0:
                     ceiling = min(ceiling, cfg.decrease * self._bad_kbps)
-                self._budget = min(base * cfg.increase, max(ceiling, base))
+                self._budget = min(base * (cfg.probe_increase if probing else cfg.increase), max(ceiling, base))
         else:
             state = "steady"
         self.state = state
@@ -341,7 +353,11 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
     (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`, four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %:
     no access unit lost in 30 s at a fixed 1000 kbit/s; climbing on delay alone, the budget reached 1300-1400
     kbit/s, lost 45 access units in 21 losses (each costing the pictures to the next IDR) and fell to 280-500
-    kbit/s before climbing again."""
+    kbit/s before climbing again. After a congestion it waits 10 s (then 20, 40 s) before it tries the rate that
+    congested again, and from 0.8 x that rate creeps up by 5 % per report window: weak-link bench, the link
+    dropping from 2 to 1 Mbit/s (at 56bfe2d, debug log): the budget fell to 580 kbit/s 0.7 s after the step and the
+    queue was gone 3 s after it, but with a 5 s wait and x1.2 per report the budget went 683 -> 1350 kbit/s in
+    1.5 s, congested again at ~770 kbit/s sent, and did so every ~10 s."""
     return AdapterConfig(
         delay_high_s=0.5,
         delay_low_s=0.25,
@@ -349,4 +365,7 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
         release_s=release_s,
         lost_congested=1,
         decrease_hold_s=2.5,  # past a report window (2 s): the next judgement no longer holds the congested rate
+        probe_backoff_s=10.0,
+        probe_backoff_max_s=40.0,
+        probe_increase=1.05,
     )

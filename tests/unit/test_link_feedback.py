@@ -438,3 +438,47 @@ def test_h264_probe_past_the_start_that_congests_returns_to_the_start_not_to_wha
     assert a.budget_kbps == pytest.approx(max(0.8 * 450.0, min(1000.0, 0.8 * back)))
     assert a.report(now + 6.0, swamped, 25, 1000, 1667, 1000).state == "congested"
     assert a.budget_kbps == pytest.approx(0.8 * 450.0)
+
+
+def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congested():
+    """The link drops under what is sent (2 -> 1 Mbit/s): the budget falls with the received rate, stays under
+    0.8 x the rate that congested for the back-off (10 s), then grows by 5 % per report window only, not x1.2 per
+    report (which took it from 683 to 1350 kbit/s in 1.5 s and congested the link again every ~10 s); once what
+    is sent reaches the rate that congested (the link carries it again) the usual growth is back."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    def rep(kbps: float, lost: int = 0, queue: float = 0.05) -> FeedbackReport:
+        r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
+        return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
+
+    a = LinkAdapter(h264_adapter_config())
+    assert a.report(10.0, rep(860), 25, 860, step_up_kbps=1000).state == "clear"
+    assert a.budget_kbps == 0.0  # at the start with the ceiling there: no budget on a clear link
+    d = a.report(20.0, rep(725, lost=3, queue=0.2), 25, 860, 1000)
+    assert d.state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 725)
+    now, sent = 22.5, 500.0
+    while now < 30.0:  # the back-off: clear reports grow the budget, but not past 0.8 x 860
+        a.report(now, rep(sent), 25, sent, 1000)
+        now += 0.5
+    assert a.budget_kbps == pytest.approx(0.8 * 860)
+    steps = []  # the back-off ended at 30: (when, budget) at each growth
+    while now < 37.0:
+        before = a.budget_kbps
+        assert a.report(now, rep(sent), 25, sent, 1000).state == "clear"
+        if a.budget_kbps != before:
+            steps.append((now, a.budget_kbps / before))
+        now += 0.5
+    assert len(steps) == 3  # 5 % per report window (2 s), not x1.2 per report
+    assert all(k == pytest.approx(1.05) for _t, k in steps)
+    assert all(b[0] - a_[0] >= 2.0 for a_, b in zip(steps, steps[1:], strict=False))
+    # what is sent reaches the rate that congested, cleanly: forgotten, the usual x1.2 per report
+    a.report(now, rep(870), 25, 870, 1000)
+    grown = a.budget_kbps
+    a.report(now + 0.5, rep(870), 25, 870, 1000)
+    assert a.budget_kbps == pytest.approx(min(grown * 1.2, 1.6 * 870))
+    # MJPEG keeps its growth (probe_increase 0 = increase); a probe_increase outside 1..increase is refused
+    assert AdapterConfig().probe_increase == 0.0
+    for bad in (1.0, 0.5, 1.3):
+        with pytest.raises(ValueError, match="probe_increase"):
+            AdapterConfig(probe_increase=bad)
