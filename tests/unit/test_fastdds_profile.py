@@ -1,0 +1,33 @@
+"""The shipped weak-link Fast DDS profile (``config/fastdds_weak_link.xml``) keeps the settings the weak-link
+benches measured for the H.264 writers. ROS-free: the XML is read, not loaded into Fast DDS."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+PROFILE = Path(__file__).resolve().parents[2] / "config" / "fastdds_weak_link.xml"
+NS = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+H264_WRITERS = ("/image_raw/ffmpeg", "/image_raw/foxglove")  # the stream node's H.264 topics (stream_h264.py)
+
+
+def _writer(name: str) -> ET.Element:
+    root = ET.parse(PROFILE).getroot()
+    found = [w for w in root.iterfind(".//f:data_writer", NS) if w.get("profile_name") == name]
+    assert len(found) == 1, f"{name}: {len(found)} data_writer profiles"
+    return found[0]
+
+
+def test_h264_writers_repair_on_a_50_ms_heartbeat_without_piggybacked_heartbeats():
+    """A heartbeat on every sample of a full keep-last history made the reader NACK fragments still queued on the
+    link, and the re-sends swamped it (README, "First picture after a viewer starts"); the periodic 50 ms heartbeat
+    alone asks for repairs in time."""
+    for name in H264_WRITERS:
+        w = _writer(name)
+        assert w.findtext("f:qos/f:disable_heartbeat_piggyback", namespaces=NS) == "true", name
+        period = w.find("f:times/f:heartbeatPeriod", NS)
+        assert period is not None, name
+        assert (period.findtext("f:sec", namespaces=NS), period.findtext("f:nanosec", namespaces=NS)) == (
+            "0",
+            "50000000",
+        ), name
