@@ -355,10 +355,7 @@ class VideoController:
                 step_up = self._budget.predict_kbps(level - 1, sent.bytes_per_frame) if level > 0 else 0.0
             decision = self._link.report(now, judged, sent.fps, sent.kbps, step_up, grow_from)
             self._decision = decision
-            self._budget.set_budget(self._effective_budget(), now)
-            announce = self._h264_budget_moved()
-            if announce:
-                self._source = "bandwidth_budget"
+            announce = self._apply_link_budget(now)
         if announce:
             self._announce()
         return LinkJudgement(decision, judged, sent, level)
@@ -375,10 +372,7 @@ class VideoController:
             if self._link.budget_kbps == before:
                 return
             # held at what was sent through a silence, or released after a long one: back to the hand budget
-            self._budget.set_budget(self._effective_budget(), now)
-            announce = self._h264_budget_moved()
-            if announce:
-                self._source = "bandwidth_budget"
+            announce = self._apply_link_budget(now)
         if announce:
             self._announce()
 
@@ -417,6 +411,17 @@ class VideoController:
         if kbps == last:
             return False
         return kbps <= 0 or last <= 0 or abs(kbps - last) >= BUDGET_ANNOUNCE_SLACK * last
+
+    def _apply_link_budget(self, now: float) -> bool:
+        """After the link adapter has judged (a consumer's report, a tick): the budget in force follows its budget;
+        in h264 mode a material move (:meth:`_h264_budget_moved`) becomes the cause of the parameters
+        (``bandwidth_budget``). Returns whether to announce (:meth:`_announce`, once the lock is released). Call with
+        the lock held."""
+        self._budget.set_budget(self._effective_budget(), now)
+        announce = self._h264_budget_moved()
+        if announce:
+            self._source = "bandwidth_budget"
+        return announce
 
     def _judgeable(
         self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool], meter: BitrateMeter
