@@ -63,11 +63,12 @@ from axis_ptz_ros2.nodes.stream_camera_info import CameraInfoOutput
 from axis_ptz_ros2.nodes.stream_h264 import H264Output
 from axis_ptz_ros2.nodes.stream_params import PARAMS, SPECS
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
-from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings, requested_changes
+from axis_ptz_ros2.streaming.controller import VideoController, requested_changes
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery, camera_model_path
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof
 from axis_ptz_ros2.streaming.status import LogLine, LogThrottle, diagnostic_status, reader_event_line
+from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix import VapixClient
 
 __all__ = ["PARAMS", "StreamNode", "main"]

@@ -1,7 +1,7 @@
 """The stream node's parameters: one :class:`~axis_ptz_ros2.nodes.common.ParamSpec` table (names, defaults,
 ranges, descriptions; the README's table and ``config/*.yaml`` are checked against it).
 
-Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.controller.VideoSettings` and the
+Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.video_types.VideoSettings` and the
 reader's timings from :class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`, field for field; ranges come from the
 VAPIX models, the H.264 stage and :mod:`~axis_ptz_ros2.streaming.limits` (the budget's, which the console's
 API checks too).
@@ -14,9 +14,10 @@ from typing import Any
 from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
 from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
-from axis_ptz_ros2.streaming.controller import H264_BUDGET_FRACTION, VideoSettings
+from axis_ptz_ros2.streaming.controller import H264_BUDGET_FRACTION
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
 from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
+from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
 
 

@@ -10,11 +10,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from axis_ptz_ros2.streaming.controller import VideoState
 from axis_ptz_ros2.streaming.h264 import StageStats
 from axis_ptz_ros2.streaming.meter import Rate
 from axis_ptz_ros2.streaming.reader import ReaderStats, StreamState
 from axis_ptz_ros2.streaming.rtsp_source import RtspSourceStats
+from axis_ptz_ros2.streaming.video_types import VideoState
 from axis_ptz_ros2.vapix.models import VideoParams
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # DiagnosticStatus levels

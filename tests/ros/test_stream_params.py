@@ -12,7 +12,7 @@ pytest.importorskip("rclpy")
 from axis_ptz_ros2.nodes.common import snapshot  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import PARAMS  # noqa: E402
 from axis_ptz_ros2.streaming import ReaderConfig  # noqa: E402
-from axis_ptz_ros2.streaming.controller import VideoSettings  # noqa: E402
+from axis_ptz_ros2.streaming.video_types import VideoSettings  # noqa: E402
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # noqa: E402
 
 pytestmark = pytest.mark.ros

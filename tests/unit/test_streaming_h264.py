@@ -15,7 +15,7 @@ from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
-from axis_ptz_ros2.streaming.controller import VideoController, VideoSettings, h264_target_kbps
+from axis_ptz_ros2.streaming.controller import VideoController, h264_target_kbps
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
@@ -27,6 +27,7 @@ from axis_ptz_ros2.streaming.h264 import (
     camera_stamp_ns,
 )
 from axis_ptz_ros2.streaming.meter import BitrateMeter
+from axis_ptz_ros2.streaming.video_types import VideoSettings
 
 pytestmark = pytest.mark.unit
 

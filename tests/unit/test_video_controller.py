@@ -16,10 +16,10 @@ from axis_ptz_ros2.streaming.controller import (
     BUDGET_ANNOUNCE_SLACK,
     VIDEO_FIELDS,
     VideoController,
-    VideoSettings,
     requested_changes,
 )
 from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport, LinkAdapter, h264_adapter_config
+from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 
