@@ -11,7 +11,7 @@ subscriber across the link receives its own copy of each frame, so a second subs
 share of the link.
 
 With ``codec`` = ``h264`` the monitor subscribes to the H.264 topic (``h264_topic``, ``FFMPEGPacket``) instead and
-decodes what arrives (:class:`~axis_ptz_ros2.streaming.h264.AccessUnitReceiver`): access units lost on the way
+decodes what arrives (:class:`~axis_ptz_ros2.streaming.receiver.AccessUnitReceiver`): access units lost on the way
 or that do not decode are reported as ``decode_errors``, and the stream node answers them with an IDR. The first
 access unit that cannot be shown after a picture was is reported at once, not at the next period: every access
 unit until the IDR is lost to the viewer, and waiting for the period (0.25 s on average) cost ~8 of them.
@@ -39,7 +39,7 @@ from axis_ptz_ros2.nodes.common import (
 )
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
-from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
+from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
 #: s: reports of a loss that just began at most this often (besides the periodic ones)
 URGENT_MIN_INTERVAL_S = 0.1

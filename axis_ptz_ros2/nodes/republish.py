@@ -6,7 +6,7 @@ compressed one, so it belongs next to its consumer, not on the robot's link). Th
 ``image_raw`` (checked on publisher-matched events and a 10 Hz timer), so it costs nothing otherwise.
 
 ``input`` = ``h264``: it decodes the stream node's ``image_raw/ffmpeg`` (``FFMPEGPacket``) instead, with
-:class:`~axis_ptz_ros2.streaming.h264.AccessUnitReceiver`: nothing before an IDR, nothing after a lost or corrupt
+:class:`~axis_ptz_ros2.streaming.receiver.AccessUnitReceiver`: nothing before an IDR, nothing after a lost or corrupt
 access unit until the next IDR (never a picture predicted from frames it did not see); errors are counted.
 """
 
@@ -24,7 +24,7 @@ from sensor_msgs.msg import CompressedImage, Image
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.nodes.runner import run_nodes
-from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
+from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("lazy", True, "subscribe to the input only while image_raw has subscribers"),

@@ -21,7 +21,7 @@ from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, stamp_s
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
-from axis_ptz_ros2.streaming.h264 import PtsGaps
+from axis_ptz_ros2.streaming.receiver import PtsGaps
 from axis_ptz_ros2.web.h264relay import H264Slot
 from axis_ptz_ros2.web.server import FrameSlot
 from axis_ptz_ros2.web.view import ConsoleModel

@@ -20,13 +20,13 @@ from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
     RATE_WINDOW,
-    AccessUnitReceiver,
     H264Settings,
     H264Stage,
     StagedFrame,
     camera_stamp_ns,
 )
 from axis_ptz_ros2.streaming.meter import BitrateMeter
+from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
 pytestmark = pytest.mark.unit
@@ -499,7 +499,7 @@ def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: 
 
 
 def test_pts_gaps_count_missing_access_units_and_not_a_restart():
-    from axis_ptz_ros2.streaming.h264 import PtsGaps
+    from axis_ptz_ros2.streaming.receiver import PtsGaps
 
     gaps = PtsGaps()
     assert [gaps.see(p) for p in (5, 6, 7)] == [False, False, False]
