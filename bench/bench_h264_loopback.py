@@ -45,7 +45,7 @@ class Ages:
     """Decodes every access unit (the subscriber's executor thread); the age of each picture shown (ms)."""
 
     def __init__(self) -> None:
-        from axis_ptz_ros2.streaming.h264 import AccessUnitReceiver
+        from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
         self.receiver = AccessUnitReceiver()
         self.ages: list[float] = []

@@ -59,9 +59,6 @@ from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.streaming.jpeg import jpeg_comments
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
 
-# the receiver moved to .receiver; bench/bench_h264_loopback.py and bench/bench_link_h264.py still import it from here
-from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver as AccessUnitReceiver
-
 CODECS: Final = ("mjpeg", "h264")
 H264_PRESETS: Final = PRESETS
 #: s: on-demand IDRs at most this often (the periodic ones come every second anyway)

@@ -1,0 +1,268 @@
+"""The two processes ``bench/bench_link_h264.py`` starts on the link: the robot's simulated camera and the operator's
+measuring viewer (each run as ``bench_link_h264.py --robot-sim`` / ``--viewer`` in its network namespace).
+
+Robot side (:func:`robot_sim`): the simulated camera (the 214, or the current-Axis persona with its RTSP H.264),
+which writes its references of the still view when it starts (``refdir``: ``render.npy`` its render,
+``soft.npy`` that render through its optics and video chain, before sensor noise and compression, ``c0.jpg`` one
+compression-0 JPEG as it sends it), prints its pose every second and, when asked to pan, sweeps the head with
+``continuouspantiltmove`` (reversing every :data:`PAN_FLIP_S` s) and prints the pose each MJPEG picture was rendered
+at with the capture stamp the picture carries (``{"t": "shot", "cap": ns, "pose": [...]}``): a panning session's
+reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``).
+
+Operator side (:func:`viewer`): ``axis_link_monitor`` itself (its node class in-process, with its parameters, so the
+link carries one copy of the video) with every picture also recorded, or a plain subscription that sends no
+feedback. Every picture shown is a JSON line (receipt time, capture stamp, bytes, size, pts); every
+:data:`PSNR_EVERY`-th (every 2·:data:`PSNR_EVERY`-th above 704x576) carries its PSNR against the still references,
+or, when the camera pans, is saved (``refdir/pics/<capture ns>.npy``) for the reference rendered later.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+#: a panning session's head: ``continuouspantiltmove`` speed (% of the 214's 100°/s pan) and the sweep's half period
+PAN_FLIP_S = 5.0
+PSNR_EVERY = 3
+
+
+# ---------------------------------------------------------------------------------------------------------
+# robot side
+# ---------------------------------------------------------------------------------------------------------
+def robot_sim(port: int, refdir: str, model: str = "axis214", pan_speed: int = 0) -> int:
+    import numpy as np
+
+    from axis_ptz_ros2.sim import persona as personas
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
+    from tests.support.stamps import sim_stamp
+
+    p = personas.persona(model)
+    w, h = p.resolutions[p.default_resolution]
+    rtsp = port + 1 if p.key != "axis214" else None  # the current-Axis persona's RTSP H.264
+    cam = SimulatedCamera(host="127.0.0.1", port=port, model=model, https=False, auth="none", rtsp_port=rtsp)
+    lock = threading.Lock()
+    if pan_speed:
+        import axis_ptz_ros2.sim.http.mjpeg as mjpeg_side
+
+        rendered: dict[int, list[float]] = {}  # id(JPEG bytes) -> the pose it was rendered at
+        frames = cam.frames
+        render_jpeg, stamp = frames.frame_jpeg, mjpeg_side.stamp
+
+        def frame_jpeg(width: int, height: int, compression: int, overlay: str = "") -> bytes:
+            pose = list(frames.position())
+            jpeg = render_jpeg(width, height, compression, overlay)
+            with lock:
+                rendered[id(jpeg)] = pose
+            return jpeg
+
+        def stamped(jpeg: bytes, seq: int) -> bytes:
+            out = stamp(jpeg, seq)
+            st = sim_stamp(out)
+            with lock:
+                pose = rendered.pop(id(jpeg), None)
+            if st and pose:
+                print(json.dumps({"t": "shot", "cap": st[1], "pose": pose}), flush=True)
+            return out
+
+        frames.frame_jpeg = frame_jpeg  # type: ignore[method-assign]  # bench instrumentation, this process only
+        mjpeg_side.stamp = stamped  # type: ignore[assignment]
+    cam.start()
+    pan, tilt, zoom = cam.frames.position()
+    ref = Path(refdir)
+    ref.mkdir(parents=True, exist_ok=True)
+    render = np.ascontiguousarray(cam.frames.renderer.render(pan, tilt, zoom, w, h))
+    np.save(ref / "render.npy", render)
+    np.save(ref / "soft.npy", np.ascontiguousarray(cam.persona.picture.soften(render, zoom)))
+    (ref / "c0.jpg").write_bytes(cam.frames.frame_jpeg(w, h, 0))
+    print(json.dumps({"t": "ready", "pose": [pan, tilt, zoom], "size": [w, h]}), flush=True)
+    direction, flip_at = 1, time.monotonic() + PAN_FLIP_S / 2  # a sweep centred on the home view
+    if pan_speed:
+        cam.state.handle([("continuouspantiltmove", f"{pan_speed},0")])
+    try:
+        while True:
+            time.sleep(0.2 if pan_speed else 1.0)
+            if pan_speed and time.monotonic() >= flip_at:
+                direction, flip_at = -direction, flip_at + PAN_FLIP_S
+                cam.state.handle([("continuouspantiltmove", f"{direction * pan_speed},0")])
+            print(json.dumps({"t": "pose", "pose": list(cam.frames.position())}), flush=True)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        cam.stop()
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------------
+# operator side
+# ---------------------------------------------------------------------------------------------------------
+def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False) -> int:  # noqa: C901, PLR0915
+    import cv2
+    import numpy as np
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    t_start = time.time_ns()
+    ref = Path(refdir)
+    refs: dict[str, Any] = {}
+    if not save_pictures:
+        c0 = cv2.imdecode(np.frombuffer((ref / "c0.jpg").read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+        refs = {
+            "soft": np.load(ref / "soft.npy").astype(np.float32),
+            "render": np.load(ref / "render.npy").astype(np.float32),
+            "c0": c0.astype(np.float32),
+        }
+    pics = ref / "pics"
+    if save_pictures:
+        pics.mkdir(parents=True, exist_ok=True)
+    lock = threading.Lock()
+    count = [0]
+
+    def emit(rec: dict[str, Any]) -> None:
+        with lock:
+            sys.stdout.write(json.dumps(rec, separators=(",", ":")) + "\n")
+            sys.stdout.flush()
+
+    def psnr(img: Any) -> dict[str, float]:
+        return {name: psnr_db(img, r) for name, r in refs.items()}
+
+    def measured(w: int) -> bool:
+        every = PSNR_EVERY * (2 if w > 704 else 1)
+        return count[0] % every == 0
+
+    def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int, pts: int = -1) -> None:
+        rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h, "pts": pts}
+        if measured(w) and img is not None:
+            if save_pictures and capture_ns:
+                np.save(pics / f"{capture_ns}.npy", img)
+                rec["saved"] = True
+            elif refs:
+                rec["psnr"] = psnr(img)
+        count[0] += 1
+        emit(rec)
+
+    def on_jpeg(data: bytes, rx: int) -> None:
+        from axis_ptz_ros2.streaming import jpeg_size
+        from tests.support.stamps import sim_stamp
+
+        st = sim_stamp(data)
+        size = jpeg_size(data) or (0, 0)
+        img = None
+        if measured(size[0]):  # decode only the pictures measured
+            img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        shown(rx, st[1] if st else 0, len(data), img, size[0], size[1])
+
+    last_pts = [-1]
+
+    def on_au(data: bytes, decoded: Any | None, rx0: int, pts: int) -> None:
+        rx = time.time_ns()
+        gap = pts - last_pts[0] - 1 if 0 <= last_pts[0] < pts else 0  # access units lost on the way
+        last_pts[0] = pts
+        if gap:
+            emit({"t": "gap", "rx": rx0, "n": gap})
+        if decoded is None:
+            emit({"t": "lost", "rx": rx0, "bytes": len(data), "pts": pts})
+            return
+        h, w = decoded.image.shape[:2]
+        shown(rx, decoded.capture_ns or 0, len(data), decoded.image, w, h, pts)
+
+    rclpy.init(args=["link_h264_viewer"])
+    node: Node
+    if feedback:
+        from axis_ptz_ros2.nodes import link_monitor as lm
+
+        class Recording(lm.FeedbackPublisher):
+            def add(self, msg: Any, nbytes: int | None = None, rx: float | None = None) -> None:
+                super().add(msg, nbytes, rx)
+                if codec == "mjpeg":
+                    on_jpeg(bytes(msg.data), time.time_ns())
+
+        class Receiver:
+            """The monitor's AccessUnitReceiver, every result recorded."""
+
+            def __init__(self, inner: Any) -> None:
+                self.inner = inner
+
+            def feed(self, data: bytes, pts: int | None = None) -> Any:
+                rx0 = time.time_ns()
+                out = self.inner.feed(data, pts)
+                on_au(data, out, rx0, -1 if pts is None else int(pts))
+                return out
+
+            def take_unusable(self) -> int:
+                return int(self.inner.take_unusable())
+
+            @property
+            def stats(self) -> Any:
+                return self.inner.stats
+
+        lm.FeedbackPublisher = Recording  # type: ignore[misc]
+        node = lm.LinkMonitorNode(parameter_overrides=[Parameter("codec", value=codec)])
+        if node.receiver is not None:
+            node.receiver = Receiver(node.receiver)  # type: ignore[assignment]
+    else:
+        from axis_ptz_ros2.nodes.common import STREAM_QOS
+
+        node = Node("plain_viewer")
+        if codec == "h264":
+            from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+            from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+            from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
+
+            rcv = AccessUnitReceiver()
+
+            def cb(msg: Any) -> None:
+                rx0 = time.time_ns()
+                data = bytes(msg.data)
+                on_au(data, rcv.feed(data, int(msg.pts)), rx0, int(msg.pts))
+
+            # as a stock subscriber: image_transport (rqt_image_view, the ffmpeg plugin) subscribes with
+            # rmw_qos_profile_default, reliable keep-last 10
+            plain = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+            node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", cb, plain)
+        else:
+            from sensor_msgs.msg import CompressedImage
+
+            node.create_subscription(
+                CompressedImage, "image_raw/compressed", lambda m: on_jpeg(bytes(m.data), time.time_ns()), STREAM_QOS
+            )
+    from axis_ptz_interfaces.msg import VideoParams
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS
+
+    def on_params(m: Any) -> None:  # the stream node's settings and budget (latched, rarely sent)
+        emit({"t": "params", "rx": time.time_ns(), "budget": m.max_bitrate_kbps, "source": m.source,
+              "fps": m.fps, "resolution": m.resolution, "compression": m.compression})  # fmt: skip
+
+    node.create_subscription(VideoParams, "video/params", on_params, LATCHED_QOS)
+    emit({"t": "ready", "rx": time.time_ns(), "start": t_start})
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def psnr_db(img: Any, ref: Any) -> float:
+    """PSNR (dB) of a BGR picture against a float32 reference, the mean squared error over B, G, R; a smaller
+    picture is upscaled (bilinear) to the reference's size first."""
+    import cv2
+    import numpy as np
+
+    rh, rw = ref.shape[:2]
+    if img.shape[:2] != (rh, rw):
+        img = cv2.resize(img, (rw, rh), interpolation=cv2.INTER_LINEAR)
+    mse = float(np.mean((img.astype(np.float32) - ref) ** 2))
+    return 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
