@@ -15,6 +15,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from axis_ptz_ros2.sim.digest import CHALLENGE_STYLES
 from axis_ptz_ros2.sim.faults import REBOOT_ERROR_KINDS, FaultConfig
 
 if TYPE_CHECKING:
@@ -48,21 +49,40 @@ def _seconds(name: str, value: str) -> float:
     return s
 
 
+def _pose(value: str) -> tuple[float, float, float]:
+    """``teleport=pan,tilt,zoom``: three finite numbers (VAPIX degrees and zoom units)."""
+    p, t, z = (float(x) for x in value.split(","))
+    if not all(math.isfinite(v) for v in (p, t, z)):
+        raise ValueError(f"pose must be finite: {p}, {t}, {z}")
+    return p, t, z
+
+
+def _nonce_lifetime(value: str) -> float:
+    s = float(value)
+    if not s > 0:
+        raise ValueError("nonce_lifetime_s must be > 0")
+    return s
+
+
 def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> ControlReply:
-    """Answer a ``/sim/…`` request (``args``: query string pairs, in order)."""
+    """Answer a ``/sim/…`` request (``args``: query string pairs, in order). Every argument is checked before any is
+    applied: a request with one bad argument is refused (400, the reason) and changes nothing."""
     if path == "/sim/state":
         return ControlReply(200, json.dumps(cam.state_dict()))
     if path != "/sim/control":
         return ControlReply(404)
     reboot = None
     reboot_opts: dict[str, Any] = {}
+    auth: dict[str, Any] = {}
+    pose: tuple[float, float, float] | None = None
+    reset_faults = reset_counts = False
     try:
         changes: dict[str, Any] = {}
         for k, v in args:
             if k == "reset_faults":
-                cam.set_faults(FaultConfig())
+                reset_faults, changes = True, {}  # faults named before it are reset with the rest
             elif k == "reset_counts":
-                cam.reset_counts()
+                reset_counts = True
             elif k == "reboot":
                 reboot = _seconds(k, v)
             elif k == "reboot_blackhole":
@@ -74,16 +94,26 @@ def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> Cont
                     raise ValueError(f"reboot_error must be one of {REBOOT_ERROR_KINDS}")
                 reboot_opts["error_kind"] = v
             elif k == "nonce_lifetime":
-                cam.set_auth_options(nonce_lifetime_s=float(v))
+                auth["nonce_lifetime_s"] = _nonce_lifetime(v)
             elif k == "challenge_style":
-                cam.set_auth_options(challenge_style=v)
+                if v not in CHALLENGE_STYLES:
+                    raise ValueError(f"challenge_style must be one of {CHALLENGE_STYLES}")
+                auth["challenge_style"] = v
             elif k == "teleport":
-                p, t, z = (float(x) for x in v.split(","))
-                cam.teleport(p, t, z)
+                pose = _pose(v)
             else:
                 changes[k] = v
-        if changes:
-            cam.set_faults(**changes)
+        base = FaultConfig() if reset_faults else cam.faults
+        faults = base.replace(**changes) if changes else base  # checks every fault named
     except (ValueError, TypeError) as err:
         return ControlReply(400, json.dumps({"error": str(err)}))
+    # every argument is good: apply them
+    if reset_faults or changes:
+        cam.set_faults(faults)
+    if reset_counts:
+        cam.reset_counts()
+    if auth:
+        cam.set_auth_options(**auth)
+    if pose is not None:
+        cam.teleport(*pose)
     return ControlReply(200, json.dumps(cam.state_dict()), reboot, reboot_opts)

@@ -200,6 +200,29 @@ def test_bad_input_is_refused_with_the_reason(cam: SimulatedCamera, query: str, 
     assert (cam.faults, cam.position(), cam.nonce_lifetime_s, cam.challenge_style) == before
 
 
+@pytest.mark.parametrize(
+    "good",
+    ["teleport=30,-10,500", "nonce_lifetime=2.5&challenge_style=legacy", "reset_faults", "reset_counts",
+     "stall_after_frames=10"],
+)  # fmt: skip
+@pytest.mark.parametrize("bad", ["http_error=999", "teleport=1,2", "challenge_style=modern", "reboot=-1"])
+def test_good_arguments_before_a_bad_one_change_nothing(cam: SimulatedCamera, good: str, bad: str) -> None:
+    """Bad input loses nothing: every argument is checked before any is applied (the teleport, auth options,
+    fault reset and count reset of a request that also held a bad argument were applied up to 4a38692)."""
+    cam.set_faults(truncate_every=7)
+    cam.requests.count("ptz.cgi", 200)
+    before = (cam.faults, cam.position(), cam.nonce_lifetime_s, cam.challenge_style, cam.request_counts)
+    reply = ctl(cam, f"{good}&{bad}")
+    assert reply.status == 400
+    assert (reply.reboot_s, set(body(reply))) == (None, {"error"})
+    assert (cam.faults, cam.position(), cam.nonce_lifetime_s, cam.challenge_style, cam.request_counts) == before
+
+
+def test_reset_faults_resets_the_faults_named_before_it(cam: SimulatedCamera) -> None:
+    assert ctl(cam, "truncate_every=3&reset_faults&latency_ms=40").status == 200
+    assert cam.faults == FaultConfig(latency_ms=40.0)
+
+
 def test_one_bad_fault_leaves_every_fault_of_the_request_unset(cam: SimulatedCamera) -> None:
     reply = ctl(cam, "stall_after_frames=10&drop_after_frames=3&http_error=999")
     assert reply.status == 400
