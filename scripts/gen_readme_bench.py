@@ -44,6 +44,7 @@ class Result:
     dirty: bool = False
     when: str = ""
     load: str | None = None
+    cpu: str | None = None  # the machine's CPU model and clock (results files from b2651b2 on)
     inputs: tuple[str, ...] = DEFAULT_INPUTS
     rows: list[dict[str, object]] = field(default_factory=list)
     stale_by: list[str] = field(default_factory=list)  # commits after the measured one that changed inputs
@@ -64,6 +65,8 @@ def parse(path: Path) -> Result:
             r.when = line[2:].split(",")[0].strip()
             m = re.search(r"load average ([\d.]+)", line)
             r.load = m.group(1) if m else None
+            m = re.search(r"CPU: (.+?) at ([\d.]+) MHz", line)
+            r.cpu = f"{m.group(1).strip()} {float(m.group(2)) / 1000:.1f} GHz" if m else None
         elif line.startswith(ROW_PREFIX):
             row = json.loads(line[len(ROW_PREFIX) :])
             if not isinstance(row, dict) or not {"what", "figure"} <= row.keys():
@@ -115,11 +118,16 @@ def measured_at(r: Result) -> str:
     s = f"`{r.commit[:10]}`" + (" + uncommitted changes" if r.dirty else "")
     if r.load is not None:
         s += f", load {r.load}"
+    if r.cpu is not None:
+        s += f", {r.cpu}"
     return s
 
 
 def table(results: list[Result]) -> str:
-    lines = ["| what | figure | target | bench | measured at (commit, load) |", "|---|---|---|---|---|"]
+    lines = [
+        "| what | figure | target | bench | measured at (commit, load, CPU when recorded) |",
+        "|---|---|---|---|---|",
+    ]
     for r in results:
         at = measured_at(r)
         if not r.rows:

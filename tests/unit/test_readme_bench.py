@@ -81,6 +81,17 @@ def repo(tmp_path: Path) -> Path:
     return tmp_path
 
 
+def test_the_machine_s_cpu_is_shown_when_the_results_file_names_it(repo: Path) -> None:
+    head = _git(repo, "rev-parse", "HEAD")
+    text = _results_file(head, "clean", [{"what": "speed", "figure": "3 ms"}]).replace(
+        "Python 3.11.7", "Python 3.11.7, CPU: AMD EPYC at 2596.126 MHz"
+    )
+    (repo / "bench" / "results" / "x.txt").write_text(text)
+    assert gen.main(["--root", str(repo)]) == 0
+    readme = (repo / "README.md").read_text()
+    assert f"| speed | 3 ms | — | `x` | `{head[:10]}`, load 0.10, AMD EPYC 2.6 GHz |" in readme
+
+
 def test_generator_writes_rows_with_commit_and_target_verdict(repo: Path) -> None:
     head = _git(repo, "rev-parse", "HEAD")
     rows = [
