@@ -1,0 +1,86 @@
+"""What an IDR costs on a slow link against what it buys, offline (issue 21's step case; not in ``./scripts/bench``).
+
+The simulated 214's compression-0 JPEGs of its home view (``--pan``: the head moving 0.4° per picture, 10°/s at
+25 fps, back and forth) go through :class:`~axis_ptz_ros2.media.transcoder.MjpegTranscoder` at one bitrate for
+each x264 VBV buffer (seconds of the bitrate, the encoder's ``VBV_BUFFER_S``) and IDR interval, and are decoded
+again. Printed per setting: the mean IDR size in kbit and in milliseconds of a 1 Mbit/s link (the time the pictures
+behind it wait), the mean P-picture, the rate reached, and the PSNR of every decoded picture against the camera's
+view before noise and compression (median, 5th percentile, IDRs alone).
+
+    .venv/bin/python bench/idr_tradeoff.py [--pan] [--kbps 600] [--pictures 150]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import axis_ptz_ros2.media.encoder as encoder  # noqa: E402
+from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+
+W, H, FPS = 704, 576, 25
+SKIP = 10  # pictures left out at the start (the encoder's first GOP)
+
+
+def psnr(img: np.ndarray, ref: np.ndarray) -> float:
+    mse = float(np.mean((img.astype(np.float32) - ref) ** 2))
+    return 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pan", action="store_true", help="the head moving 10°/s (else still)")
+    ap.add_argument("--kbps", type=int, default=600, help="the encoder's bitrate (kbit/s)")
+    ap.add_argument("--pictures", type=int, default=150)
+    a = ap.parse_args()
+    cam = SimulatedCamera(host="127.0.0.1", port=0)  # not started: its pictures only
+    pan0, tilt, zoom = cam.position()
+    pictures = []
+    for k in range(a.pictures):
+        step = k % 75 if (k // 75) % 2 == 0 else 75 - k % 75
+        pan = pan0 + 0.4 * step if a.pan else pan0
+        cam.teleport(pan, tilt, zoom)
+        view = cam.persona.picture.soften(cam.frames.renderer.render(pan, tilt, zoom, W, H), zoom)
+        pictures.append((cam.frame_jpeg(W, H, 0), view.astype(np.float32)))
+    print(f"{'panning 10°/s' if a.pan else 'still'}, {a.kbps} kbit/s, {FPS} fps, {a.pictures} pictures")
+    for vbv in (0.05, 0.08, 0.10, 0.15):
+        for gop in (FPS, 2 * FPS):
+            encoder.VBV_BUFFER_S = vbv  # read when the encoder opens
+            tc = MjpegTranscoder(
+                TranscoderConfig(preset="superfast", bitrate_bps=a.kbps * 1000, fps=FPS, keyframe_interval=gop)
+            )
+            dec = H264Decoder()
+            idr: list[int] = []
+            other: list[int] = []
+            scores: list[float] = []
+            idr_scores: list[float] = []
+            for k, (jpeg, view) in enumerate(pictures):
+                out = tc.transcode(jpeg, 1)
+                pic = dec.decode(out.data)
+                if k < SKIP:
+                    continue
+                (idr if out.keyframe else other).append(len(out.data) * 8)
+                if pic is not None:
+                    scores.append(psnr(pic.image, view))
+                    if out.keyframe:
+                        idr_scores.append(scores[-1])
+            kbps = (sum(idr) + sum(other)) * FPS / (len(pictures) - SKIP) / 1e3
+            print(
+                f"VBV {vbv:.2f} s, IDR every {gop / FPS:.0f} s: IDR {np.mean(idr) / 1e3:3.0f} kbit = "
+                f"{np.mean(idr) / 1e3:3.0f} ms of a 1 Mbit/s link; P {np.mean(other) / 1e3:4.1f} kbit; "
+                f"{kbps:3.0f} kbit/s; "
+                f"PSNR median {np.median(scores):.1f}, 5th pct {np.percentile(scores, 5):.1f}, "
+                f"IDRs {np.mean(idr_scores):.1f} dB"
+            )
+
+
+if __name__ == "__main__":
+    main()
