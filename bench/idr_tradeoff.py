@@ -5,7 +5,10 @@ The simulated 214's compression-0 JPEGs of its home view (``--pan``: the head mo
 each x264 VBV buffer (seconds of the bitrate, the encoder's ``VBV_BUFFER_S``) and IDR interval, and are decoded
 again. Printed per setting: the mean IDR size in kbit and in milliseconds of a 1 Mbit/s link (the time the pictures
 behind it wait), the mean P-picture, the rate reached, and the PSNR of every decoded picture against the camera's
-view before noise and compression (median, 5th percentile, IDRs alone).
+view before noise and compression (median, 5th percentile, IDRs alone). Last, x264's periodic intra refresh
+(``intra-refresh=1``: a column of intra blocks sweeps the picture once per interval, no periodic IDR after the
+first picture; not what the encoder does today, opened here with PyAV directly and otherwise the encoder's
+options): the largest picture, which is what the link must carry in one go.
 
     .venv/bin/python bench/idr_tradeoff.py [--pan] [--kbps 600] [--pictures 150]
 """
@@ -15,9 +18,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from fractions import Fraction
 from pathlib import Path
 
+import av
 import numpy as np
+from av.video.frame import PictureType
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -33,6 +39,43 @@ SKIP = 10  # pictures left out at the start (the encoder's first GOP)
 def psnr(img: np.ndarray, ref: np.ndarray) -> float:
     mse = float(np.mean((img.astype(np.float32) - ref) ** 2))
     return 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
+
+
+def intra_refresh(pictures: list[tuple[bytes, np.ndarray]], kbps: int, vbv: float) -> None:
+    """The encoder's options with ``intra-refresh=1`` (wave = one second) instead of periodic IDRs."""
+    ctx = av.VideoCodecContext.create("libx264", "w")
+    ctx.width, ctx.height, ctx.pix_fmt = W, H, "yuv420p"
+    ctx.time_base, ctx.framerate = Fraction(1, FPS), Fraction(FPS, 1)
+    ctx.bit_rate, ctx.max_b_frames, ctx.thread_count = kbps * 1000, 0, 1
+    ctx.options = {
+        "preset": "superfast",
+        "tune": "zerolatency",
+        "profile": "baseline",
+        "maxrate": str(kbps * 1000),
+        "bufsize": str(int(kbps * 1000 * vbv)),
+        "x264-params": f"keyint={FPS}:min-keyint={FPS}:scenecut=0:bframes=0:aq-mode=0:intra-refresh=1",
+    }
+    ctx.open()
+    jpeg_decoder = av.VideoCodecContext.create("mjpeg", "r")
+    dec = H264Decoder()
+    sizes: list[int] = []
+    scores: list[float] = []
+    for k, (jpeg, view) in enumerate(pictures):
+        frame = jpeg_decoder.decode(av.Packet(jpeg))[0]
+        frame = frame.reformat(format="yuv420p", src_color_range="JPEG", dst_color_range="MPEG")
+        frame.pts, frame.time_base, frame.pict_type = k, ctx.time_base, PictureType.NONE  # a JPEG's own type is I
+        for packet in ctx.encode(frame):
+            pic = dec.decode(bytes(packet))
+            if k >= SKIP:
+                sizes.append(packet.size * 8)
+                if pic is not None:
+                    scores.append(psnr(pic.image, view))
+    print(
+        f"VBV {vbv:.2f} s, intra refresh every 1 s, no periodic IDR: largest picture {max(sizes) / 1e3:3.0f} kbit = "
+        f"{max(sizes) / 1e3:3.0f} ms of a 1 Mbit/s link; mean {np.mean(sizes) / 1e3:4.1f} kbit; "
+        f"{np.mean(sizes) * FPS / 1e3:3.0f} kbit/s; PSNR median {np.median(scores):.1f}, "
+        f"5th pct {np.percentile(scores, 5):.1f} dB"
+    )
 
 
 def main() -> None:
@@ -80,6 +123,8 @@ def main() -> None:
                 f"PSNR median {np.median(scores):.1f}, 5th pct {np.percentile(scores, 5):.1f}, "
                 f"IDRs {np.mean(idr_scores):.1f} dB"
             )
+    for vbv in (0.10, 0.15):
+        intra_refresh(pictures, a.kbps, vbv)
 
 
 if __name__ == "__main__":
