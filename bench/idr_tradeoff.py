@@ -16,7 +16,6 @@ options): the largest picture, which is what the link must carry in one go.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from fractions import Fraction
 from pathlib import Path
@@ -27,6 +26,8 @@ from av.video.frame import PictureType
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from link_h264_roles import psnr_db as psnr  # noqa: E402  (bench/ is on sys.path when run)
+
 import axis_ptz_ros2.media.encoder as encoder  # noqa: E402
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig  # noqa: E402
@@ -34,11 +35,6 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 W, H, FPS = 704, 576, 25
 SKIP = 10  # pictures left out at the start (the encoder's first GOP)
-
-
-def psnr(img: np.ndarray, ref: np.ndarray) -> float:
-    mse = float(np.mean((img.astype(np.float32) - ref) ** 2))
-    return 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
 
 
 def intra_refresh(pictures: list[tuple[bytes, np.ndarray]], kbps: int, vbv: float) -> None:

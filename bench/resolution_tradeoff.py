@@ -14,7 +14,6 @@ without coding (what that size can reach at best).
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -22,6 +21,8 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from link_h264_roles import psnr_db  # noqa: E402  (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
@@ -44,10 +45,7 @@ def main() -> None:
     rng = np.random.default_rng(1)
 
     def psnr(img: np.ndarray) -> float:
-        if img.shape[:2] != ref.shape[:2]:
-            img = cv2.resize(img, (ref.shape[1], ref.shape[0]), interpolation=cv2.INTER_LINEAR)
-        mse = float(np.mean((img.astype(np.float32) - ref) ** 2))
-        return 10.0 * math.log10(255.0**2 / mse) if mse > 0 else 99.0
+        return psnr_db(img, ref)  # upscaled (bilinear) to the reference's size first
 
     print(f"current-Axis persona (q6075), home view, {FPS} fps, x264 {a.preset}; PSNR against its 1920x1080 view")
     for w, h in SIZES[1:]:
