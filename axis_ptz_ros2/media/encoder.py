@@ -5,10 +5,15 @@ What viewers and a weak link need, and how it is had (facts in docs/…/h264.md,
 - Constrained Baseline, no B-frames, ``tune=zerolatency``: the access unit for frame k comes out of the same
   :meth:`H264Encoder.encode` call (one in, one out).
 - No global header: libx264 then repeats SPS/PPS in front of every IDR, which stock decoders need.
-- VBV at open (``maxrate`` = bitrate, ``bufsize`` = bitrate × :data:`VBV_BUFFER_S`): the rate holds within a few
-  frames (an IDR is at most ~0.15 s of the bitrate: 19 kB at 1 Mbit/s, 75 ms on a 2 Mbit/s link), and a live
-  ``bit_rate`` change takes effect (x264 cannot turn VBV on later). PyAV cannot change ``maxrate`` on an open
-  encoder, so a bitrate above the one opened with re-opens the encoder (its next frame is an IDR).
+- VBV at open (``maxrate`` = bitrate, ``bufsize`` = ``vbv_bits`` or bitrate × :data:`VBV_BUFFER_S`): the rate
+  holds within a few frames (an IDR is at most about the VBV buffer: ~0.15 s of the bitrate, 19 kB at 1 Mbit/s,
+  75 ms on a 2 Mbit/s link), and a live ``bit_rate`` change takes effect (x264 cannot turn VBV on later). PyAV
+  can change neither ``maxrate`` nor ``bufsize`` on an open encoder (``max_bit_rate`` is read-only, there is no
+  ``rc_buffer_size``): a bitrate above the one opened with re-opens the encoder at once (its next frame is an
+  IDR); a new VBV buffer (:meth:`H264Encoder.set_vbv`) re-opens it at the next IDR it makes anyway (periodic or
+  requested), with the same ``maxrate``, so a buffer that follows the link costs no extra IDR. Until then the
+  buffer opened with stays: x264 keeps it when only ``bit_rate`` is lowered (opened at 1000 kbit/s and lowered
+  to 600, its IDRs stayed 86 kbit against 73 kbit for one opened at 600).
 - Keyframes: x264's own are off (``keyint=infinite``, ``scenecut=0``); this class forces an IDR every
   ``keyframe_interval`` frames and on request (``forced-idr=1`` + ``PictureType.I``), so the interval is live too.
 - Adaptive quantisation off (``aq-mode=0``, what x264's ``tune=psnr`` does to AQ): x264's default AQ moves bits
@@ -44,6 +49,9 @@ MAX_DIMENSION: Final = 4096
 #: still view before noise); 0.15 s: 34.8 dB, 871 kbit/s, largest IDR 15 kB. A live step down spends what is
 #: left of the old rate's buffer first (~8 frames from 2000 to 300 kbit/s).
 VBV_BUFFER_S: Final = 0.15
+#: a VBV buffer asked for live that differs from the open one by less than this fraction is not worth a re-open
+VBV_REOPEN_SLACK: Final = 0.2
+MIN_VBV_BITS: Final = 1000
 
 U8Array = npt.NDArray[np.uint8]
 
@@ -59,6 +67,7 @@ class EncoderConfig:
     keyframe_interval: int = 30  # frames between periodic IDRs
     preset: str = "veryfast"
     threads: int = 1  # 1: one slice per picture, lowest CPU; more: sliced threads (lower latency at 1080p)
+    vbv_bits: int = 0  # the VBV buffer (bits; bounds the largest picture); 0 = bitrate × VBV_BUFFER_S
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -73,6 +82,7 @@ class EncoderConfig:
             raise EncoderError(f"preset must be one of {', '.join(PRESETS)}; got {self.preset!r}")
         if not isinstance(self.threads, int) or not 1 <= self.threads <= 16:
             raise EncoderError(f"threads must be 1…16, got {self.threads!r}")
+        check_vbv(self.vbv_bits)
 
 
 def check_bitrate(bps: int) -> int:
@@ -80,6 +90,18 @@ def check_bitrate(bps: int) -> int:
     if isinstance(bps, bool) or not isinstance(bps, int) or not MIN_BITRATE_BPS <= bps <= MAX_BITRATE_BPS:
         raise EncoderError(f"bitrate must be {MIN_BITRATE_BPS}…{MAX_BITRATE_BPS} bit/s, got {bps!r}")
     return bps
+
+
+def check_vbv(bits: int) -> int:
+    """``bits`` if it is 0 (the default buffer) or an int in MIN_VBV_BITS…MAX_BITRATE_BPS, else
+    :class:`EncoderError`."""
+    if (
+        isinstance(bits, bool)
+        or not isinstance(bits, int)
+        or not (bits == 0 or MIN_VBV_BITS <= bits <= MAX_BITRATE_BPS)
+    ):
+        raise EncoderError(f"VBV buffer must be 0 (default) or {MIN_VBV_BITS}…{MAX_BITRATE_BPS} bits, got {bits!r}")
+    return bits
 
 
 def check_keyframe_interval(frames: int) -> int:
@@ -98,8 +120,11 @@ class H264Encoder:
         self._since_idr = 0
         self._idr_requested = True
         self._reopen = False
+        self._reopen_at_idr = False  # a new VBV buffer waits for the next IDR
         self.reopens = 0
         self._codec_string: str | None = None
+        self._maxrate = config.bitrate_bps
+        self._bufsize = 0
         self._ctx = self._open(config)
 
     # ---- parameters ----------------------------------------------------------------------------------------
@@ -111,6 +136,11 @@ class H264Encoder:
     def opened_max_bitrate_bps(self) -> int:
         """The VBV ``maxrate`` the encoder is open with (a live bitrate up to this needs no re-open)."""
         return self._maxrate
+
+    @property
+    def opened_vbv_bits(self) -> int:
+        """The VBV buffer (bits) the encoder is open with."""
+        return self._bufsize
 
     @property
     def codec_string(self) -> str | None:
@@ -125,6 +155,13 @@ class H264Encoder:
             self._reopen = True
         else:
             self._ctx.bit_rate = bps
+
+    def set_vbv(self, bits: int) -> None:
+        """A new VBV buffer (bits; 0 = bitrate × :data:`VBV_BUFFER_S`), in force from the next IDR on (see the
+        module docstring): one within :data:`VBV_REOPEN_SLACK` of the open one changes nothing."""
+        self._config = replace(self._config, vbv_bits=check_vbv(bits))
+        want = self._bufsize_for(self._config, self._maxrate)
+        self._reopen_at_idr = abs(want - self._bufsize) > VBV_REOPEN_SLACK * self._bufsize
 
     def set_keyframe_interval(self, frames: int) -> None:
         """Periodic IDR every ``frames`` frames from now on."""
@@ -152,9 +189,14 @@ class H264Encoder:
         if self._reopen:
             self._ctx = self._open(c)
             self._reopen = False
+            self._reopen_at_idr = False
             self.reopens += 1
             self._idr_requested = True
         key = self._idr_requested or self._since_idr >= c.keyframe_interval
+        if key and self._reopen_at_idr:  # an IDR anyway: the new VBV buffer costs none
+            self._ctx = self._open(c, self._maxrate)
+            self._reopen_at_idr = False
+            self.reopens += 1
         frame.pts = self._pts
         frame.time_base = self._ctx.time_base
         frame.pict_type = PictureType.I if key else PictureType.NONE
@@ -181,7 +223,15 @@ class H264Encoder:
         return out
 
     # ---- internals -----------------------------------------------------------------------------------------
-    def _open(self, c: EncoderConfig) -> av.VideoCodecContext:
+    @staticmethod
+    def _bufsize_for(c: EncoderConfig, maxrate: int) -> int:
+        return c.vbv_bits or max(int(maxrate * VBV_BUFFER_S), MIN_VBV_BITS)
+
+    def _open(self, c: EncoderConfig, maxrate: int = 0) -> av.VideoCodecContext:
+        """A new libx264 context for ``c``, VBV ``maxrate`` = ``maxrate`` (0: the bitrate) and the buffer
+        :meth:`_bufsize_for`."""
+        maxrate = max(maxrate, c.bitrate_bps)
+        bufsize = self._bufsize_for(c, maxrate)
         ctx = av.VideoCodecContext.create("libx264", "w")
         ctx.width = c.width
         ctx.height = c.height
@@ -191,18 +241,18 @@ class H264Encoder:
         ctx.bit_rate = c.bitrate_bps
         ctx.max_b_frames = 0
         ctx.thread_count = c.threads
-        self._maxrate = c.bitrate_bps
         ctx.options = {
             "preset": c.preset,
             "tune": "zerolatency",
             "profile": "baseline",
             "forced-idr": "1",
-            "maxrate": str(c.bitrate_bps),
-            "bufsize": str(max(int(c.bitrate_bps * VBV_BUFFER_S), 1000)),
+            "maxrate": str(maxrate),
+            "bufsize": str(bufsize),
             "x264-params": "keyint=infinite:min-keyint=1:scenecut=0:bframes=0:aq-mode=0",
         }
         try:
             ctx.open()
         except av.error.FFmpegError as err:
             raise EncoderError(f"libx264 did not open with {c}: {err}") from err
+        self._maxrate, self._bufsize = maxrate, bufsize
         return ctx

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder, check_bitrate, check_keyframe_interval
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder, check_bitrate, check_keyframe_interval, check_vbv
 from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
 from axis_ptz_ros2.media.frame import EncodedFrame
 
@@ -44,6 +44,7 @@ class TranscoderConfig:
     threads: int = 1
     stamp_sei: bool = True  # put the capture time in each access unit (our user-data SEI)
     jpeg_decoder: JpegDecoder = "pyav"  # see the module docstring
+    vbv_bits: int = 0  # the encoder's VBV buffer (bits); 0 = its default (see media.encoder)
 
     def __post_init__(self) -> None:
         if self.jpeg_decoder not in JPEG_DECODERS:
@@ -59,6 +60,7 @@ class TranscoderConfig:
             keyframe_interval=self.keyframe_interval,
             preset=self.preset,
             threads=self.threads,
+            vbv_bits=self.vbv_bits,
         )
 
 
@@ -91,6 +93,12 @@ class MjpegTranscoder:
         self._config = replace(self._config, bitrate_bps=check_bitrate(bps))
         if self._encoder is not None:
             self._encoder.set_bitrate(bps)
+
+    def set_vbv(self, bits: int) -> None:
+        """The encoder's VBV buffer (bits, 0 = default), from its next IDR on (:meth:`H264Encoder.set_vbv`)."""
+        self._config = replace(self._config, vbv_bits=check_vbv(bits))
+        if self._encoder is not None:
+            self._encoder.set_vbv(bits)
 
     def set_keyframe_interval(self, frames: int) -> None:
         self._config = replace(self._config, keyframe_interval=check_keyframe_interval(frames))

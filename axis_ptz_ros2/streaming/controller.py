@@ -24,7 +24,9 @@ force drives the encoder's bitrate instead (:meth:`VideoController.h264_settings
 without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports nothing still gets the full picture;
 a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up to the
 ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under what the
-link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it. Consumers' reports are
+link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it. The encoder's VBV buffer,
+which bounds its IDRs, follows the bitrate and, under a link budget, at most :data:`IDR_LINK_S` of the budget
+(:func:`h264_vbv_kbit`). Consumers' reports are
 then judged against the H.264 bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs. No
 ladder step announces a change of the budget there: it is announced (as ``bandwidth_budget``) when it moves by
 :data:`BUDGET_ANNOUNCE_SLACK` or more from the one last announced, or comes or goes.
@@ -36,6 +38,7 @@ import threading
 import time
 from collections.abc import Callable, Collection
 
+from axis_ptz_ros2.media.encoder import VBV_BUFFER_S
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE, H264Settings
@@ -66,6 +69,9 @@ H264_FIELDS = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_key
 #: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
 #: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
 H264_BUDGET_FRACTION = BudgetConfig().down_fraction
+#: s: with a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this long on the link
+#: (:func:`h264_vbv_kbit`)
+IDR_LINK_S = 0.06
 
 
 def _largest(resolutions: Collection[Resolution]) -> Resolution:
@@ -141,7 +147,14 @@ class VideoController:
         kbps, ceiling = h264_target_kbps(
             int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
         )
-        return H264Settings(kbps, int(s.h264_keyframe_interval), str(s.h264_preset), self._current.fps, ceiling)
+        return H264Settings(
+            kbps,
+            int(s.h264_keyframe_interval),
+            str(s.h264_preset),
+            self._current.fps,
+            ceiling,
+            h264_vbv_kbit(kbps, link),
+        )
 
     def state(self) -> VideoState:
         """A consistent snapshot of what is in effect."""
@@ -440,3 +453,15 @@ def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: floa
     # (an IDR) once, when it is needed, not on every budget that merely lowers the bitrate
     top = ceiling if link_kbps * H264_BUDGET_FRACTION > start else start
     return kbps, max(top, kbps)
+
+
+def h264_vbv_kbit(kbps: int, link_kbps: float) -> int:
+    """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.encoder.VBV_BUFFER_S` of the bitrate ``kbps``
+    targeted now, and where the link adapter keeps a budget ``link_kbps`` (0 = none), at most
+    :data:`IDR_LINK_S` of it. The buffer bounds the largest picture, an IDR, and the pictures behind an IDR wait
+    for it to cross the link: on 1 Mbit/s with 2 % loss, IDRs of ~114 kbit (a buffer opened at 1000 kbit/s and
+    kept while the bitrate followed the link down) reached the operator 125-216 ms after capture, every second."""
+    vbv = kbps * VBV_BUFFER_S
+    if link_kbps > 0:
+        vbv = min(vbv, link_kbps * IDR_LINK_S)
+    return max(1, round(vbv))

@@ -22,7 +22,9 @@ Policy that lives here:
 * bitrate, keyframe interval, preset and fps are read from ``settings()`` (the video controller) on every frame;
   the bitrate changes live, a new preset or fps re-opens the encoder (an IDR follows), and so does a ceiling
   (:attr:`H264Settings.ceiling_kbps`) above the rate it was opened with: once, at that ceiling, when the link lets
-  the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb);
+  the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb); a new VBV buffer
+  (:attr:`H264Settings.vbv_kbit`, which follows the link's budget) takes effect at the encoder's next IDR, costing
+  none of its own;
 * the periodic keyframe interval is at most one second of frames (``fps``), so a viewer that joined or lost
   sync without asking gets a start point within a second;
 * an IDR on demand (:meth:`H264Stage.request_idr`: a new subscriber, a consumer that reports loss, a reconnect)
@@ -84,6 +86,7 @@ class H264Settings:
     preset: str = "superfast"
     fps: int = 15
     ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
+    vbv_kbit: int = 0  # the encoder's VBV buffer (bounds its largest picture, an IDR); 0 = its default
 
     def transcoder_config(self) -> TranscoderConfig:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
@@ -95,6 +98,7 @@ class H264Settings:
             bitrate_bps=max(int(self.bitrate_kbps), int(self.ceiling_kbps)) * 1000,
             keyframe_interval=self.effective_keyframe_interval,
             preset=self.preset,
+            vbv_bits=max(0, int(self.vbv_kbit)) * 1000,
         )
 
     @property
@@ -143,6 +147,10 @@ class Transcoder(Protocol):
         """Live periodic IDR interval."""
         ...
 
+    def set_vbv(self, bits: int) -> None:
+        """A new VBV buffer (bits, 0 = default), in force from the next IDR."""
+        ...
+
     def request_idr(self) -> None:
         """The next frame out is an IDR."""
         ...
@@ -186,6 +194,7 @@ class H264Stage:
         self._transcoder: Transcoder | None = None
         self._opened_with: H264Settings | None = None
         self._applied_kbps = 0  # the bitrate the encoder targets now
+        self._applied_vbv = 0  # the VBV buffer (kbit) last given to the encoder
         self._opened_kbps = 0  # the bitrate (VBV maxrate) it was opened with: live changes up to it need no re-open
         self._idr_pending = False
         self._last_idr_request = -1e18
@@ -271,6 +280,9 @@ class H264Stage:
                 if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
                     transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
                     self._applied_kbps = want.bitrate_kbps
+                if want is not None and want.vbv_kbit != self._applied_vbv:
+                    transcoder.set_vbv(max(0, int(want.vbv_kbit)) * 1000)
+                    self._applied_vbv = want.vbv_kbit
             except MediaError as err:
                 self.stats.bad_inputs += 1
                 problem = str(err)
@@ -339,6 +351,7 @@ class H264Stage:
             t = self._factory(config)
             self._transcoder = t
             self._applied_kbps = config.bitrate_bps // 1000  # opened at the ceiling; lowered after the first frame
+            self._applied_vbv = config.vbv_bits // 1000
             self._opened_kbps = self._applied_kbps
             self.stats.encoder_opens += 1
             self.stats.fps_reopens += int(for_fps)

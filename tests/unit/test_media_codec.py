@@ -111,6 +111,38 @@ def test_live_bitrate_change_changes_the_output_size(fast_pan: list[bytes]) -> N
     check_idr_headers(out)
 
 
+def test_a_new_vbv_buffer_waits_for_the_next_idr_and_bounds_it(fast_pan: list[bytes]) -> None:
+    """The VBV buffer bounds the IDR; a new one re-opens the encoder only at an IDR it makes anyway (no extra
+    keyframe), keeps the opened maxrate, and a change within VBV_REOPEN_SLACK is no re-open at all."""
+    images = [bgr(j) for j in fast_pan]
+    enc = H264Encoder(EncoderConfig(704, 576, bitrate_bps=1_000_000, keyframe_interval=10))
+    assert enc.opened_vbv_bits == 150_000  # VBV_BUFFER_S of the bitrate
+    keys, sizes = [], []
+    for i, img in enumerate(images):
+        if i == 3:
+            enc.set_bitrate(600_000)
+            enc.set_vbv(40_000)
+            assert enc.reopens == 0  # not yet: waits for the IDR at frame 10
+        if i == 22:
+            enc.set_vbv(44_000)  # within the slack of 40 kbit: nothing to do
+        out = enc.encode_bgr(img)
+        check_idr_headers(out)
+        keys.append(out.keyframe)
+        sizes.append(len(out.data) * 8)
+    assert [i for i, k in enumerate(keys) if k] == [0, 10, 20]  # the periodic ones, no extra IDR
+    assert enc.reopens == 1
+    assert enc.opened_vbv_bits == 40_000
+    assert enc.opened_max_bitrate_bps == 1_000_000  # kept: a bitrate back up to it stays live
+    print(f"IDR sizes {sizes[0]}, {sizes[10]}, {sizes[20]} bit")
+    assert sizes[0] > 80_000  # the fast pan fills the 150 kbit buffer ...
+    assert sizes[10] <= 40_000 * 1.1  # ... and then the 40 kbit one bounds it
+    assert sizes[20] <= 40_000 * 1.1
+    with pytest.raises(EncoderError, match="VBV buffer"):
+        enc.set_vbv(10)
+    with pytest.raises(EncoderError, match="VBV buffer"):
+        EncoderConfig(64, 64, vbv_bits=-1)
+
+
 def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> None:
     images = [bgr(j) for j in jpegs[:30]]
     enc = H264Encoder(EncoderConfig(704, 576, keyframe_interval=10))

@@ -15,7 +15,7 @@ from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
-from axis_ptz_ros2.streaming.controller import VideoController, h264_target_kbps
+from axis_ptz_ros2.streaming.controller import IDR_LINK_S, VideoController, h264_target_kbps, h264_vbv_kbit
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
@@ -496,6 +496,29 @@ def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: 
         assert not any(f is not None and f.keyframe for f in out)
         assert h.transcoders[-1].config.bitrate_bps == kbps * 1000
     assert len(h.made) == 2
+
+
+def test_vbv_buffer_follows_the_bitrate_and_at_most_a_slice_of_the_link_budget() -> None:
+    """Without a link budget: 0.15 s of the bitrate now (1000 kbit/s: 150 kbit, what the encoder always had); under
+    one, at most IDR_LINK_S of it, so an IDR crosses the link in about that long."""
+    assert h264_vbv_kbit(1000, 0.0) == 150
+    assert h264_vbv_kbit(600, 0.0) == 90  # a lowered bitrate lowers the buffer too
+    assert h264_vbv_kbit(850, 900.0) == round(900 * IDR_LINK_S)  # 1 Mbit/s link: 54 kbit, not 128
+    assert h264_vbv_kbit(1000, 5000.0) == 150  # a wide link: the bitrate's buffer
+    c, _ = controller(codec="h264", max_bitrate_kbps=400)
+    assert c.h264_settings().vbv_kbit == 60  # a hand-set budget is no link measure: 0.15 s of 400 kbit/s
+
+
+def test_stage_hands_a_new_vbv_buffer_to_the_encoder_and_no_extra_idr(jpegs: list[bytes]) -> None:
+    h = Harness(H264Settings(bitrate_kbps=1000, keyframe_interval=10, fps=30, ceiling_kbps=1000, vbv_kbit=150))
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])
+    assert [m.vbv_bits for m in h.made] == [150_000]
+    h.settings = H264Settings(bitrate_kbps=800, keyframe_interval=10, fps=30, ceiling_kbps=1000, vbv_kbit=50)
+    out = h.feed(jpegs[3:14])
+    assert len(h.made) == 1  # the same transcoder ...
+    assert h.transcoders[0].config.vbv_bits == 50_000  # ... told the new buffer
+    assert [i + 3 for i, f in enumerate(out) if f is not None and f.keyframe] == [10]  # the periodic IDR only
 
 
 def test_pts_gaps_count_missing_access_units_and_not_a_restart():
