@@ -92,7 +92,7 @@ class H264Output:
         self._ffmpeg_wanted, self._foxglove_wanted = ffmpeg > 0, foxglove > 0
         h264 = ffmpeg + foxglove
         if h264 > self.subscribers:
-            self.stage.request_idr()  # a new viewer needs a start point
+            self.stage.new_subscriber()  # a new viewer needs a start point
         self.subscribers = h264
         encode = self._video.h264 and h264 > 0
         supported = self.rtsp.supported  # None until asked (on the first activation)

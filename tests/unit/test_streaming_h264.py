@@ -19,6 +19,7 @@ from axis_ptz_ros2.streaming.controller import IDR_LINK_S, VideoController, h264
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
+    NEW_SUBSCRIBER_IDR_AGAIN_S,
     RATE_WINDOW,
     H264Settings,
     H264Stage,
@@ -139,6 +140,26 @@ def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
     assert keys[0] is False
     assert keys[-1] is True
     assert h.stage.stats.idr_requests == 2
+
+
+def test_a_new_subscriber_gets_an_idr_at_once_and_another_shortly_after(jpegs: list[bytes]) -> None:
+    """The publisher may learn of a subscriber before the subscriber learns of it: a second IDR follows
+    NEW_SUBSCRIBER_IDR_AGAIN_S after the first, once, and for a pass-through source too (idr_wanted)."""
+    h = Harness()  # periodic IDR every 30 frames at 10 fps: capped at one second (10 frames)
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])  # clock at 100.3; IDR at frame 0
+    h.stage.new_subscriber()
+    fs = h.feed(jpegs[3:9])  # one frame per 0.1 s
+    keys = [i for i, f in enumerate(fs) if f is not None and f.keyframe]
+    assert len(keys) == 2  # at once, and again about NEW_SUBSCRIBER_IDR_AGAIN_S later (the first frame due)
+    assert keys[0] == 0
+    assert keys[1] * 0.1 == pytest.approx(NEW_SUBSCRIBER_IDR_AGAIN_S, abs=0.11)
+    assert not h.stage.idr_wanted  # nothing more is due
+    h.stage.new_subscriber()
+    h.stage.idr_sent()  # a pass-through source asked its camera for the first one
+    assert not h.stage.idr_wanted
+    h.clock.t += NEW_SUBSCRIBER_IDR_AGAIN_S
+    assert h.stage.idr_wanted  # the second one is due
 
 
 def test_the_encoder_runs_at_the_rate_the_camera_makes(jpegs: list[bytes]) -> None:
