@@ -113,6 +113,14 @@ def first_picture(s: Session, reader: LineReader, spawned: int, timeout: float, 
         if pics and ready:
             s.first_s.append((pics[0]["rx"] - spawned) / NS)
             s.first_node_s.append((pics[0]["rx"] - ready[0]["rx"]) / NS)
+            t0 = ready[0]["rx"]
+            matched, au = reader.of("matched"), reader.of("first_au")
+            if matched and au:  # a plain H.264 viewer: the start's breakdown, from its node up
+                kind = "IDR" if au[0]["key"] else "P"
+                s.first_detail.append(
+                    f"{(matched[0]['rx'] - t0) / NS:.1f}/{(au[0]['rx'] - t0) / NS:.1f} {kind}/"
+                    f"{(pics[0]['rx'] - t0) / NS:.1f}"
+                )
             return True
         hosts.check_alive()
         time.sleep(0.05)

@@ -41,6 +41,8 @@ class Session:
     shots: dict[int, list[float]] = field(default_factory=dict)  # capture ns -> pose rendered at (panning)
     first_s: list[float] = field(default_factory=list)  # viewer process start -> first picture (s), per start
     first_node_s: list[float] = field(default_factory=list)  # viewer node up -> first picture (s)
+    # plain H.264 viewer, per start, from its node up: "matched/first access unit (IDR or P)/first picture" (s)
+    first_detail: list[str] = field(default_factory=list)
     pose_moved: bool = False
     pan_deg_s: float = math.nan  # the head's measured pan speed over the measurement
     note: str = ""
@@ -154,6 +156,7 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:  # noqa: PLR0915 - on
     out["first_s"] = math.inf if any(math.isnan(x) for x in s.first_s) else max(s.first_s, default=math.nan)
     out["first_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_s)
     out["first_node_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_node_s)
+    out["first_detail"] = " ".join(s.first_detail) or "—"
     out["starts"] = len(s.first_s)
     out["pose_moved"] = s.pose_moved
     budgets = [p["budget"] for p in s.params if p["rx"] >= a]
@@ -169,11 +172,12 @@ EVENTS: list[tuple[str, Any, str, str, Any]] = [
     (
         "recovery_s",
         lambda e: (
-            f"link 2 -> 1 Mbit/s (2 % loss) at 20 s: frame age back under 100 ms {e['recovery_s']:.1f} s after the "
-            f"step ({e['late_pictures']} pictures older than 100 ms after it)"
+            f"link 2 -> 1 Mbit/s (2 % loss) at 20 s: frame age p95 (1 s windows) back under 100 ms for good "
+            f"{e['recovery_s']:.1f} s after the step ({e['late_pictures']} single pictures older than 100 ms after "
+            f"it, the last {e['last_late_s']:.1f} s after it)"
         ),
-        "two hosts, 2 % loss, H.264 + link monitor, the link dropping 2 → 1 Mbit/s mid-run: frame age back under "
-        "100 ms after the step / the last 10 s",
+        "two hosts, 2 % loss, H.264 + link monitor, the link dropping 2 → 1 Mbit/s mid-run: frame age p95 (1 s "
+        "windows) back under 100 ms after the step / the last 10 s",
         "≤ 3 s",
         lambda e: e["recovery_s"] <= 3.0,
     ),
@@ -195,9 +199,33 @@ EVENT_FIGURE = {
 }
 
 
+#: the step's figure: the frame age's p95 over a sliding window of this many seconds (the statistic of issue 21's
+#: age target, ``age p95 <= 100 ms``), judged every ``RECOVERY_STEP_S``
+RECOVERY_WINDOW_S = 1.0
+RECOVERY_STEP_S = 0.1
+
+
+def age_recovery_s(pics: list[dict[str, Any]], t: int, end: int, limit_ms: float = 100.0) -> float:
+    """Seconds after ``t`` (ns) until the frame age's p95 over every later :data:`RECOVERY_WINDOW_S` window (ending
+    up to ``end``) stays at or under ``limit_ms``: the end of the last window over it, counted from ``t``
+    (0: none was). Single pictures over the limit come at any rate on a lossy link (a lost packet's repair: up to
+    ~130 ms at 2 Mbit/s + 2 % with no step at all), so the figure is the age target's own statistic, not the
+    last such picture (printed beside it)."""
+    win, step = int(RECOVERY_WINDOW_S * NS), int(RECOVERY_STEP_S * NS)
+    last_bad = t
+    w_end = t + win
+    while w_end <= end:
+        ages = [x for x in (age_ms(r) for r in pics if w_end - win <= r["rx"] < w_end) if not math.isnan(x)]
+        if not ages or pct(ages, 0.95) > limit_ms:
+            last_bad = w_end
+        w_end += step
+    return (last_bad - t) / NS
+
+
 def event_figures(s: Session) -> dict[str, Any]:
-    """The scripted sessions (:data:`SCRIPTS`): after the step to 1 Mbit/s, seconds until the frame age stays under
-    100 ms (the last picture older than that, counted from the step) and the rate and age of the last 10 s; after
+    """The scripted sessions (:data:`SCRIPTS`): after the step to 1 Mbit/s, seconds until the frame age's p95
+    stays under 100 ms (:func:`age_recovery_s`; the last single picture older than that beside it) and the rate
+    and age of the last 10 s; after
     the cut, the first decoded picture after the heal and the pictures delivered after it that are older than 1 s
     (stale: taken before or during the cut)."""
     out: dict[str, Any] = {"name": s.name}
@@ -208,8 +236,9 @@ def event_figures(s: Session) -> dict[str, Any]:
     if "rate1000" in s.events:
         t = s.events["rate1000"]
         late = [r["rx"] for r in s.pics if r["rx"] >= t and age_ms(r) > 100]
-        out["recovery_s"] = (max(late) - t) / NS if late else 0.0
+        out["last_late_s"] = (max(late) - t) / NS if late else 0.0
         out["late_pictures"] = len(late)
+        out["recovery_s"] = age_recovery_s(s.pics, t, end)
     if "up" in s.events:
         t = s.events["up"]
         after = [r for r in s.pics if r["rx"] >= t]
@@ -295,6 +324,7 @@ def print_table(results: list[dict[str, Any]], seconds: float, link_kbit: int) -
     row("first picture after the viewer starts, worst [s]", "{:.1f}", "first_s", "<= 2 s (h264-nofb: 5 starts)")
     row("  every start, from process spawn [s]", "{}", "first_all")
     row("  every start, from its node up [s]", "{}", "first_node_all")
+    row("  every start: matched / first access unit / picture [s]", "{}", "first_detail")
     row("stream node's budget (video/params) [kbit/s]", "{}", "budget")
     row("  last video/params settings", "{}", "settings")
     row("camera moved during the session", "{}", "pose_moved")

@@ -212,21 +212,30 @@ def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False)
         node = Node("plain_viewer")
         if codec == "h264":
             from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+            from rclpy.event_handler import SubscriptionEventCallbacks
             from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
             from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
             rcv = AccessUnitReceiver()
+            arrived = [False]
 
             def cb(msg: Any) -> None:
                 rx0 = time.time_ns()
                 data = bytes(msg.data)
+                if not arrived[0]:  # the start's breakdown: when the first access unit came, and whether an IDR
+                    arrived[0] = True
+                    emit({"t": "first_au", "rx": rx0, "key": bool(int(msg.flags) & 1), "pts": int(msg.pts)})
                 on_au(data, rcv.feed(data, int(msg.pts)), rx0, int(msg.pts))
 
             # as a stock subscriber: image_transport (rqt_image_view, the ffmpeg plugin) subscribes with
             # rmw_qos_profile_default, reliable keep-last 10
             plain = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-            node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", cb, plain)
+            # the reader's side of discovery: when this subscription matched the stream node's writer
+            events = SubscriptionEventCallbacks(
+                matched=lambda info: emit({"t": "matched", "rx": time.time_ns(), "n": int(info.current_count)})
+            )
+            node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", cb, plain, event_callbacks=events)
         else:
             from sensor_msgs.msg import CompressedImage
 
