@@ -281,9 +281,16 @@ class LinkAdapter:
             while self._good and now - self._good[0][0] > cfg.good_memory_s:
                 self._good.popleft()
             careful = 0.0 < cfg.probe_increase < cfg.increase
-            if careful and 0 < self._bad_kbps <= sent_kbps:
-                self._bad_kbps = 0.0  # the link now carries what congested it: nothing to be careful of
+            if careful and 0 < self._bad_kbps <= received:
+                # the link now carries what congested it: nothing to be careful of. Judged by what arrived, not by
+                # what was sent: the sender's window still holds the rate that congested for a report or two after
+                # the decrease (weak-link bench at a2bf677, the 2 -> 1 Mbit/s step: the next report read "sent 894
+                # kbit/s" against 856 that congested, the rate was forgotten and the budget went 594 -> 1350 kbit/s
+                # in 2.5 s, ×1.2 per report, while the queue was still 240 ms)
+                self._bad_kbps = 0.0
             base = self._budget if self._budget > 0 else grow_from_kbps
+            if careful and now - self._last_decrease < cfg.decrease_hold_s:
+                base = 0.0  # the report still covers the congestion just answered: no growth on it
             # near the rate that last congested (the back-off over), growth by ``probe_increase``
             probing = careful and base >= cfg.decrease * self._bad_kbps > 0
             # past the start, and when probing, one step per report window: each is judged on a window of its own

@@ -482,3 +482,32 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     for bad in (1.0, 0.5, 1.3):
         with pytest.raises(ValueError, match="probe_increase"):
             AdapterConfig(probe_increase=bad)
+
+
+def test_h264_reports_that_still_hold_the_congestion_neither_grow_the_budget_nor_forget_the_rate():
+    """The weak-link step (2 -> 1 Mbit/s) as the stream node logged it at a2bf677: the sender's window still reads
+    the rate that congested (894 kbit/s sent against 856) a report after the decrease, and the queue is still
+    214-240 ms (under the 250 ms that reads "clear"). That report must not grow the budget, nor count as the link
+    carrying the rate that congested: only what arrives says so."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    def rep(kbps: float, lost: int = 0, queue: float = 0.05) -> FeedbackReport:
+        r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
+        return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
+
+    a = LinkAdapter(h264_adapter_config())
+    a.report(10.0, rep(860), 25, 860, 1000)
+    assert a.report(11.0, rep(742, lost=2, queue=0.214), 25, 856, 1000).state == "congested"
+    cut = a.budget_kbps
+    assert cut == pytest.approx(0.8 * 742)
+    d = a.report(11.03, rep(726, queue=0.214), 25, 894, 1000)  # sent still reads the old rate
+    assert d.state == "clear"
+    assert a.budget_kbps == cut  # no growth on a report that covers the congestion
+    for k, sent in enumerate((832, 693, 605)):  # the queue drains within the hold
+        a.report(11.5 + 0.5 * k, rep(0.9 * sent, queue=0.24), 25, sent, 1000)
+        assert a.budget_kbps == cut
+    now = 14.0  # past the hold: growth, but under 0.8 x the 856 that congested for the back-off
+    while now < 20.0:
+        a.report(now, rep(cut), 25, cut, 1000)
+        now += 0.5
+    assert a.budget_kbps == pytest.approx(0.8 * 856)
