@@ -310,6 +310,12 @@ class _Signals:
             signal.signal(sig, handler)
 
 
+#: the longest a :func:`run_nodes` process takes to end once its clean-up starts (s): past it, every thread's stack
+#: goes to stderr and the process exits 1. Clean-up takes well under 1 s; the web console may wait up to 3 s for
+#: its HTTP clients. ``ros2 launch`` sends SIGTERM 5 s after its SIGINT and SIGKILL 5 s later: this comes first.
+EXIT_WITHIN_S = 8.0
+
+
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes in one process and spin them until SIGINT/SIGTERM or shutdown.
 
@@ -322,7 +328,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     handler is not installed: it shuts the context down inside the signal, so nodes would be destroyed after it,
     and destroying a publisher of a shut-down context crashed ``axis_visualizer`` with SIGSEGV in a CI run
     (faulthandler's trace: ``Publisher.destroy`` in ``destroy_node``). Our handlers (:class:`_Signals`) only set
-    a flag once spinning; a second signal is ignored during clean-up.
+    a flag once spinning; a second signal is ignored during clean-up. A clean-up that hangs ends the process
+    after :data:`EXIT_WITHIN_S` with every thread's stack on stderr (exit 1).
     """
     if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
         faulthandler.enable()
@@ -361,8 +368,11 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
         code = 2
     finally:
         signals.ignore()
-        # a clean-up that hangs leaves every thread's stack in the log before whoever stopped us kills us
-        faulthandler.dump_traceback_later(5.0)
+        # The process is ending. A clean-up (or the interpreter's exit after it: it joins the executors' pool
+        # threads) that hangs would hold it until whoever stopped it kills it, with nothing in the log: after
+        # EXIT_WITHIN_S every thread's stack goes to stderr and the process exits 1. Never cancelled: the timer
+        # ends with the process.
+        faulthandler.dump_traceback_later(EXIT_WITHIN_S, exit=True)
         try:
             for s in spinners:
                 s.stop(timeout=1.0)
@@ -375,7 +385,6 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
                 retrieve_task_errors(s.executor)
             rclpy.try_shutdown()
         finally:
-            faulthandler.cancel_dump_traceback_later()
             signals.restore()
     return code
 

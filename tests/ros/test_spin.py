@@ -337,3 +337,40 @@ def test_axis_camera_stops_cleanly_within_2_s_and_ignores_a_second_signal(camera
     assert took <= 2.0, f"exit took {took:.2f} s"
     for bad in ("Traceback", "never retrieved", "Fatal Python error", "cannot use Destroyable"):
         assert bad not in text, text[-3000:]
+
+
+HANGING_CLEAN_UP = """
+import sys, threading, time
+import rclpy.node
+from axis_ptz_ros2.nodes import runner
+
+class Stuck(rclpy.node.Node):
+    def __init__(self):
+        super().__init__("stuck_clean_up")
+        print("up", flush=True)
+
+    def destroy_node(self):
+        threading.Event().wait()  # a clean-up that never returns (a join on a thread that never ends)
+
+runner.EXIT_WITHIN_S = 1.5
+sys.exit(runner.run_nodes([Stuck], sys.argv))
+"""
+
+
+def test_a_clean_up_that_hangs_ends_the_process_with_every_threads_stack_in_the_log():
+    """A hung clean-up must not hold the process until whoever stopped it kills it (with nothing in the log, as a
+    CI run's web console did): past EXIT_WITHIN_S the process prints every thread's stack and exits 1."""
+    with node_process([sys.executable, "-c", HANGING_CLEAN_UP, "--ros-args", "-r", "__ns:=/spin_hang"]) as proc:
+        out = _read_until(proc, b"up", 30.0)
+        assert b"up" in out, out.decode(errors="replace")[-2000:]
+        time.sleep(0.5)  # spinning
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(10)
+        took = time.monotonic() - t0
+        assert proc.stdout is not None
+        text = (out + proc.stdout.read()).decode(errors="replace")
+    assert code == 1, text[-3000:]
+    assert 1.5 <= took < 5.0, f"ended {took:.2f} s after the signal"
+    assert "Timeout (0:00:01.500000)!" in text, text[-3000:]  # faulthandler's dump, every thread
+    assert "in destroy_node" in text, text[-3000:]  # the stack names where it hung
