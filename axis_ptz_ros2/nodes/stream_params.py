@@ -14,8 +14,8 @@ from typing import Any
 from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
 from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
-from axis_ptz_ros2.streaming.controller import H264_BUDGET_FRACTION
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
+from axis_ptz_ros2.streaming.h264_policy import H264_BUDGET_FRACTION
 from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE

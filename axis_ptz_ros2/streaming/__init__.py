@@ -6,7 +6,8 @@
 * :mod:`.budget` — :class:`BandwidthController`, keeps the bitrate under a budget.
 * :mod:`.feedback` — :class:`~.feedback.LinkAdapter`, a budget that follows what the consumers receive.
 * :mod:`.controller` — :class:`~.controller.VideoController`, the one owner of the video parameters in effect
-  (request, budget, link adaptation, the camera's sizes).
+  (request, budget, link adaptation, the camera's sizes); :mod:`.h264_policy` turns its budgets into the H.264
+  encoder's bitrate and VBV buffer.
 * :mod:`.discovery` — :class:`~.discovery.CameraDiscovery`: what the camera is (once, with back-off), its stream
   (the reader's opener, with a TCP probe while the camera is unreachable).
 * :mod:`.status` — reader events as throttled log lines, the diagnostics status.

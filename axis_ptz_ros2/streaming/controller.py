@@ -20,16 +20,11 @@ Policy that lives here:
 
 The codec (``codec``: ``mjpeg`` | ``h264``) is policy here too. In ``h264`` mode the camera is asked for its best
 quality (compression 0) at the requested size and rate, the MJPEG budget ladder stands still, and the budget in
-force drives the encoder's bitrate instead (:meth:`VideoController.h264_settings`, :func:`h264_target_kbps`):
-without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports nothing still gets the full picture;
-a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up to the
-ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under what the
-link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it. The encoder's VBV buffer,
-which bounds its IDRs, follows the bitrate and, under a link budget, at most :data:`IDR_LINK_S` of the budget
-(:func:`h264_vbv_kbit`). Consumers' reports are
-then judged against the H.264 bytes sent (:meth:`VideoController.on_h264_frame`), not the camera's JPEGs. No
-ladder step announces a change of the budget there: it is announced (as ``bandwidth_budget``) when it moves by
-:data:`BUDGET_ANNOUNCE_SLACK` or more from the one last announced, or comes or goes.
+force drives the encoder's bitrate and VBV buffer instead (:meth:`VideoController.h264_settings`; how, in
+:mod:`.h264_policy`). Consumers' reports are then judged against the H.264 bytes sent
+(:meth:`VideoController.on_h264_frame`), not the camera's JPEGs. No ladder step announces a change of the budget
+there: it is announced (as ``bandwidth_budget``) when it moves by :data:`BUDGET_ANNOUNCE_SLACK` or more from the
+one last announced, or comes or goes.
 """
 
 from __future__ import annotations
@@ -38,10 +33,16 @@ import threading
 import time
 from collections.abc import Callable, Collection
 
-from axis_ptz_ros2.media.encoder import VBV_BUFFER_S
-from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
+from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
-from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE, H264Settings
+from axis_ptz_ros2.streaming.h264 import H264Settings
+from axis_ptz_ros2.streaming.h264_policy import (
+    H264_BUDGET_FRACTION,
+    H264_FIELDS,
+    check_h264,
+    h264_target_kbps,
+    h264_vbv_kbit,
+)
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
@@ -64,14 +65,6 @@ VIDEO_FIELDS = frozenset(
     {"fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps", "codec"}
 )
 LINK_FIELDS = frozenset({"adapt_to_link", "link_release"})
-#: the encoder's own fields (they do not change what the camera is asked for)
-H264_FIELDS = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
-#: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
-#: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
-H264_BUDGET_FRACTION = BudgetConfig().down_fraction
-#: s: with a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this long on the link
-#: (:func:`h264_vbv_kbit`)
-IDR_LINK_S = 0.06
 
 
 def _largest(resolutions: Collection[Resolution]) -> Resolution:
@@ -178,7 +171,7 @@ class VideoController:
         """The reason ``settings`` cannot be asked for (None = fine), when ``changed`` touches the request:
         fps and compression ranges, the resolution against the camera's own list once known."""
         if H264_FIELDS.intersection(changed) or "codec" in changed:
-            reason = _check_h264(settings)
+            reason = check_h264(settings)
             if reason:
                 return reason
         if not VIDEO_FIELDS.intersection(changed):
@@ -415,53 +408,3 @@ def requested_changes(
     if h264_max_bitrate_kbps != 0:
         changes["h264_max_bitrate_kbps"] = int(h264_max_bitrate_kbps)
     return changes
-
-
-def _check_h264(settings: VideoSettings) -> str | None:
-    """The reason the codec settings cannot be used (None = fine)."""
-    if settings.codec not in CODECS:
-        return f"codec={settings.codec!r} is not one of {', '.join(CODECS)}"
-    if settings.h264_preset not in H264_PRESETS:
-        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(H264_PRESETS)}"
-    low, high = BITRATE_RANGE_KBPS
-    if not low <= int(settings.h264_bitrate_kbps) <= high:
-        return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"
-    if not low <= int(settings.h264_max_bitrate_kbps) <= high:
-        return f"h264_max_bitrate_kbps={settings.h264_max_bitrate_kbps} is outside {low}…{high} kbit/s"
-    low, high = KEYFRAME_RANGE
-    if not low <= int(settings.h264_keyframe_interval) <= high:
-        return f"h264_keyframe_interval={settings.h264_keyframe_interval} is outside {low}…{high} frames"
-    return None
-
-
-def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: float = 0.0) -> tuple[int, int]:
-    """The H.264 bitrate to target now and the highest one to expect (what an encoder opens with as its VBV
-    ``maxrate``, so a live change up to it needs no re-open), in kbit/s.
-
-    ``start`` (``h264_bitrate_kbps``) applies without any budget; the link adapter's budget ``link_kbps`` (0 = no
-    feedback) lowers it when under it and, above it, raises it to :data:`H264_BUDGET_FRACTION` of the budget, up to
-    ``ceiling`` (``h264_max_bitrate_kbps``; at or below ``start``: never above ``start``); the hand-set budget
-    ``hand_kbps`` (``max_bitrate_kbps``, 0 = off) caps it. Never below the encoder's floor."""
-    ceiling = max(ceiling, start)
-    kbps = start
-    if link_kbps > 0:
-        kbps = max(min(start, int(link_kbps)), min(ceiling, int(link_kbps * H264_BUDGET_FRACTION)))
-    if hand_kbps > 0:
-        kbps = min(kbps, int(hand_kbps))
-    kbps = max(BITRATE_RANGE_KBPS[0], kbps)
-    # the ceiling is announced only once the link lets the target past the start: an encoder re-opened for it
-    # (an IDR) once, when it is needed, not on every budget that merely lowers the bitrate
-    top = ceiling if link_kbps * H264_BUDGET_FRACTION > start else start
-    return kbps, max(top, kbps)
-
-
-def h264_vbv_kbit(kbps: int, link_kbps: float) -> int:
-    """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.encoder.VBV_BUFFER_S` of the bitrate ``kbps``
-    targeted now, and where the link adapter keeps a budget ``link_kbps`` (0 = none), at most
-    :data:`IDR_LINK_S` of it. The buffer bounds the largest picture, an IDR, and the pictures behind an IDR wait
-    for it to cross the link: on 1 Mbit/s with 2 % loss, IDRs of ~114 kbit (a buffer opened at 1000 kbit/s and
-    kept while the bitrate followed the link down) reached the operator 125-216 ms after capture, every second."""
-    vbv = kbps * VBV_BUFFER_S
-    if link_kbps > 0:
-        vbv = min(vbv, link_kbps * IDR_LINK_S)
-    return max(1, round(vbv))

@@ -39,6 +39,10 @@ A lossy link delays the pictures behind each repaired loss by a repair round tri
 reads as a p95 queueing delay of 100-200 ms on 2 Mbit/s with 2 % loss; judged by the MJPEG thresholds that
 was "congested" report after report and the budget sank to its floor (124 kbit/s of a 1000 kbit/s request on
 that link, weak-link bench at 8ff4f08). A queue that the sender builds grows past those tails within a report.
+After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
+covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
+it again, not when the sender's lagging window still reads it (:func:`h264_adapter_config` says what each rule
+cost without it).
 """
 
 from __future__ import annotations
@@ -364,7 +368,11 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
     congested again, and from 0.8 x that rate creeps up by 5 % per report window: weak-link bench, the link
     dropping from 2 to 1 Mbit/s (at 56bfe2d, debug log): the budget fell to 580 kbit/s 0.7 s after the step and the
     queue was gone 3 s after it, but with a 5 s wait and x1.2 per report the budget went 683 -> 1350 kbit/s in
-    1.5 s, congested again at ~770 kbit/s sent, and did so every ~10 s."""
+    1.5 s, congested again at ~770 kbit/s sent, and did so every ~10 s. And the same step at a2bf677: the report
+    34 ms after the decrease read "sent 894 kbit/s" (the sender's 2 s window) against the 856 that congested, so
+    that rate was forgotten and the budget went 594 -> 1350 kbit/s in 2.5 s while the queue stood at 214-240 ms
+    (under the 250 that reads clear): a queue for 10 s, congested again at +13 s. Hence no growth within
+    ``decrease_hold_s`` of a decrease, and the rate forgotten only once received."""
     return AdapterConfig(
         delay_high_s=0.5,
         delay_low_s=0.25,

@@ -105,8 +105,13 @@ class H264Settings:
             bitrate_bps=max(int(self.bitrate_kbps), int(self.ceiling_kbps)) * 1000,
             keyframe_interval=self.effective_keyframe_interval,
             preset=self.preset,
-            vbv_bits=max(0, int(self.vbv_kbit)) * 1000,
+            vbv_bits=self.vbv_bits,
         )
+
+    @property
+    def vbv_bits(self) -> int:
+        """The VBV buffer in bits, as the encoder takes it (0 = its default)."""
+        return max(0, int(self.vbv_kbit)) * 1000
 
     @property
     def effective_keyframe_interval(self) -> int:
@@ -304,7 +309,7 @@ class H264Stage:
                     transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
                     self._applied_kbps = want.bitrate_kbps
                 if want is not None and want.vbv_kbit != self._applied_vbv:
-                    transcoder.set_vbv(max(0, int(want.vbv_kbit)) * 1000)
+                    transcoder.set_vbv(want.vbv_bits)
                     self._applied_vbv = want.vbv_kbit
             except MediaError as err:
                 self.stats.bad_inputs += 1

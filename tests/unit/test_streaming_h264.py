@@ -15,7 +15,7 @@ from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
-from axis_ptz_ros2.streaming.controller import IDR_LINK_S, VideoController, h264_target_kbps, h264_vbv_kbit
+from axis_ptz_ros2.streaming.controller import VideoController
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
@@ -26,6 +26,7 @@ from axis_ptz_ros2.streaming.h264 import (
     StagedFrame,
     camera_stamp_ns,
 )
+from axis_ptz_ros2.streaming.h264_policy import IDR_LINK_S, h264_target_kbps, h264_vbv_kbit
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 from axis_ptz_ros2.streaming.video_types import VideoSettings

@@ -1,0 +1,81 @@
+"""How the budgets in force become the H.264 encoder's settings, and which codec settings are valid. ROS-free.
+
+The video controller (:mod:`.controller`) holds the budgets; these functions turn them into an
+:class:`~.h264.H264Settings` target:
+
+* without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports nothing still gets the full
+  picture; a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up
+  to the ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under
+  what the link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it
+  (:func:`h264_target_kbps`);
+* the encoder's VBV buffer, which bounds its IDRs, follows the bitrate and, under a link budget, is at most
+  :data:`IDR_LINK_S` of the budget (:func:`h264_vbv_kbit`).
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+from axis_ptz_ros2.media.encoder import VBV_BUFFER_S
+from axis_ptz_ros2.streaming.budget import BudgetConfig
+from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
+from axis_ptz_ros2.streaming.video_types import VideoSettings
+
+#: the encoder's own fields (they do not change what the camera is asked for)
+H264_FIELDS: Final = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
+#: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
+#: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
+H264_BUDGET_FRACTION: Final = BudgetConfig().down_fraction
+#: s: with a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this long on the link
+#: (:func:`h264_vbv_kbit`)
+IDR_LINK_S: Final = 0.06
+
+
+def check_h264(settings: VideoSettings) -> str | None:
+    """The reason the codec settings cannot be used (None = fine)."""
+    if settings.codec not in CODECS:
+        return f"codec={settings.codec!r} is not one of {', '.join(CODECS)}"
+    if settings.h264_preset not in H264_PRESETS:
+        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(H264_PRESETS)}"
+    low, high = BITRATE_RANGE_KBPS
+    if not low <= int(settings.h264_bitrate_kbps) <= high:
+        return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"
+    if not low <= int(settings.h264_max_bitrate_kbps) <= high:
+        return f"h264_max_bitrate_kbps={settings.h264_max_bitrate_kbps} is outside {low}…{high} kbit/s"
+    low, high = KEYFRAME_RANGE
+    if not low <= int(settings.h264_keyframe_interval) <= high:
+        return f"h264_keyframe_interval={settings.h264_keyframe_interval} is outside {low}…{high} frames"
+    return None
+
+
+def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: float = 0.0) -> tuple[int, int]:
+    """The H.264 bitrate to target now and the highest one to expect (what an encoder opens with as its VBV
+    ``maxrate``, so a live change up to it needs no re-open), in kbit/s.
+
+    ``start`` (``h264_bitrate_kbps``) applies without any budget; the link adapter's budget ``link_kbps`` (0 = no
+    feedback) lowers it when under it and, above it, raises it to :data:`H264_BUDGET_FRACTION` of the budget, up to
+    ``ceiling`` (``h264_max_bitrate_kbps``; at or below ``start``: never above ``start``); the hand-set budget
+    ``hand_kbps`` (``max_bitrate_kbps``, 0 = off) caps it. Never below the encoder's floor."""
+    ceiling = max(ceiling, start)
+    kbps = start
+    if link_kbps > 0:
+        kbps = max(min(start, int(link_kbps)), min(ceiling, int(link_kbps * H264_BUDGET_FRACTION)))
+    if hand_kbps > 0:
+        kbps = min(kbps, int(hand_kbps))
+    kbps = max(BITRATE_RANGE_KBPS[0], kbps)
+    # the ceiling is announced only once the link lets the target past the start: an encoder re-opened for it
+    # (an IDR) once, when it is needed, not on every budget that merely lowers the bitrate
+    top = ceiling if link_kbps * H264_BUDGET_FRACTION > start else start
+    return kbps, max(top, kbps)
+
+
+def h264_vbv_kbit(kbps: int, link_kbps: float) -> int:
+    """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.encoder.VBV_BUFFER_S` of the bitrate ``kbps``
+    targeted now, and where the link adapter keeps a budget ``link_kbps`` (0 = none), at most
+    :data:`IDR_LINK_S` of it. The buffer bounds the largest picture, an IDR, and the pictures behind an IDR wait
+    for it to cross the link: on 1 Mbit/s with 2 % loss, IDRs of ~114 kbit (a buffer opened at 1000 kbit/s and
+    kept while the bitrate followed the link down) reached the operator 125-216 ms after capture, every second."""
+    vbv = kbps * VBV_BUFFER_S
+    if link_kbps > 0:
+        vbv = min(vbv, link_kbps * IDR_LINK_S)
+    return max(1, round(vbv))
