@@ -295,7 +295,7 @@ def print_table(results: list[dict[str, Any]], seconds: float, link_kbit: int) -
     col = 22
 
     def row(label: str, f: str, key: str, target: str = "") -> None:
-        cells = "".join(f"{fmt(r[key], f):>{col}}" for r in results)
+        cells = "".join(" " + f"{fmt(r[key], f):>{col - 1}}" for r in results)  # a wide cell stays apart
         print(f"{label:<50}{cells}" + (f"   target {target}" if target else ""))
 
     print(f"{'':<50}" + "".join(f"{r['name']:>{col}}" for r in results))
