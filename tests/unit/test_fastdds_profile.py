@@ -31,3 +31,15 @@ def test_h264_writers_repair_on_a_50_ms_heartbeat_without_piggybacked_heartbeats
             "0",
             "50000000",
         ), name
+
+
+def test_participants_announce_themselves_every_half_second():
+    """A participant's one announcement to a newcomer lost on the link left the newcomer waiting for the next
+    periodic one (3 s by default): first pictures up to 3.5 s after a viewer's start (README, "First picture after
+    a viewer starts"). The default participant profile announces every 0.5 s."""
+    root = ET.parse(PROFILE).getroot()
+    defaults = [p for p in root.iterfind(".//f:participant", NS) if p.get("is_default_profile") == "true"]
+    assert len(defaults) == 1
+    period = defaults[0].find("f:rtps/f:builtin/f:discovery_config/f:leaseAnnouncement", NS)
+    assert period is not None
+    assert (period.findtext("f:sec", namespaces=NS), period.findtext("f:nanosec", namespaces=NS)) == ("0", "500000000")
