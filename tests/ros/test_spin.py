@@ -340,7 +340,7 @@ def test_axis_camera_stops_cleanly_within_2_s_and_ignores_a_second_signal(camera
 
 
 HANGING_CLEAN_UP = """
-import sys, threading, time
+import sys, threading
 import rclpy.node
 from axis_ptz_ros2.nodes import runner
 

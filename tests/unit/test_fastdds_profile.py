@@ -18,6 +18,13 @@ def _writer(name: str) -> ET.Element:
     return found[0]
 
 
+def _duration(parent: ET.Element, path: str) -> tuple[str | None, str | None]:
+    """(sec, nanosec) of the duration element at ``path`` under ``parent``."""
+    el = parent.find(path, NS)
+    assert el is not None, path
+    return el.findtext("f:sec", namespaces=NS), el.findtext("f:nanosec", namespaces=NS)
+
+
 def test_h264_writers_repair_on_a_50_ms_heartbeat_without_piggybacked_heartbeats():
     """A heartbeat on every sample of a full keep-last history made the reader NACK fragments still queued on the
     link, and the re-sends swamped it (README, "First picture after a viewer starts"); the periodic 50 ms heartbeat
@@ -25,12 +32,7 @@ def test_h264_writers_repair_on_a_50_ms_heartbeat_without_piggybacked_heartbeats
     for name in H264_WRITERS:
         w = _writer(name)
         assert w.findtext("f:qos/f:disable_heartbeat_piggyback", namespaces=NS) == "true", name
-        period = w.find("f:times/f:heartbeatPeriod", NS)
-        assert period is not None, name
-        assert (period.findtext("f:sec", namespaces=NS), period.findtext("f:nanosec", namespaces=NS)) == (
-            "0",
-            "50000000",
-        ), name
+        assert _duration(w, "f:times/f:heartbeatPeriod") == ("0", "50000000"), name
 
 
 def test_participants_announce_themselves_every_half_second():
@@ -40,6 +42,4 @@ def test_participants_announce_themselves_every_half_second():
     root = ET.parse(PROFILE).getroot()
     defaults = [p for p in root.iterfind(".//f:participant", NS) if p.get("is_default_profile") == "true"]
     assert len(defaults) == 1
-    period = defaults[0].find("f:rtps/f:builtin/f:discovery_config/f:leaseAnnouncement", NS)
-    assert period is not None
-    assert (period.findtext("f:sec", namespaces=NS), period.findtext("f:nanosec", namespaces=NS)) == ("0", "500000000")
+    assert _duration(defaults[0], "f:rtps/f:builtin/f:discovery_config/f:leaseAnnouncement") == ("0", "500000000")
