@@ -172,15 +172,20 @@ class PtzRenderer:
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=(0, 0, 0, 0),
         )
-        alpha = warped[:, :, 3:4].astype(np.float32) * (1.0 / 255.0)
-        if len(poly) != 4 or np.any(corners[:, 2] < _NEAR):
-            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            pts = np.round((uv - [x0, y0]) * 16).astype(np.int32)
-            cv2.fillPoly(mask, [pts], 255, cv2.LINE_AA, shift=4)
-            keep = mask[:, :, None].astype(np.float32) * (1.0 / 255.0)
-            alpha *= keep
-            warped = (warped[:, :, :3].astype(np.float32) * keep).astype(np.uint8)
         roi = img[y0:y1, x0:x1]
+        if len(poly) == 4 and not np.any(corners[:, 2] < _NEAR):
+            # roi·(1 − α) + colour (premultiplied), rounded: OpenCV's saturating uint8 arithmetic gives the same
+            # bytes as the float blend below at a third of its cost (a facade fills half a 1080p picture).
+            inv = cv2.merge([255 - warped[:, :, 3]] * 3)
+            roi[:] = cv2.add(cv2.multiply(roi, inv, scale=1.0 / 255.0), warped[:, :, :3])
+            return
+        # The polygon was clipped by the near plane: only what is in front of it is drawn.
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        pts = np.round((uv - [x0, y0]) * 16).astype(np.int32)
+        cv2.fillPoly(mask, [pts], 255, cv2.LINE_AA, shift=4)
+        keep = mask[:, :, None].astype(np.float32) * (1.0 / 255.0)
+        alpha = warped[:, :, 3:4].astype(np.float32) * (1.0 / 255.0) * keep
+        warped = (warped[:, :, :3].astype(np.float32) * keep).astype(np.uint8)
         blended = roi.astype(np.float32) * (1.0 - alpha) + warped[:, :, :3].astype(np.float32)
         roi[:] = np.clip(blended + 0.5, 0, 255).astype(np.uint8)
 
