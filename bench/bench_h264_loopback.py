@@ -132,6 +132,8 @@ def main() -> int:
         "axis_ptz_ros2/media",
         "axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/nodes/stream_h264.py",
+        "axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+        "config/sim_world.yaml",
     )
     sub = Subscriber()
     cpu: dict[str, tuple] = {}
