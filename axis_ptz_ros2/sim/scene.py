@@ -35,7 +35,7 @@ HIT_SKY = -1  #: ``hit_index`` of a ray that escapes to the sky (depth = inf)
 HIT_GROUND = -2  #: ``hit_index`` of a ray that hits the ground plane
 HIT_SKYLINE = -3  #: ``hit_index`` of a ray that hits the distant skyline
 SKYLINE_RADIUS = 400.0  #: metres from the base_link origin
-BACKGROUND_VERSION = 2  #: bump when the procedural background changes (invalidates the disk cache)
+BACKGROUND_VERSION = 3  #: bump when the procedural background changes (invalidates the disk cache)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -82,6 +82,8 @@ class Target:
             return textures.calib_texture(w, h, s.name)
         if s.kind == "checker":
             return textures.checker_texture(w, h)
+        if s.kind == "facade":
+            return textures.facade_texture(w, h, s.text)
         raise ValueError(f"unknown target kind {s.kind!r} for target {s.name!r}")
 
     @property
@@ -220,9 +222,14 @@ class Scene:
         x, y = P[:, 0], P[:, 1]
         ix, iy = np.floor(x / 0.5).astype(np.int64), np.floor(y / 0.5).astype(np.int64)
         tile = ((ix + iy) % 2).astype(np.float64)
-        noise = _hash01(np.floor(x / 0.07).astype(np.int64), np.floor(y / 0.07).astype(np.int64), 3)
-        fine = np.clip(0.07 / footprint, 0.0, 1.0)  # fade sub-pixel noise instead of aliasing it
-        lum = 1.0 + (0.06 * tile + 0.12 * (noise - 0.5)) * fine
+        # Paving: 0.25 m setts, each its own shade, 1.5 cm joints; a grain of 5 cm cells inside each sett.
+        sx, sy = np.floor(x / 0.25).astype(np.int64), np.floor(y / 0.25).astype(np.int64)
+        sett = _hash01(sx, sy, 4)
+        joint = np.maximum(_line_coverage(x, 0.25, 0.015, footprint), _line_coverage(y, 0.25, 0.015, footprint))
+        noise = _hash01(np.floor(x / 0.05).astype(np.int64), np.floor(y / 0.05).astype(np.int64), 3)
+        fine = np.clip(0.05 / footprint, 0.0, 1.0)  # fade sub-pixel noise instead of aliasing it
+        setts = np.clip(0.25 / footprint, 0.0, 1.0)
+        lum = 1.0 + (0.06 * tile + 0.36 * (sett - 0.5) * setts + 0.36 * (noise - 0.5) * fine) - 0.4 * joint
         col = np.array([105.0, 118.0, 110.0])[None, :] * lum[:, None]
         grid1 = np.maximum(
             _line_coverage(x - 0.5, 1.0, 0.015, footprint), _line_coverage(y - 0.5, 1.0, 0.015, footprint)

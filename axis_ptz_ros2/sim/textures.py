@@ -171,4 +171,132 @@ def checker_texture(width_m: float, height_m: float, cols: int = 10, rows: int =
     return img, feats
 
 
+def _cell_hash(ix: npt.NDArray[np.int64], iy: npt.NDArray[np.int64], seed: int) -> npt.NDArray[np.float64]:
+    """A deterministic per-cell pseudo-random number in [0, 1) (the scene's hash, kept local: no import cycle)."""
+    h = (ix * 73856093) ^ (iy * 19349663) ^ (seed * 83492791)
+    h = (h ^ (h >> 13)) * 1274126177
+    h = h ^ (h >> 16)
+    return np.asarray((h & 0xFFFF).astype(np.float64) / 65536.0)
+
+
+def _smooth_noise(shape: tuple[int, int], cell_px: float, seed: int) -> npt.NDArray[np.float64]:
+    """Value noise in [0, 1) with features about ``cell_px`` texels across (hashed lattice, bicubic upsampling)."""
+    h, w = shape
+    gh, gw = int(math.ceil(h / cell_px)) + 2, int(math.ceil(w / cell_px)) + 2
+    iy, ix = np.mgrid[0:gh, 0:gw]
+    grid = _cell_hash(ix.astype(np.int64), iy.astype(np.int64), seed).astype(np.float32)
+    up = cv2.resize(grid, (int(gw * cell_px), int(gh * cell_px)), interpolation=cv2.INTER_CUBIC)
+    return np.asarray(up[:h, :w], dtype=np.float64)
+
+
+#: Texels per metre of the facade texture (1.5 cm texels: a brick is 14 × 4 texels; at zoom 1 from 34 m a
+#: 704×576 pixel spans about 4 cm, so the texture is sharper than the picture up to zoom ≈ 2.7).
+FACADE_PX_PER_M = 1.0 / 0.015
+
+
+def facade_texture(width_m: float, height_m: float, text: str) -> tuple[U8Array, Features]:
+    """The front of a four-storey brick building across the square: bricks in running bond (each brick its own
+    shade), weathering, stone cornices between storeys, windows with frames, glazing bars, reflections and some
+    curtains, a shop front with a sign (``text``) and posters in small print, drainpipes.
+
+    Fine detail of the kind a real camera's scene has (issue 22: the demo scene's flat surfaces made the
+    simulated 214's pictures far cheaper to compress than the thesis's camera's). Deterministic."""
+    s = FACADE_PX_PER_M
+    W, H = int(round(width_m * s)), int(round(height_m * s))
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    # Bricks: 7.5 cm courses, 22.5 cm pitch, 1 cm mortar, half-brick offset every other course.
+    course = np.floor(yy / (0.075 * s)).astype(np.int64)
+    xo = xx + (course % 2) * (0.1125 * s)
+    brick = np.floor(xo / (0.225 * s)).astype(np.int64)
+    mortar = (np.mod(yy, 0.075 * s) < 0.01 * s) | (np.mod(xo, 0.225 * s) < 0.01 * s)
+    shade = 0.78 + 0.36 * _cell_hash(brick, course, 41)
+    burnt = _cell_hash(brick, course, 42) > 0.9  # the odd dark brick
+    shade = np.where(burnt, shade * 0.6, shade)
+    grain = 1.0 + 0.10 * (_cell_hash(xx.astype(np.int64), yy.astype(np.int64), 43) - 0.5)
+    weather = 0.82 + 0.3 * _smooth_noise((H, W), 1.5 * s, 44) + 0.12 * _smooth_noise((H, W), 0.3 * s, 45)
+    brick_bgr = np.array([60.0, 85.0, 150.0])
+    mortar_bgr = np.array([165.0, 170.0, 175.0])
+    col = np.where(mortar[..., None], mortar_bgr, brick_bgr * shade[..., None]) * (grain * weather)[..., None]
+    img = np.empty((H, W, 4), np.uint8)
+    img[:, :, :3] = np.clip(col + 0.5, 0, 255).astype(np.uint8)
+    img[:, :, 3] = 255
+    stone, frame_c, sill = (170, 185, 195, 255), (225, 228, 230, 255), (150, 160, 168, 255)
+
+    def m(v: float) -> int:
+        return int(round(v * s))
+
+    storey = 3.2
+    n_storeys = max(1, int(height_m // storey))
+    ground_h = storey
+    # Stone cornice bands between storeys and at the top.
+    for k in range(1, n_storeys + 1):
+        y = H - m(k * storey)
+        if 0 <= y < H:
+            cv2.rectangle(img, (0, y - m(0.12)), (W - 1, y + m(0.12)), stone, -1)
+            cv2.line(img, (0, y + m(0.12)), (W - 1, y + m(0.12)), (90, 100, 108, 255), max(1, m(0.03)))
+    cv2.rectangle(img, (0, 0), (W - 1, m(0.35)), stone, -1)
+    # Upper-floor windows: 1.2 m × 1.6 m every 2.6 m; frames, two glazing bars, sky reflection, curtains.
+    pitch, ww, wh = 2.6, 1.2, 1.6
+    n_win = int(width_m // pitch)
+    x0 = (width_m - n_win * pitch) / 2 + (pitch - ww) / 2
+    for k in range(1, n_storeys):
+        top = H - m((k + 1) * storey) + m(0.8)  # texels from the texture's top
+        for i in range(n_win):
+            r = float(_cell_hash(np.array([i]), np.array([k]), 46)[0])
+            xl = m(x0 + i * pitch)
+            x1, y1 = xl + m(ww), top + m(wh)
+            if top < 0:
+                continue
+            gy = np.linspace(0.0, 1.0, y1 - top)[:, None]
+            pane = np.array([110.0, 90.0, 70.0]) * (0.55 + 0.5 * gy) + 40.0 * r
+            img[top:y1, xl:x1, :3] = np.clip(pane, 0, 255).astype(np.uint8)[:, None, :]
+            if r > 0.45:  # curtains: vertical folds
+                cols = np.arange(x1 - xl)
+                fold = 0.75 + 0.25 * np.cos(cols / max(m(0.06), 1) * 2 * math.pi)
+                ccol = np.array([[200, 210, 225], [120, 140, 200], [190, 190, 190]][int(r * 10) % 3], np.float64)
+                drawn = int((0.35 + 0.5 * r) * (y1 - top))
+                img[top : top + drawn, xl:x1, :3] = np.clip(ccol * fold[:, None], 0, 255).astype(np.uint8)[None]
+            cv2.rectangle(img, (xl, top), (x1, y1), frame_c, max(2, m(0.07)))
+            cv2.line(img, ((xl + x1) // 2, top), ((xl + x1) // 2, y1), frame_c, max(2, m(0.05)))
+            cv2.line(img, (xl, top + (y1 - top) // 3), (x1, top + (y1 - top) // 3), frame_c, max(2, m(0.04)))
+            cv2.rectangle(img, (xl - m(0.08), y1), (x1 + m(0.08), y1 + m(0.08)), sill, -1)
+            streak = np.s_[y1 + m(0.08) : min(H, y1 + m(0.9)), xl:x1]  # rain streaks under the sill
+            img[streak][:, :, :3] = (img[streak][:, :, :3] * 0.88).astype(np.uint8)
+    # Ground floor: a shop front with a sign, shop windows, posters in small print.
+    gf_top = H - m(ground_h)
+    cv2.rectangle(img, (m(0.4), gf_top + m(0.2)), (W - m(0.4), gf_top + m(0.85)), (40, 40, 40, 255), -1)
+    _text(img, text or "PHARMACY", (W * 0.5, gf_top + m(0.53)), m(0.4), (255, 255, 255), bold=True)
+    for i, x in enumerate(np.arange(1.0, width_m - 2.5, 4.0)):
+        xl, x1 = m(float(x)), m(float(x) + 3.0)
+        y0, y1 = gf_top + m(1.05), H - m(0.5)
+        gy = np.linspace(0.0, 1.0, y1 - y0)[:, None]
+        img[y0:y1, xl:x1, :3] = np.clip(np.array([95.0, 80.0, 65.0]) * (0.6 + 0.6 * gy), 0, 255).astype(np.uint8)[
+            :, None, :
+        ]
+        cv2.rectangle(img, (xl, y0), (x1, y1), (60, 60, 60, 255), max(2, m(0.06)))
+        if i % 2 == 0:  # a poster: a headline and six lines of 5 cm print
+            px0, py0 = xl + m(0.3), y0 + m(0.2)
+            cv2.rectangle(img, (px0, py0), (px0 + m(0.7), py0 + m(1.0)), (235, 240, 240, 255), -1)
+            _text(img, f"NO {12 + i}", (px0 + m(0.35), py0 + m(0.14)), m(0.1), (0, 0, 180), bold=True)
+            for j, line in enumerate(("OPEN", "MON-FRI", "8-20", "SAT 9-14", "TEL 555", f"01{i:02d}")):
+                _text(img, line, (px0 + m(0.35), py0 + m(0.33 + 0.11 * j)), m(0.05), (20, 20, 20))
+    # Ivy climbing the wall in a few patches, and a hedge along its foot.
+    leaf = _smooth_noise((H, W), 0.09 * s, 47) * 0.6 + _smooth_noise((H, W), 0.035 * s, 48) * 0.4
+    shade_l = _smooth_noise((H, W), 0.05 * s, 49)
+    reach = np.zeros((H, W))
+    for k, (fx, top_m, half_m) in enumerate(((0.12, 6.5, 2.2), (0.42, 9.5, 1.6), (0.71, 4.0, 3.0), (0.93, 11.0, 1.8))):
+        dx = np.abs(xx[0] / s - fx * width_m) / half_m
+        height_here = top_m * (1.0 - 0.5 * dx**2) + 1.5 * (_smooth_noise((1, W), 0.7 * s, 50 + k)[0] - 0.5)
+        reach = np.maximum(reach, np.where(dx < 1.0, height_here, 0.0)[None, :] - (H - yy) / s)
+    reach = np.maximum(reach, 0.9 + 0.3 * _smooth_noise((1, W), 0.5 * s, 55) - (H - yy) / s)  # the hedge
+    ivy = (reach > 0) & (leaf > 0.42 + 0.25 * np.clip(1.0 - reach, 0.0, 1.0))
+    green = np.stack([20 + 40 * shade_l, 70 + 90 * shade_l * leaf, 35 + 45 * shade_l], -1)
+    img[ivy, :3] = np.clip(green[ivy], 0, 255).astype(np.uint8)
+    # Drainpipes.
+    for x in (0.25, width_m * 0.3, width_m - 0.35):
+        cv2.rectangle(img, (m(x), m(0.35)), (m(x + 0.1), H - 1), (110, 115, 118, 255), -1)
+        cv2.line(img, (m(x + 0.03), m(0.35)), (m(x + 0.03), H - 1), (160, 165, 168, 255), max(1, m(0.02)))
+    return img, {"center": (0.5, 0.5)}
+
+
 TextureBuilder = Callable[..., tuple[U8Array, Features]]
