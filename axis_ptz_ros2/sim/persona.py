@@ -118,18 +118,18 @@ class Persona:
 #: Sources: PAL 4CIF sampled per ITU-R BT.601 (13.5 MHz, 704 active samples); PAL chroma bandwidth ~1.3 MHz
 #: and the line-averaging delay line (PAL system standard); Kell factor ~0.7 for interlaced CCDs (textbook).
 #: Guesses: luminance bandwidth 4 MHz (composite/Y-C decoder of the camera block), lens σ 0.5…1.0 px
-#: (wide…tele). Fitted to the thesis's Tables 6.2-6.4 (read as kB/s, bench/bench_bitrate.py): temporal noise
-#: 2.0 / 0.7 DN (luma / chroma at 704×576), scaler softness 0.3 px per halving of the width, and the
-#: compression → IJG quality curve q(c) = 98 − (98 − q100)·(c/100)^1.85 with q100 = 60 at 704×576 and 44 quality
-#: points lower per halving of the width (q(0, 10, 30, 60, 100) = 98, 97, 94, 83, 60 at 704×576; 98, 97, 89,
-#: 66, 16 at 352×288; 98, 97, 88, 60, 1 at 176×144), held to the tables (every cell 0.5–2×, median 0.8–1.25,
-#: with 30 fps served at the PAL 25) and to the thesis's Figure 6.4 statement as measured by
-#: tests/support/picture.py: compression 30 like 0, 60 usable, 100 not usable (at 352×288 and 176×144; at
-#: 704×576 the tables' compression-100 frames, 36–43 kB, are more bytes than the demo scene takes at any quality
-#: that the measure calls unusable: README). The exponent stays below 2 so that a first compression step of 10
-#: is visible in the frame size (with 2 it rounds to the same quality at 704×576: the stream node's budget
-#: controller then learns that compression does nothing). No source explains the per-resolution drop; the tables
-#: need it (the real 214's small pictures shrink far more at compression 100 than its 704×576 picture).
+#: (wide…tele). Fitted to the thesis's Tables 6.2-6.4 (read as kB/s, bench/bench_bitrate.py) on the demo
+#: world's home view (config/sim_world.yaml: a brick facade across a paved square; README "What the simulated
+#: camera's pictures are made of"): temporal noise 2.0 / 0.7 DN (luma / chroma at 704×576), scaler softness
+#: 0.3 px per halving of the width, and the compression → IJG quality curve q(c) = 98 − (98 − q100)·(c/100)^1.85
+#: with q100 = 17 at 704×576 and 6 quality points lower per halving of the width (q(0, 10, 30, 60, 100) = 98, 97,
+#: 89, 67, 17 at 704×576; 98, 97, 89, 64, 11 at 352×288; 98, 97, 88, 62, 5 at 176×144), held to the tables
+#: (every cell 0.5–2×, median 0.8–1.25, with 30 fps served at the PAL 25) and to the thesis's Figure 6.4
+#: statement as measured by tests/support/picture.py at all three sizes: compression 30 like 0, 60 usable, 100
+#: not usable. The exponent stays below 2 so that a first compression step of 10 is visible in the frame size
+#: (the stream node's budget controller must not learn that compression does nothing). No source explains the
+#: small per-resolution drop; the tables want it (the real 214's small pictures shrink a little more at
+#: compression 100 than its 704×576 picture).
 AXIS_214_PICTURE = CameraModel(
     native_width=704,
     sample_rate_mhz=13.5,
@@ -144,9 +144,9 @@ AXIS_214_PICTURE = CameraModel(
     noise_luma=2.0,
     noise_chroma=0.7,
     quality_at_0=98.0,
-    quality_at_100=60.0,
+    quality_at_100=17.0,
     quality_gamma=1.85,
-    quality_drop_per_halving=44.0,
+    quality_drop_per_halving=6.0,
     pool_frames=8,
 )
 
