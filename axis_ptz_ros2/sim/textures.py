@@ -296,6 +296,7 @@ def facade_texture(width_m: float, height_m: float, text: str) -> tuple[U8Array,
     for x in (0.25, width_m * 0.3, width_m - 0.35):
         cv2.rectangle(img, (m(x), m(0.35)), (m(x + 0.1), H - 1), (110, 115, 118, 255), -1)
         cv2.line(img, (m(x + 0.03), m(0.35)), (m(x + 0.03), H - 1), (160, 165, 168, 255), max(1, m(0.02)))
+    img[:, :, 3] = 255  # a wall: OpenCV's anti-aliased small print also blends the alpha channel
     return img, {"center": (0.5, 0.5)}
 
 

@@ -80,6 +80,34 @@ def test_raycast_hits_targets_ground_and_sky(scene, world):
     assert math.isinf(depth[2])
 
 
+def test_the_facade_fills_the_home_views_upper_half_beyond_the_lasers_reach(scene, world, renderer):
+    """Issue 22's scene detail: the building across the square is what the home view sees above the horizon
+    (rays at 2-15 degrees up, +-20 degrees across), farther than the laser's default 30 m, opaque, detailed
+    down to single bricks, and the same texture every time it is built."""
+    facade = scene.target("facade")
+    o = world.pan_tilt_centre
+    az, el = np.meshgrid(np.radians(np.linspace(-20, 20, 9)), np.radians(np.linspace(2, 15, 5)))
+    dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1).reshape(-1, 3)
+    _, depth, idx = scene.raycast(o, dirs)
+    assert set(idx.tolist()) <= {
+        scene.targets.index(facade),
+        scene.targets.index(scene.target("checker_board")),
+        scene.targets.index(scene.target("calib_front")),
+    }
+    assert (idx == scene.targets.index(facade)).mean() > 0.8
+    laser_o = world.T_base_laser.t
+    assert float(np.min(np.abs((facade.corners() - laser_o) @ facade.normal))) > 30.0
+    tex = facade.texture
+    assert (tex[:, :, 3] == 255).all()
+    y = tex[:, :, :3].astype(np.float64).mean(axis=2)
+    brick = y[400:460, 200:260]  # 0.9 x 0.9 m of wall between two windows: one shade per brick
+    assert brick.std() > 8.0
+    assert np.array_equal(Scene(world).target("facade").texture, tex)
+    home = renderer.render(0.0, 0.0, 1.0, 704, 576)
+    top = home[:250].astype(np.float64)
+    assert np.abs(np.diff(top, axis=1)).mean() > 6.0  # fine detail across the upper half (the sky had none)
+
+
 def test_render_equirect_sees_the_high_target(scene, world):
     img = scene.render_equirect(world.T_base_pano, 256)
     assert img.shape == (128, 256, 3)
