@@ -17,6 +17,8 @@ from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
 from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.sim.camera_model import PicturePool
+from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
@@ -32,8 +34,11 @@ def renderer() -> PtzRenderer:
 
 @pytest.fixture(scope="module")
 def jpegs(renderer: PtzRenderer) -> list[bytes]:
-    """40 frames of the camera panning slowly, 0.2° per frame (6°/s at 30 fps), as the camera sends them."""
-    return [encode_jpeg(renderer.render(-30.0 + 0.2 * i, -3.0, 1.0, 704, 576), 0) for i in range(40)]
+    """40 frames of the camera panning slowly, 0.2° per frame (6°/s at 30 fps), as the simulated 214 sends them at
+    compression 0 (its camera model: the PAL chain's softness and sensor noise, a new noise field per picture)."""
+    pool = PicturePool(AXIS_214.picture)
+    views = [renderer.render(-30.0 + 0.2 * i, -3.0, 1.0, 704, 576) for i in range(40)]
+    return [pool.jpeg(("pan", i), lambda v=v: v, 1.0, 0) for i, v in enumerate(views)]
 
 
 @pytest.fixture(scope="module")
