@@ -176,8 +176,10 @@ class PtzRenderer:
         if len(poly) == 4 and not np.any(corners[:, 2] < _NEAR):
             # roi·(1 − α) + colour (premultiplied), rounded: OpenCV's saturating uint8 arithmetic gives the same
             # bytes as the float blend below at a third of its cost (a facade fills half a 1080p picture).
-            inv = cv2.merge([255 - warped[:, :, 3]] * 3)
-            roi[:] = cv2.add(cv2.multiply(roi, inv, scale=1.0 / 255.0), warped[:, :, :3])
+            # (OpenCV's own channel split: numpy's strided views of the BGRA picture cost it a copy each.)
+            colour = cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR)
+            inv = cv2.cvtColor(cv2.bitwise_not(cv2.extractChannel(warped, 3)), cv2.COLOR_GRAY2BGR)
+            roi[:] = cv2.add(cv2.multiply(roi, inv, scale=1.0 / 255.0), colour)
             return
         # The polygon was clipped by the near plane: only what is in front of it is drawn.
         mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
