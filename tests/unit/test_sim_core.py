@@ -88,7 +88,7 @@ def test_the_facade_fills_the_home_views_upper_half_beyond_the_lasers_reach(scen
     o = world.pan_tilt_centre
     az, el = np.meshgrid(np.radians(np.linspace(-20, 20, 9)), np.radians(np.linspace(2, 15, 5)))
     dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1).reshape(-1, 3)
-    _, depth, idx = scene.raycast(o, dirs)
+    _, _, idx = scene.raycast(o, dirs)
     assert set(idx.tolist()) <= {
         scene.targets.index(facade),
         scene.targets.index(scene.target("checker_board")),
