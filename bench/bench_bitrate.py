@@ -133,13 +133,13 @@ def main() -> int:
     a = ap.parse_args()
     inputs(
         "bench/bench_bitrate.py",
-        "axis_ptz_ros2/sim/camera_model.py",
-        "axis_ptz_ros2/sim/persona.py",
-        "axis_ptz_ros2/sim/renderer.py",
-        "axis_ptz_ros2/sim/scene.py",
-        "axis_ptz_ros2/sim/frames.py",
-        "axis_ptz_ros2/sim/camera.py",
-        "axis_ptz_ros2/sim/http/mjpeg.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/camera_model.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/persona.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/renderer.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/scene.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/frames.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/camera.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim/http/mjpeg.py",
         "tests/support/picture.py",
         "config/sim_world.yaml",
     )

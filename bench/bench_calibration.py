@@ -120,8 +120,8 @@ def main() -> None:
     t_start = time.perf_counter()
     results: list[tuple[str, bool]] = []
     inputs(
-        "axis_ptz_ros2/calibration",
-        "axis_ptz_ros2/geometry.py",
+        "axis_ptz_ros2/axis_ptz_ros2/calibration",
+        "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
         "axis_ptz_ros2/camera_info.py",
         "axis_ptz_ros2/config.py",
         "bench/bench_calibration.py",

@@ -248,10 +248,10 @@ def main() -> int:
         ap.error("--boards takes shipped and/or extra")
 
     inputs(
-        "axis_ptz_ros2/calibration",
+        "axis_ptz_ros2/axis_ptz_ros2/calibration",
         "axis_ptz_ros2/camera_info.py",
-        "axis_ptz_ros2/nodes/laser_sim.py",
-        "axis_ptz_ros2/sim",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/laser_sim.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim",
         "config/sim_world.yaml",
         "bench/bench_calibration_e2e.py",
         "tests/support/sim_picker.py",

@@ -460,12 +460,12 @@ def readme_rows(r: dict[str, Any], fixed: list[dict[str, Any]]) -> None:
 
     inputs(
         "bench/bench_link.py",
-        "axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/nodes/link_monitor.py",
-        "axis_ptz_ros2/nodes/ptz_node.py",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/link_monitor.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/ptz_node.py",
         "tests/support/link.py",
-        "axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+        "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
         "config/sim_world.yaml",
     )
     f = fixed[0] if fixed else None

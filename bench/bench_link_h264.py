@@ -228,13 +228,13 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
         "bench/bench_link_h264.py",
         "bench/link_h264_roles.py",
         "bench/link_h264_results.py",
-        "axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/media",
-        "axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/nodes/link_monitor.py",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming",
+        "axis_ptz_ros2/axis_ptz_ros2/media",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/link_monitor.py",
         "tests/support/link.py",
         "config/fastdds_weak_link.xml",
-        "axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+        "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
         "config/sim_world.yaml",
     )
     ok = True

@@ -66,7 +66,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0)
     args = ap.parse_args()
-    inputs("axis_ptz_ros2/vapix/mjpeg.py", "bench/bench_mjpeg_parser.py")
+    inputs("axis_ptz_ros2/axis_ptz_ros2/vapix/mjpeg.py", "bench/bench_mjpeg_parser.py")
     print(f"{'frame':>8} {'chunk':>8} {'frames/s':>12} {'MB/s':>8}")
     rates = {}
     for frame_size, chunk_size in ((3 * 1024, 64 * 1024), (50 * 1024, 64 * 1024), (3 * 1024, 4 * 1024)):

@@ -121,9 +121,9 @@ def main() -> int:
             ex.spin_once(timeout_sec=min(0.01, max(0.0, end - time.monotonic())))
 
     ok = True
-    inputs("axis_ptz_ros2/ptz", "axis_ptz_ros2/nodes/ptz_node.py", "axis_ptz_ros2/nodes/common.py",
-           "axis_ptz_ros2/nodes/runner.py", "axis_ptz_ros2/vapix", "axis_ptz_ros2/sim",
-           "bench/bench_ptz.py")  # fmt: skip
+    pkg = "axis_ptz_ros2/axis_ptz_ros2"
+    inputs(f"{pkg}/ptz", f"{pkg}/nodes/ptz_node.py", f"{pkg}/nodes/common.py", f"{pkg}/nodes/runner.py", f"{pkg}/vapix",
+           f"{pkg}/sim", "bench/bench_ptz.py")  # fmt: skip
     try:
         deadline = time.monotonic() + 20.0
         while (

@@ -76,7 +76,9 @@ def main() -> int:
             return 1
         base = m.group(1)
         q = "resolution=704x576&fps=30"
-        inputs("axis_ptz_ros2/sim", "axis_ptz_ros2/geometry.py", "config", "bench/bench_sim.py")
+        inputs(
+            "axis_ptz_ros2/axis_ptz_ros2/sim", "axis_ptz_ros2/axis_ptz_ros2/geometry.py", "config", "bench/bench_sim.py"
+        )
         fps, ms, pct = measure(base, proc.pid, q, args.seconds)
         still = (fps, pct)
         report("static camera, 704x576 requested 30 fps (PAL: 25)", fps, ms, pct)

@@ -61,10 +61,10 @@ def main() -> int:  # noqa: PLR0915 - one scripted hour
     ap.add_argument("--reboot-every-min", type=float, default=10.0)
     args = ap.parse_args()
     inputs(
-        "axis_ptz_ros2/nodes",
-        "axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/ptz",
-        "axis_ptz_ros2/vapix",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming",
+        "axis_ptz_ros2/axis_ptz_ros2/ptz",
+        "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "bench/bench_soak.py",
     )
 

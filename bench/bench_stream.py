@@ -264,12 +264,12 @@ def main() -> int:
     args = ap.parse_args()
     window = 5.0 if args.quick else 10.0
     inputs(
-        "axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/nodes/common.py",
-        "axis_ptz_ros2/nodes/runner.py",
-        "axis_ptz_ros2/vapix",
-        "axis_ptz_ros2/sim",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/common.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/runner.py",
+        "axis_ptz_ros2/axis_ptz_ros2/vapix",
+        "axis_ptz_ros2/axis_ptz_ros2/sim",
         "bench/bench_stream.py",
         "bench/pipelines.py",
         "bench/cpu_compare.py",

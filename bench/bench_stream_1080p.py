@@ -84,13 +84,13 @@ def main() -> int:
     args = ap.parse_args()
     window = args.seconds
     inputs(
-        "axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/nodes/common.py",
-        "axis_ptz_ros2/nodes/runner.py",
-        "axis_ptz_ros2/camera_models.py",
-        "axis_ptz_ros2/vapix",
-        "axis_ptz_ros2/sim",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/common.py",
+        "axis_ptz_ros2/axis_ptz_ros2/nodes/runner.py",
+        "axis_ptz_ros2/axis_ptz_ros2/camera_models.py",
+        "axis_ptz_ros2/axis_ptz_ros2/vapix",
+        "axis_ptz_ros2/axis_ptz_ros2/sim",
         "bench/bench_stream_1080p.py",
         "bench/bench_stream.py",
         "bench/pipelines.py",

@@ -110,7 +110,12 @@ def main() -> None:
     ap.add_argument("--bitrate", type=int, default=defaults.bitrate_kbps * 1000)
     ap.add_argument("--preset", default=defaults.preset)
     args = ap.parse_args()
-    inputs("axis_ptz_ros2/media", "axis_ptz_ros2/sim", "axis_ptz_ros2/streaming/h264.py", "bench/bench_transcode.py")
+    inputs(
+        "axis_ptz_ros2/axis_ptz_ros2/media",
+        "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "axis_ptz_ros2/axis_ptz_ros2/streaming/h264.py",
+        "bench/bench_transcode.py",
+    )
     print(f"load average before: {loadavg()}")
     camera = SimulatedCamera(host="127.0.0.1", port=0)  # not started: its pictures only
     pan0, tilt, zoom = camera.position()

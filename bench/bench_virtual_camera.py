@@ -78,7 +78,11 @@ def main() -> None:
     w, h = (int(s) for s in args.view.split("x"))
 
     print("command:", shlex.join([os.path.relpath(sys.executable), *sys.argv]))
-    inputs("axis_ptz_ros2/virtual", "axis_ptz_ros2/geometry.py", "bench/bench_virtual_camera.py")
+    inputs(
+        "axis_ptz_ros2/axis_ptz_ros2/virtual",
+        "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
+        "bench/bench_virtual_camera.py",
+    )
     print(
         f"python {platform.python_version()}, numpy {np.__version__}, opencv {cv2.__version__}, "
         f"cv2 threads {cv2.getNumThreads()}, cpu {platform.processor() or platform.machine()}"

@@ -64,8 +64,10 @@ def test_colcon_builds_both_packages_and_installs_runnable_executables(tmp_path)
     # launch files, parameter files and the URDF where `ros2 launch` and FindPackageShare look for them
     installed = {p.relative_to(share / "axis_ptz_ros2").as_posix() for p in (share / "axis_ptz_ros2").rglob("*")}
     expected = {f"config/{p.name}" for p in (ROOT / "config").glob("*.yaml")}
-    expected |= {f"launch/{p.name}" for p in (ROOT / "launch").glob("*.launch.py")}
-    expected |= {f"urdf/{p.name}" for p in (ROOT / "urdf").iterdir() if p.suffix in (".urdf", ".xacro")}
+    expected |= {f"launch/{p.name}" for p in (ROOT / "axis_ptz_ros2" / "launch").glob("*.launch.py")}
+    expected |= {
+        f"urdf/{p.name}" for p in (ROOT / "axis_ptz_ros2" / "urdf").iterdir() if p.suffix in (".urdf", ".xacro")
+    }
     assert {"launch/camera.launch.py", "config/axis_camera.params.yaml", "urdf/axis_214.urdf.xacro"} <= expected
     assert expected <= installed, sorted(expected - installed)
     libexec = inst / "axis_ptz_ros2" / "lib" / "axis_ptz_ros2"

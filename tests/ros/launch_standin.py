@@ -4,8 +4,8 @@ what a launch file declares, so a test can check it names only executables, node
 Only the classes our launch files use exist, with only the keyword arguments the real classes accept: a launch
 file importing anything else, or passing an unknown keyword, fails here as it would (or might) on a robot.
 Substitutions are resolved with :func:`resolve`: launch arguments take their declared defaults (or the
-values an include passes), ``FindPackageShare('axis_ptz_ros2')`` is the repository root (whose ``config/``,
-``launch/`` and ``urdf/`` folders are installed as ``share/axis_ptz_ros2/...``).
+values an include passes), ``FindPackageShare('axis_ptz_ros2')`` is :func:`share_dir`: a folder laid out as
+``share/axis_ptz_ros2`` of a colcon install (the ROS package folder ``axis_ptz_ros2/``).
 """
 
 from __future__ import annotations
@@ -19,6 +19,12 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
+
+
+def share_dir() -> Path:
+    """``share/axis_ptz_ros2`` of a colcon install: the ROS package folder holds the same ``launch/``, ``urdf/`` and
+    ``config/`` (a link to the top-level ``config/``) that its ``setup.py`` installs there."""
+    return ROOT / "axis_ptz_ros2"
 
 
 class Recorded:
@@ -166,7 +172,7 @@ def resolve(value: Any, args: dict[str, Any]) -> str:
         pkg = resolve(value.args[0], args)
         if pkg != "axis_ptz_ros2":
             raise KeyError(f"FindPackageShare({pkg!r}): only our own package's files are known here")
-        return str(ROOT)
+        return str(share_dir())
     if isinstance(value, TextSubstitution):
         return str(value.kwargs.get("text", value.args[0] if value.args else ""))
     if isinstance(value, PythonExpression):

@@ -37,7 +37,7 @@ from tests.ros import launch_standin as ls
 pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[2]
-LAUNCH_FILES = sorted((ROOT / "launch").glob("*.launch.py"))
+LAUNCH_FILES = sorted((ROOT / "axis_ptz_ros2" / "launch").glob("*.launch.py"))
 PARAMS_FILES = sorted((ROOT / "config").glob("*.params.yaml"))
 SCRIPTS = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"])
 
@@ -130,7 +130,8 @@ def check_launch(path: Path, args_in: dict[str, str], seen: list[tuple[str, str]
             assert isinstance(src, ls.PythonLaunchDescriptionSource)
             inc = Path(ls.resolve(src.args[0], args))
             assert inc.exists(), f"{path.name}: includes {inc}, which does not exist"
-            assert inc.parent == ROOT / "launch", f"{path.name}: includes {inc}, not an installed launch file"
+            assert inc.parent == ls.share_dir() / "launch", f"{path.name}: includes {inc}, not an installed launch file"
+            inc = inc.resolve()
             passed = {k: ls.resolve(v, args) for k, v in a.kwargs.get("launch_arguments", [])}
             check_launch(inc, passed, seen)
         elif isinstance(a, ls.Node):
@@ -161,7 +162,8 @@ def check_launch(path: Path, args_in: dict[str, str], seen: list[tuple[str, str]
                 else:
                     f = Path(ls.resolve(p, args))
                     assert f.exists(), f"{path.name}: parameter file {f} does not exist"
-                    assert f.parent == ROOT / "config", f"{path.name}: {f} is not an installed config file"
+                    assert f.parent == ls.share_dir() / "config", f"{path.name}: {f} is not an installed config file"
+                    f = f.resolve()
                     check_params_file(f, exe)
 
 
@@ -184,7 +186,7 @@ def test_launch_file_names_only_existing_executables_nodes_and_parameters(path):
 
 def test_camera_launch_hands_the_head_frames_to_robot_state_publisher_exclusively():
     """robot_state_publisher:=true starts it AND turns the PTZ node's own /tf off (one parent per frame)."""
-    path = ROOT / "launch" / "camera.launch.py"
+    path = ROOT / "axis_ptz_ros2" / "launch" / "camera.launch.py"
     for flag, rsp_expected, publish_tf in (("true", True, "False"), ("false", False, "True")):
         ld = ls.load_launch_file(path)
         args = {**ls.declared_arguments(ld), "robot_state_publisher": flag}

@@ -79,7 +79,7 @@ def test_override_changes_the_publisher_and_only_that_one(ros: Any, camera: Simu
 def test_every_publisher_goes_through_the_helper() -> None:
     """No node creates a publisher except through ``nodes.common.publisher`` (which adds the overrides)."""
     offenders = []
-    for path in (ROOT / "axis_ptz_ros2").rglob("*.py"):
+    for path in (ROOT / "axis_ptz_ros2" / "axis_ptz_ros2").rglob("*.py"):
         for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
             if re.search(r"\.create_publisher\(", line) and path.name != "common.py":
                 offenders.append(f"{path.relative_to(ROOT)}:{i}: {line.strip()}")

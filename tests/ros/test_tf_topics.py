@@ -92,7 +92,7 @@ def test_tf_and_tf_static_match_the_urdf(ros: Any, cam: SimulatedCamera) -> None
     ]
     node = ros.add(PtzNode(context=ros.context, parameter_overrides=overrides))
     ros.wait_for(lambda: node.poller.latest is not None, 10.0)
-    robot = yourdfpy.URDF.load(str(ROOT / "urdf" / "axis_214.urdf"), load_meshes=False,
+    robot = yourdfpy.URDF.load(str(ROOT / "axis_ptz_ros2" / "urdf" / "axis_214.urdf"), load_meshes=False,
                                build_collision_scene_graph=False)  # fmt: skip
 
     # a late joiner (created after the node published the mount) still gets /tf_static: transient local

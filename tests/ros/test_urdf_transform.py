@@ -51,7 +51,12 @@ def test_urdf_forward_kinematics_equals_ptz_transform_over_dds(ros, tmp_path):
     xacro = shutil.which("xacro", path=str(Path(sys.executable).parent))
     assert xacro, "xacro is installed by scripts/bootstrap"
     expanded = subprocess.run(
-        [xacro, str(ROOT / "urdf" / "axis_214.urdf.xacro"), f"mount_file:={mount_path}", f"camera_model:={model_path}"],
+        [
+            xacro,
+            str(ROOT / "axis_ptz_ros2" / "urdf" / "axis_214.urdf.xacro"),
+            f"mount_file:={mount_path}",
+            f"camera_model:={model_path}",
+        ],
         capture_output=True,
         text=True,
         check=True,

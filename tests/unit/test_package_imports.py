@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGE = ROOT / "axis_ptz_ros2"
+PACKAGE = ROOT / "axis_ptz_ros2" / "axis_ptz_ros2"
 pytestmark = pytest.mark.unit
 
 #: Modules outside ``axis_ptz_ros2.sim`` that may import it: the simulated robot's sensors.
@@ -26,8 +26,8 @@ SIM_USERS = {"axis_ptz_ros2.nodes.panorama_sim", "axis_ptz_ros2.nodes.laser_sim"
 
 
 def module_name(path: Path) -> str:
-    """``axis_ptz_ros2/a/b.py`` → ``axis_ptz_ros2.a.b`` (a package's ``__init__.py`` → the package)."""
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    """``…/axis_ptz_ros2/a/b.py`` → ``axis_ptz_ros2.a.b`` (a package's ``__init__.py`` → the package)."""
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)

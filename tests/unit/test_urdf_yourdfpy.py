@@ -97,7 +97,7 @@ def test_the_library_reads_transforms_as_we_think():
 
 def test_shipped_configuration_chain_equals_the_urdf_by_an_independent_library(tmp_path):
     text = expand(tmp_path)
-    assert text == (ROOT / "urdf" / "axis_214.urdf").read_text(encoding="utf-8")  # the committed one
+    assert text == (ROOT / "axis_ptz_ros2" / "urdf" / "axis_214.urdf").read_text(encoding="utf-8")  # the committed one
     robot = load(text)
     assert set(robot.actuated_joint_names) == {"axis_ptz_pan_joint", "axis_ptz_tilt_joint"}
     assert check(robot, None, None) == 4 * len(JOINT_STATES)

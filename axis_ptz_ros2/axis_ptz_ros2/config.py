@@ -46,7 +46,7 @@ CAMERA_MODEL_FORMAT = "axis_ptz_ros2/camera_model/v1"
 MOUNT_FORMAT = "axis_ptz_ros2/mount/v1"
 ROBOT_FORMAT = "axis_ptz_ros2/robot/v1"
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"  # config/ of a source checkout
 
 
 def _share_config_dir() -> Path | None:
