@@ -10,7 +10,8 @@ from collections.abc import Iterator
 import pytest
 
 from axis_ptz_ros2.vapix.errors import AxisPtzError, CameraUnreachable
-from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspReader
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest
+from tests.support.pyav_rtsp import RtspReader
 
 pytestmark = pytest.mark.integration
 

@@ -23,10 +23,10 @@ from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout
 from axis_ptz_ros2.vapix.rtsp import (
     MediaStreamRequest,
     RtspControl,
-    RtspReader,
     RtspStatusError,
     sprop_parameter_sets,
 )
+from tests.support.pyav_rtsp import RtspReader
 
 pytestmark = pytest.mark.integration
 

@@ -397,8 +397,9 @@ def test_cli_rtsp_port_defaults_to_8554_or_a_free_one_with_a_free_http_port() ->
 
 
 def test_the_pyav_reader_of_the_driver_plays_the_simulator(cam: SimulatedCamera) -> None:
-    """vapix.rtsp.RtspReader (FFmpeg underneath): SPS/PPS from the SDP in front of every IDR, RTCP capture time."""
-    from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspReader  # noqa: PLC0415
+    """The test oracle RtspReader (FFmpeg underneath): SPS/PPS from the SDP in front of every IDR, RTCP capture time."""
+    from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest  # noqa: PLC0415
+    from tests.support.pyav_rtsp import RtspReader  # noqa: PLC0415
 
     assert cam.rtsp is not None
     url = MediaStreamRequest(resolution="640x360", fps=15, keyframe_interval=15).url(

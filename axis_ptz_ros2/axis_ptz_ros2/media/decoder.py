@@ -19,6 +19,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
+from axis_ptz_ros2.media import pyav
+
+pyav.require()  # raises PyAvUnavailableError naming the PyAV needed and how to get it
+
 import av
 import av.error
 import numpy as np

@@ -27,7 +27,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from typing import Final
+
+from axis_ptz_ros2.media import pyav
+
+pyav.require()  # raises PyAvUnavailableError naming the PyAV needed and how to get it
 
 import av
 import av.error
@@ -38,20 +41,16 @@ from av.video.frame import PictureType
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import EncodedFrame
-
-PRESETS: Final = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium")
-MIN_BITRATE_BPS: Final = 50_000
-MAX_BITRATE_BPS: Final = 50_000_000
-MAX_KEYFRAME_INTERVAL: Final = 600
-MAX_DIMENSION: Final = 4096
-#: s: the VBV buffer in seconds of the bitrate. bitrate/10 (the issue's prototype) starved every IDR and the
-#: frames after it (PSNR 5th percentile 33.4 dB at 1000 kbit/s, 837 kbit/s used, against the simulated camera's
-#: still view before noise); 0.15 s: 34.8 dB, 871 kbit/s, largest IDR 15 kB. A live step down spends what is
-#: left of the old rate's buffer first (~8 frames from 2000 to 300 kbit/s).
-VBV_BUFFER_S: Final = 0.15
-#: a VBV buffer asked for live that differs from the open one by less than this fraction is not worth a re-open
-VBV_REOPEN_SLACK: Final = 0.2
-MIN_VBV_BITS: Final = 1000
+from axis_ptz_ros2.media.limits import (
+    MAX_BITRATE_BPS,
+    MAX_DIMENSION,
+    MAX_KEYFRAME_INTERVAL,
+    MIN_BITRATE_BPS,
+    MIN_VBV_BITS,
+    PRESETS,
+    VBV_BUFFER_S,
+    VBV_REOPEN_SLACK,
+)
 
 U8Array = npt.NDArray[np.uint8]
 

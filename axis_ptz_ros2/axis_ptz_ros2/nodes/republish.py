@@ -22,6 +22,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
+from axis_ptz_ros2.media.pyav import PyAvUnavailableError
 from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
@@ -65,7 +66,13 @@ class RepublishNode(Node):
         want = not self._lazy or self._pub.get_subscription_count() > 0
         if want and self._sub is None:
             if self._h264:
-                self._receiver = AccessUnitReceiver()  # a new subscription waits for an IDR
+                try:
+                    self._receiver = AccessUnitReceiver()  # a new subscription waits for an IDR
+                except PyAvUnavailableError as err:
+                    self.get_logger().error(f"{err}; republishing the MJPEG topic image_raw/compressed instead")
+                    self._h264 = False
+                    self._update()
+                    return
                 self._sub = self.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", self._on_packet, VIDEO_QOS)
             else:
                 self._sub = self.create_subscription(

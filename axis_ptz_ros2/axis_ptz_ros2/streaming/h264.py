@@ -56,15 +56,18 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Final, Protocol
+from typing import TYPE_CHECKING, Final, Protocol
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, PRESETS
 from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL, PRESETS
+from axis_ptz_ros2.media.pyav import PyAvUnavailableError
 from axis_ptz_ros2.streaming.jpeg import jpeg_comments
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
+
+if TYPE_CHECKING:  # the transcoder needs PyAV, imported only when a stage first transcodes (media.pyav)
+    from axis_ptz_ros2.media.transcoder import TranscoderConfig
 
 CODECS: Final = ("mjpeg", "h264")
 H264_PRESETS: Final = PRESETS
@@ -99,6 +102,8 @@ class H264Settings:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
         it changes the bitrate live (x264 cannot raise VBV maxrate on an open encoder: that would re-open it,
         with an IDR, on every step up)."""
+        from axis_ptz_ros2.media.transcoder import TranscoderConfig  # noqa: PLC0415 - PyAV, on first use
+
         fps = max(1, int(self.fps))
         return TranscoderConfig(
             fps=fps,
@@ -191,14 +196,17 @@ class H264Stage:
         settings: Callable[[], H264Settings],
         publish: Callable[[StagedFrame], None],
         *,
-        transcoder_factory: Callable[[TranscoderConfig], Transcoder] = MjpegTranscoder,
+        transcoder_factory: Callable[[TranscoderConfig], Transcoder] | None = None,
         on_problem: Callable[[str], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``settings()`` is read on every frame; ``publish`` is called on the feeding thread."""
+        """``settings()`` is read on every frame; ``publish`` is called on the feeding thread. The default
+        ``transcoder_factory`` is :class:`~axis_ptz_ros2.media.transcoder.MjpegTranscoder`; without a usable PyAV
+        the stage says so once through ``on_problem`` and transcodes nothing (pass-through needs no PyAV)."""
         self._settings = settings
         self._publish = publish
-        self._factory = transcoder_factory
+        self._factory = transcoder_factory or _mjpeg_transcoder
+        self._unavailable = ""  # why this stage cannot transcode (PyAV missing or too old), said once
         self._on_problem = on_problem
         self._clock = clock
         self._lock = threading.Lock()
@@ -295,27 +303,33 @@ class H264Stage:
     # -- frames (the reader thread) ----------------------------------------------------------------------------
     def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> StagedFrame | None:
         """Transcode one JPEG of the camera and publish it; None while inactive or when it does not decode."""
+        problem = unavailable = ""
         with self._lock:
-            if not self._active:
+            if not self._active or self._unavailable:
                 self.stats.skipped_inactive += 1
                 return None
             self._arrivals.append(arrival_ns)
-            transcoder = self._prepare(self._at_input_rate(self._settings()))
-            stamp = camera_stamp_ns(jpeg) or arrival_ns
             try:
-                frame = transcoder.transcode(jpeg, stamp)
-                want = self._opened_with
-                if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
-                    transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
-                    self._applied_kbps = want.bitrate_kbps
-                if want is not None and want.vbv_kbit != self._applied_vbv:
-                    transcoder.set_vbv(want.vbv_bits)
-                    self._applied_vbv = want.vbv_kbit
-            except MediaError as err:
-                self.stats.bad_inputs += 1
-                problem = str(err)
+                transcoder = self._prepare(self._at_input_rate(self._settings()))
+            except PyAvUnavailableError as err:  # said once; the MJPEG topics are not affected
+                self._unavailable = unavailable = f"H.264 transcoding is off (MJPEG goes on): {err}"
             else:
-                problem = ""
+                stamp = camera_stamp_ns(jpeg) or arrival_ns
+                try:
+                    frame = transcoder.transcode(jpeg, stamp)
+                    want = self._opened_with
+                    if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
+                        transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
+                        self._applied_kbps = want.bitrate_kbps
+                    if want is not None and want.vbv_kbit != self._applied_vbv:
+                        transcoder.set_vbv(want.vbv_bits)
+                        self._applied_vbv = want.vbv_kbit
+                except MediaError as err:
+                    self.stats.bad_inputs += 1
+                    problem = str(err)
+        if unavailable:
+            self._problem(unavailable)
+            return None
         if problem:
             self._problem(f"H.264: frame dropped: {problem}")
             return None
@@ -411,3 +425,10 @@ class H264Stage:
     def _problem(self, text: str) -> None:
         if self._on_problem is not None:
             self._on_problem(text)
+
+
+def _mjpeg_transcoder(config: TranscoderConfig) -> Transcoder:
+    """The default transcoder, imported on first use (it needs PyAV: :mod:`axis_ptz_ros2.media.pyav`)."""
+    from axis_ptz_ros2.media.transcoder import MjpegTranscoder  # noqa: PLC0415 - raises PyAvUnavailableError
+
+    return MjpegTranscoder(config)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.media.encoder import VBV_BUFFER_S
+from axis_ptz_ros2.media.limits import VBV_BUFFER_S
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
 from axis_ptz_ros2.streaming.video_types import VideoSettings

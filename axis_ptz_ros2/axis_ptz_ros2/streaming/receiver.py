@@ -13,8 +13,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.media.decoder import H264Decoder
-
 U8Array = npt.NDArray[np.uint8]
 
 
@@ -62,7 +60,11 @@ class AccessUnitReceiver:
     """
 
     def __init__(self) -> None:
-        """A fresh decoder that waits for an IDR."""
+        """A fresh decoder that waits for an IDR. Raises
+        :class:`~axis_ptz_ros2.media.pyav.PyAvUnavailableError` without a usable PyAV (the decoder needs it; the
+        rest of this module does not, so the nodes that use it start and say so)."""
+        from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: PLC0415 - PyAV, imported when first needed
+
         self._decoder = H264Decoder()
         self._gaps = PtsGaps()
         self._pending_unusable = 0

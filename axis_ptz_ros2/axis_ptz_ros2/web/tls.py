@@ -16,6 +16,7 @@ import ssl
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from axis_ptz_ros2.tls import fingerprint_sha256, self_signed, server_context, write_private
 
@@ -63,6 +64,16 @@ def generate_self_signed(bind: str) -> tuple[bytes, bytes]:
     return self_signed(f"axis_web_console {dns[-1]}", dns, ips, days=VALID_DAYS)
 
 
+def _expires(cert: Any) -> dt.datetime:
+    """The certificate's end of validity, aware (UTC). ``not_valid_after_utc`` is cryptography 42+; Ubuntu 24.04
+    ships 41, whose naive ``not_valid_after`` is UTC (and deprecated from 42 on)."""
+    utc = getattr(cert, "not_valid_after_utc", None)
+    if isinstance(utc, dt.datetime):
+        return utc
+    naive: dt.datetime = cert.not_valid_after
+    return naive.replace(tzinfo=dt.UTC)
+
+
 def _still_valid(cert_pem: bytes, bind: str) -> bool:
     """True when a kept certificate is not about to expire and still names ``bind``."""
     from cryptography import x509
@@ -72,7 +83,7 @@ def _still_valid(cert_pem: bytes, bind: str) -> bool:
         san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
     except (ValueError, x509.ExtensionNotFound):
         return False
-    if cert.not_valid_after_utc - dt.datetime.now(dt.UTC) < dt.timedelta(days=RENEW_DAYS):
+    if _expires(cert) - dt.datetime.now(dt.UTC) < dt.timedelta(days=RENEW_DAYS):
         return False
     dns, ips = _names_for(bind)
     have_ips = {str(i) for i in san.get_values_for_type(x509.IPAddress)}

@@ -12,16 +12,15 @@ from __future__ import annotations
 
 import base64
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final
+from typing import Final
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import MAX_KEYFRAME_INTERVAL, EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.view import CameraView
 
 MEDIA_PATH: Final = "/axis-media/media.amp"
 VIDEO_CODECS: Final = ("h264", "h265", "av1", "mpeg4", "jpeg")  #: what VAPIX names (vapix.md §5.6)
@@ -63,7 +62,7 @@ class MediaRequest:
         )
 
 
-def parse_media_args(cam: SimulatedCamera, args: list[tuple[str, str]]) -> MediaRequest:
+def parse_media_args(cam: CameraView, args: list[tuple[str, str]]) -> MediaRequest:
     """Validate ``media.amp`` arguments for ``cam``; raises :class:`MediaError` (400 or 415)."""
     a = {k.lower(): v for k, v in args}
 

@@ -1,0 +1,20 @@
+"""The x264 encoder's settings bounds (ROS-free, and free of PyAV so that settings can be checked, and the stream
+node can start, on a machine without PyAV; :mod:`.encoder` enforces them)."""
+
+from __future__ import annotations
+
+from typing import Final
+
+PRESETS: Final = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium")
+MIN_BITRATE_BPS: Final = 50_000
+MAX_BITRATE_BPS: Final = 50_000_000
+MAX_KEYFRAME_INTERVAL: Final = 600
+MAX_DIMENSION: Final = 4096
+#: s: the VBV buffer in seconds of the bitrate. bitrate/10 (the issue's prototype) starved every IDR and the
+#: frames after it (PSNR 5th percentile 33.4 dB at 1000 kbit/s, 837 kbit/s used, against the simulated camera's
+#: still view before noise); 0.15 s: 34.8 dB, 871 kbit/s, largest IDR 15 kB. A live step down spends what is
+#: left of the old rate's buffer first (~8 frames from 2000 to 300 kbit/s).
+VBV_BUFFER_S: Final = 0.15
+#: a VBV buffer asked for live that differs from the open one by less than this fraction is not worth a re-open
+VBV_REOPEN_SLACK: Final = 0.2
+MIN_VBV_BITS: Final = 1000
