@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.waiting import wait_until
+
 # Before anything imports rclpy: keep discovery on this machine.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
@@ -228,20 +230,19 @@ def _no_leaked_processes() -> Iterator[None]:
     A leftover is stopped (SIGTERM, then SIGKILL) and reported as an error of the module's last test."""
     before = set(_descendants(os.getpid()))
     yield
-    deadline = time.monotonic() + 5.0
-    left = {p: c for p, c in _descendants(os.getpid()).items() if p not in before}
-    while left and time.monotonic() < deadline:
-        time.sleep(0.2)
-        left = {p: c for p, c in _descendants(os.getpid()).items() if p not in before}
+
+    def leftovers() -> dict[int, str]:
+        return {p: c for p, c in _descendants(os.getpid()).items() if p not in before}
+
+    wait_until(lambda: not leftovers(), 5.0, 0.2, scaled=False, raises=False)
+    left = leftovers()
     if not left:
         return
     for sig in (signal.SIGTERM, signal.SIGKILL):
         for pid in left:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, sig)
-        end = time.monotonic() + 3.0
-        while time.monotonic() < end and any(p in _descendants(os.getpid()) for p in left):
-            time.sleep(0.1)
+        wait_until(lambda: not any(p in _descendants(os.getpid()) for p in left), 3.0, 0.1, scaled=False, raises=False)
     pytest.fail(
         "processes left running by this test module (stopped now):\n"
         + "\n".join(f"  pid {p}: {c[:200]}" for p, c in sorted(left.items())),

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from tests.support import link as linkmod
+from tests.support.waiting import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (tests/netns/hosts.py)
 
@@ -137,12 +138,6 @@ class TwoHosts:
 
 def wait_for(predicate: Callable[[], Any], timeout: float, what: str, hosts: TwoHosts | None = None) -> Any:
     """Poll ``predicate`` until truthy (processes checked alive meanwhile); AssertionError naming ``what``."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        v = predicate()
-        if v:
-            return v
-        if hosts is not None:
-            hosts.check_alive()
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
+    return wait_until(
+        predicate, timeout, 0.05, what=what, scaled=False, tick=None if hosts is None else hosts.check_alive
+    )

@@ -4,7 +4,6 @@ benchmarks that run nodes in one process (test and bench tooling: not part of th
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from typing import Any
@@ -14,9 +13,9 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from axis_ptz_ros2.nodes.runner import Spinner, new_executor, retrieve_task_errors, wait_for_running_callbacks
+from tests.support.waiting import DEADLINE_SCALE, wait_until
 
-#: Multiplier of every ``wait_for`` deadline (conditions are awaited, not timed).
-DEADLINE_SCALE = float(os.environ.get("AXIS_TEST_DEADLINE_SCALE", "4"))
+__all__ = ["DEADLINE_SCALE", "RosHarness"]
 
 
 class RosHarness:
@@ -46,14 +45,7 @@ class RosHarness:
         ``timeout`` is a deadline for a condition, never a speed bound (benchmarks measure speed): it is
         multiplied by ``AXIS_TEST_DEADLINE_SCALE`` (default 4) so that a loaded machine only slows a run down.
         """
-        timeout *= DEADLINE_SCALE
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            v = predicate()
-            if v:
-                return v
-            time.sleep(period)
-        raise AssertionError(f"timed out after {timeout:.1f} s waiting for {predicate}")
+        return wait_until(predicate, timeout, period)
 
     def call(self, client: Any, request: Any, timeout: float = 10.0) -> Any:
         """Call a service from the test thread while the executor spins in the background."""
@@ -76,9 +68,7 @@ class RosHarness:
         while True:
             fut = client.call_async(request)
             until = min(deadline, time.monotonic() + attempt)
-            while not fut.done() and time.monotonic() < until:
-                time.sleep(0.01)
-            if fut.done():
+            if wait_until(fut.done, max(0.0, until - time.monotonic()), scaled=False, raises=False):
                 return fut.result()
             client.remove_pending_request(fut)
             if time.monotonic() >= deadline:

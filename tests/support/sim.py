@@ -20,6 +20,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.http.mjpeg import BOUNDARY
 from axis_ptz_ros2.vapix.mjpeg import MjpegParser, boundary_from_content_type, multipart_content_type, part_header
+from tests.support.waiting import wait_until
 
 #: the simulator's ``Content-Type`` for video.cgi
 CONTENT_TYPE = multipart_content_type(BOUNDARY)
@@ -100,9 +101,7 @@ FAST_STREAM_PARAMS = {
 
 def reset_camera(cam: SimulatedCamera, reboot_wait_s: float = 5.0) -> SimulatedCamera:
     """A shared simulator as a test expects it: not rebooting, no faults, head at home, counters cleared."""
-    deadline = time.monotonic() + reboot_wait_s
-    while cam.rebooting and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: not cam.rebooting, reboot_wait_s, 0.05, scaled=False, raises=False)
     cam.set_faults(FaultConfig())
     cam.teleport(0.0, 0.0, 1.0)
     cam.reset_counts()

@@ -34,6 +34,7 @@ from axis_ptz_ros2.ptz.control import (
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.state import StatePoller
 from axis_ptz_ros2.vapix import CameraConfig, VapixClient
+from tests.support.waiting import wait_until
 from tests.unit.fixtures_vapix import LIMITS_RESPONSE, POSITION_RESPONSE
 
 pytestmark = pytest.mark.unit
@@ -50,13 +51,15 @@ def test_slot_latest_wins_keeps_non_supersedable_and_order() -> None:
     ran: list[str] = []
     slot.start()
     try:
+        in_flight = threading.Event()
 
         def blocker() -> None:
+            in_flight.set()
             gate.wait(2.0)
             ran.append("blocker")
 
         first = slot.submit("blocker", blocker)
-        time.sleep(0.05)  # the blocker is in flight now
+        assert in_flight.wait(5.0)  # the blocker is in flight now
         moves = [slot.submit(f"m{i}", lambda i=i: ran.append(f"m{i}")) for i in range(10)]
         keep = slot.submit("preset", lambda: ran.append("preset"), supersedable=False)
         last = slot.submit("m_last", lambda: ran.append("m_last"))
@@ -99,8 +102,9 @@ def test_slot_stop_cancels_pending_and_joins() -> None:
     slot = CommandSlot()
     gate = threading.Event()
     slot.start()
-    slot.submit("blocker", lambda: gate.wait(0.3) and None)
-    time.sleep(0.05)
+    in_flight = threading.Event()
+    slot.submit("blocker", lambda: in_flight.set() or gate.wait(0.3) and None)
+    assert in_flight.wait(5.0)  # the blocker is in flight: the next command has to wait
     pending = slot.submit("pending", lambda: None, supersedable=False)
     slot.stop(timeout=2.0)
     assert pending.outcome is Outcome.CANCELLED
@@ -172,7 +176,7 @@ def test_poller_wait_for_wakes_on_new_samples() -> None:
     def run() -> None:
         while not stop.is_set():
             poller.poll()
-            time.sleep(0.005)
+            time.sleep(0.005)  # the poll thread's period (a busy loop would use up the 100 readings at once)
 
     th = threading.Thread(target=run)
     th.start()
@@ -399,11 +403,13 @@ class MemoryHead:
         self.refuse = False
         self.fail_next = 0  # fail this many of the next commands
         self.gate: threading.Event | None = None
+        self.gated = threading.Event()  # set when a command is held at the gate
         self.stamp = 0
         self.speeds: list[float | None] = []
 
     def _cmd(self, name: str, *args: object) -> None:
         if self.gate is not None:
+            self.gated.set()
             self.gate.wait(5.0)
         if self.fail_next > 0:
             self.fail_next -= 1
@@ -450,14 +456,33 @@ class MemoryHead:
         pass
 
 
+class SkewClock:
+    """``time.monotonic()`` that a test moves forward (:meth:`advance`) instead of sleeping."""
+
+    def __init__(self) -> None:
+        self.offset = 0.0
+
+    def __call__(self) -> float:
+        return time.monotonic() + self.offset
+
+    def advance(self, seconds: float) -> None:
+        self.offset += seconds
+
+
 @pytest.fixture
-def head_and_commander() -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
-    """A commander over the in-memory head, its state polled every 10 ms in the background."""
+def commander_clock() -> SkewClock:
+    return SkewClock()
+
+
+@pytest.fixture
+def head_and_commander(commander_clock: SkewClock) -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
+    """A commander over the in-memory head, its state polled every 10 ms in the background; its clock is
+    ``commander_clock``."""
     head = MemoryHead()
     slot = CommandSlot(error_types=(PtzBackendError,))
     slot.start()
     poller = StatePoller(head.read_state, period_s=0.01)
-    cmd = Commander(head, slot, poller, lambda: LIM, tolerances=Tolerances(0.002, 2.0, 0.5))
+    cmd = Commander(head, slot, poller, lambda: LIM, tolerances=Tolerances(0.002, 2.0, 0.5), clock=commander_clock)
     stop = threading.Event()
 
     def polls() -> None:  # what the node's poll thread does
@@ -481,10 +506,7 @@ def head_and_commander() -> Iterator[tuple[MemoryHead, Commander, StatePoller]]:
 class RosFreeWait:
     @staticmethod
     def until(predicate: Any, timeout: float = 5.0) -> None:
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            assert time.monotonic() < deadline, "timed out"
-            time.sleep(0.005)
+        wait_until(predicate, timeout, 0.005)
 
 
 def _done(order: Order) -> None:
@@ -552,24 +574,24 @@ def test_queued_relative_steps_compose_and_are_rebased_after_a_failure(head_and_
     assert [q.ticket.outcome for q in queued[:-1]] == [Outcome.SUPERSEDED] * 4
 
 
-def test_a_move_ends_velocity_mode_so_the_watchdog_never_stops_it(head_and_commander: Any) -> None:
+def test_a_move_ends_velocity_mode_so_the_watchdog_never_stops_it(
+    head_and_commander: Any, commander_clock: SkewClock
+) -> None:
     head, cmd, _ = head_and_commander
     _done(cmd.velocity(0.5, 0.0, 0.0))
     assert cmd.velocity_active
     _done(cmd.home())
     assert not cmd.velocity_active
-    time.sleep(0.6)  # past velocity_timeout (0.5 s)
+    commander_clock.advance(0.6)  # past velocity_timeout (0.5 s)
     assert cmd.check_velocity_timeout() is False
     assert [c[0] for c in head.calls] == ["velocity", "move_to"]
     assert head.calls[-1][1] == (0.0, 0.0, 1.0)  # home: pan 0, tilt 0, widest zoom
     # without the move the watchdog does stop a stale velocity command
     _done(cmd.velocity(0.0, 0.3, 0.0))
     assert cmd.check_velocity_timeout() is False  # fresh
-    time.sleep(0.6)
+    commander_clock.advance(0.6)
     assert cmd.check_velocity_timeout() is True
-    deadline = time.monotonic() + 2.0
-    while head.calls[-1] != ("velocity", (0.0, 0.0, 0.0)) and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: head.calls[-1] == ("velocity", (0.0, 0.0, 0.0)), 2.0, scaled=False, raises=False)
     assert head.calls[-1] == ("velocity", (0.0, 0.0, 0.0))
 
 

@@ -124,14 +124,14 @@ def test_state_loop_paces_itself_and_restarts_after_a_bug() -> None:
         assert loop.last_crash == "RuntimeError: injected bug"
         assert loop.alive
         n0, t0 = len(got), time.monotonic()
-        time.sleep(0.5)
+        time.sleep(0.5)  # a measuring window: the thing under test is the tick rate over it
         rate = (len(got) - n0) / (time.monotonic() - t0)
         assert 10.0 < rate <= 60.0  # 50 Hz nominal: paced (no busy loop), not stalled (loaded machine: loose)
     finally:
         loop.stop(2.0)
     assert not loop.alive
     n = len(got)
-    time.sleep(0.1)
+    time.sleep(0.1)  # five periods in which a (wrong) tick could come: the thing under test is that none does
     assert len(got) == n  # stopped means stopped
 
 
@@ -145,7 +145,7 @@ def test_state_loop_does_not_burst_after_a_slow_tick() -> None:
         stamps.append(time.monotonic())
         if len(stamps) == 3:
             slow.set()
-            time.sleep(0.3)  # fifteen periods late
+            time.sleep(0.3)  # a slow callback, fifteen periods late: the thing under test is what follows it
 
     loop = StateLoop(poller, head.limits, on_sample)
     loop.start()
@@ -164,7 +164,7 @@ def test_state_loop_stop_ends_the_wait_between_ticks_at_once() -> None:
     loop = StateLoop(poller, head.limits, got.append)
     loop.start()
     RosFreeWait.until(lambda: len(got) == 1, 5.0)
-    time.sleep(0.05)
+    time.sleep(0.05)  # let the thread reach its 30 s wait between ticks (not observable from outside)
     t0 = time.monotonic()
     loop.stop(5.0)
     assert not loop.alive
@@ -348,17 +348,23 @@ def test_goal_succeeds_with_feedback_and_cancel_stops_the_head(rig: Any) -> None
     # cancelled while a move is in flight: the head is stopped and the answer says where, in joint coordinates
     gate = head.gate = threading.Event()  # the next command hangs in flight until released
     order = cmd.move("abs", 1.0, None, None)
-    cancel = threading.Event()
+    cancel, cancel_seen = threading.Event(), threading.Event()
+
+    def cancel_requested() -> bool:
+        if cancel.is_set():
+            cancel_seen.set()
+            return True
+        return False
 
     def cancel_then_release() -> None:
-        time.sleep(0.1)
+        head.gated.wait(5.0)  # the move is in flight (held at the gate) ...
         cancel.set()
-        time.sleep(0.1)
+        cancel_seen.wait(5.0)  # ... when the goal sees the cancel; then the camera answers
         gate.set()
 
     th = threading.Thread(target=cancel_then_release)
     th.start()
-    end = f.run_goal(order, 3.0, cancel.is_set, lambda: False, feedback.append)
+    end = f.run_goal(order, 3.0, cancel_requested, lambda: False, feedback.append)
     th.join()
     head.gate = None
     assert end.status is GoalStatus.CANCELED, end.message

@@ -27,6 +27,7 @@ from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout, CameraUnreachab
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from tests.support.stamps import sim_stamp
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.unit
 
@@ -297,12 +298,7 @@ class FakeOpener:
 
 
 def wait_for(pred, timeout=3.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.005)
-    raise AssertionError("timed out")
+    return wait_until(pred, timeout, 0.005)
 
 
 @pytest.fixture
@@ -366,8 +362,11 @@ def test_reader_auth_failure_retries_slowly(reader_factory):
     opener = FakeOpener()
     opener.script = [AuthError("GET /axis-cgi/mjpg/video.cgi: HTTP 401, authentication failed")] * 10
     r = reader_factory(opener, ReaderConfig(auth_retry_s=0.3))
-    time.sleep(0.75)
-    assert 2 <= len(opener.calls) <= 3  # not hammered
+    wait_for(lambda: len(opener.calls) >= 3)  # it does retry ...
+    wait_for(lambda: r.stats().auth_failures == 3)
+    starts = [t for t, _ in opener.calls[:3]]
+    gaps = [b - a for a, b in zip(starts, starts[1:], strict=False)]
+    assert all(g >= 0.3 - 0.02 for g in gaps), gaps  # ... but not hammered: one try per auth_retry_s
     s = r.stats()
     assert s.state is StreamState.AUTH_FAILED
     assert "401" in s.last_error
@@ -379,7 +378,7 @@ def test_reader_invalid_params_wait_for_new_ones(reader_factory):
     opener.script = [InvalidArgument("resolution 1x1 not supported")]
     r = reader_factory(opener, ReaderConfig(auth_retry_s=30.0))
     wait_for(lambda: r.state is StreamState.INVALID_PARAMS)
-    time.sleep(0.1)
+    time.sleep(0.1)  # a window in which no retry may come: the thing under test is that nothing happens
     assert len(opener.calls) == 1
     r.set_params(VideoParams(Resolution(352, 288), 10, 30))  # new params wake it up at once
     wait_for(lambda: len(opener.sources) == 1)
@@ -393,8 +392,7 @@ def test_reader_watchdog_turns_a_stall_into_a_reconnect(reader_factory):
     opener.frames.put(b"\xff\xd8a\xff\xd9")
     wait_for(lambda: r.got)
     assert not r.check_watchdog()  # fresh
-    time.sleep(0.2)
-    assert r.check_watchdog()
+    assert r.check_watchdog(now=time.monotonic() + 0.2)  # as if 0.2 s (> stall_timeout_s) had passed
     wait_for(lambda: len(opener.sources) == 2)
     assert opener.sources[0].closed.is_set()
     s = r.stats()
@@ -449,14 +447,14 @@ def test_reader_new_params_reconnect_without_backoff(reader_factory):
     assert opener.sources[0].closed.is_set()
     assert r.stats().reconnects == 0
     r.set_params(p2)  # same params: nothing happens
-    time.sleep(0.05)
+    time.sleep(0.05)  # a window for a (wrong) reconnect: the thing under test is that none comes
     assert len(opener.sources) == 2
 
 
 def test_reader_lazy_opens_nothing_until_active(reader_factory):
     opener = FakeOpener()
     r = reader_factory(opener, active=False)
-    time.sleep(0.1)
+    time.sleep(0.1)  # a window for a (wrong) connect while inactive: the thing under test is that none comes
     assert opener.calls == []
     assert r.state is StreamState.IDLE_LAZY
     r.set_active(True)
@@ -464,7 +462,7 @@ def test_reader_lazy_opens_nothing_until_active(reader_factory):
     r.set_active(False)
     wait_for(lambda: opener.sources[0].closed.is_set())
     wait_for(lambda: r.state is StreamState.IDLE_LAZY)
-    time.sleep(0.05)
+    time.sleep(0.05)  # a window for a (wrong) reconnect: the thing under test is that none comes
     assert len(opener.calls) == 1
 
 
@@ -479,7 +477,7 @@ def test_reader_never_delivers_a_frame_twice_or_after_stop(reader_factory):
     assert r.stop(1.0)
     assert time.monotonic() - t0 < 0.5
     opener.frames.put(b"late")
-    time.sleep(0.05)
+    time.sleep(0.05)  # a window for a (wrong) late delivery: the thing under test is that none comes
     assert [j for j, _ in r.got] == [b"%d" % i for i in range(50)]
     assert r.state is StreamState.STOPPED
 
@@ -493,7 +491,7 @@ class HangingOpener(FakeOpener):
 
     def __call__(self, params: VideoParams, read_timeout_s: float) -> FakeSource:
         if self.script and isinstance(self.script[0], CameraTimeout):
-            time.sleep(self.hang_s)
+            time.sleep(self.hang_s)  # the simulated camera: a connect that hangs until its timeout
         return super().__call__(params, read_timeout_s)
 
 
@@ -529,7 +527,7 @@ def test_reader_401_without_recent_frames_waits_auth_retry(reader_factory):
     opener.script = [AuthError("HTTP 401")]
     r = reader_factory(opener, ReaderConfig(auth_retry_s=30.0))
     wait_for(lambda: r.state is StreamState.AUTH_FAILED)
-    time.sleep(0.3)
+    time.sleep(0.3)  # a window (auth_retry_s = 30 s) for a (wrong) early retry: the thing under test is none comes
     assert len(opener.calls) == 1
 
 
