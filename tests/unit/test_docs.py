@@ -66,7 +66,7 @@ def test_bitrate_data_is_complete_and_quotes_the_thesis_exactly():
         key = (r["resolution"], int(r["compression"]))
         fps = int(r["fps"])
         assert float(r["thesis_printed"]) == THESIS[key][(1, 15, 30).index(fps)]
-        # the tables print "kBit/s" but are kB/s (README, "What the simulated camera's pictures are made of")
+        # the tables print "kBit/s" but are kB/s (docs/simulator.md, "What the simulated camera's pictures are made of")
         assert float(r["thesis_kbit_s"]) == pytest.approx(8 * float(r["thesis_printed"]))
         assert float(r["sim_kbit_s"]) > 0.0
         seen[(key, fps)] = float(r["sim_kbit_s"])

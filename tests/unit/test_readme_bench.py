@@ -1,5 +1,6 @@
-"""The README's "Measured" table is generated from bench/results (scripts/gen_readme_bench.py) and names the
-commit each figure was measured at; a results file older than the last change to its inputs is reported stale."""
+"""The "Measured" table (docs/benchmarks.md, linked from the README) is generated from bench/results
+(scripts/gen_readme_bench.py) and names the commit each figure was measured at; a results file older than the last
+change to its inputs is reported stale."""
 
 from __future__ import annotations
 
@@ -29,18 +30,22 @@ gen = _generator()
 
 
 def test_readme_table_matches_results_files() -> None:
-    """Fails when bench/results and the README disagree (fix: python scripts/gen_readme_bench.py)."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    """Fails when bench/results and docs/benchmarks.md disagree (fix: python scripts/gen_readme_bench.py)."""
+    assert gen.TABLE_FILE == "docs/benchmarks.md"
+    page = (ROOT / gen.TABLE_FILE).read_text(encoding="utf-8")
     results = gen.load(ROOT)
     assert results, "no bench/results/*.txt"
-    assert gen.render(readme, results) == readme, (
-        "README Measured table is out of date: run scripts/gen_readme_bench.py"
+    assert gen.render(page, results) == page, (
+        "docs/benchmarks.md's Measured table is out of date: run scripts/gen_readme_bench.py"
     )
+    # the table is in one place only, and the README points at it
+    assert gen.BEGIN not in (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "docs/benchmarks.md" in (ROOT / "README.md").read_text(encoding="utf-8")
 
 
 def test_every_row_names_its_commit() -> None:
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    block = readme[readme.index(gen.BEGIN) + len(gen.BEGIN) : readme.index(gen.END)]
+    page = (ROOT / gen.TABLE_FILE).read_text(encoding="utf-8")
+    block = page[page.index(gen.BEGIN) + len(gen.BEGIN) : page.index(gen.END)]
     rows = [line for line in block.strip().splitlines()[2:]]
     assert rows
     for r in gen.load(ROOT):
@@ -67,14 +72,16 @@ def _results_file(commit: str, tree: str, rows: list[dict[str, object]], inputs:
 
 @pytest.fixture
 def repo(tmp_path: Path) -> Path:
-    """A git repository shaped like ours: README with the markers, scripts/bench's default list, a source file."""
+    """A git repository shaped like ours: the table's page with the markers, scripts/bench's default list, a source
+    file."""
     (tmp_path / "src").mkdir()
     (tmp_path / "src" / "node.py").write_text("x = 1\n")
     (tmp_path / "src" / "other.py").write_text("y = 1\n")
     (tmp_path / "scripts").mkdir()
     (tmp_path / "scripts" / "bench").write_text("names=(x)\n")
     (tmp_path / "bench" / "results").mkdir(parents=True)
-    (tmp_path / "README.md").write_text(f"# t\n\n{gen.BEGIN}\n{gen.END}\n\nafter\n")
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "benchmarks.md").write_text(f"# t\n\n{gen.BEGIN}\n{gen.END}\n\nafter\n")
     _git(tmp_path, "init", "-q")
     _git(tmp_path, "add", "-A")
     _git(tmp_path, "commit", "-q", "-m", "one")
@@ -88,7 +95,7 @@ def test_the_machine_s_cpu_is_shown_when_the_results_file_names_it(repo: Path) -
     )
     (repo / "bench" / "results" / "x.txt").write_text(text)
     assert gen.main(["--root", str(repo)]) == 0
-    readme = (repo / "README.md").read_text()
+    readme = (repo / "docs" / "benchmarks.md").read_text()
     assert f"| speed | 3 ms | — | `x` | `{head[:10]}`, load 0.10, AMD EPYC 2.6 GHz |" in readme
 
 
@@ -99,9 +106,9 @@ def test_generator_writes_rows_with_commit_and_target_verdict(repo: Path) -> Non
         {"what": "rate", "figure": "9 Hz", "target": "≥ 20 Hz", "ok": False},
     ]
     (repo / "bench" / "results" / "x.txt").write_text(_results_file(head, "clean", rows))
-    assert gen.main(["--root", str(repo), "--check"]) == 1  # the README does not have the rows yet
+    assert gen.main(["--root", str(repo), "--check"]) == 1  # the page does not have the rows yet
     assert gen.main(["--root", str(repo)]) == 0
-    text = (repo / "README.md").read_text()
+    text = (repo / "docs" / "benchmarks.md").read_text()
     assert f"| speed | 3 \\| 4 ms | ≤ 5 ms | `x` | `{head[:10]}`, load 0.10 |" in text
     assert "| rate | 9 Hz **(misses the target)** | ≥ 20 Hz |" in text
     assert text.endswith(f"{gen.END}\n\nafter\n")
@@ -143,7 +150,7 @@ def test_dirty_unknown_and_missing_commit_are_flagged(repo: Path, capsys: pytest
     assert "y.txt: measured at 0000000000, which is not in this repository's history" in err
     assert "z.txt: no '# commit:' header" in err
     assert "z.txt: no README-ROW lines" in err
-    text = (repo / "README.md").read_text()
+    text = (repo / "docs" / "benchmarks.md").read_text()
     assert f"`{head[:10]}` + uncommitted changes" in text
     assert "| `z`: no figures |" in text
     assert "not recorded" in text

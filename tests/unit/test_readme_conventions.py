@@ -1,5 +1,6 @@
-"""The README documents the ROS conventions a Jazzy user relies on (issue 23's targets), and its two-robot
-example names keys that the shipped parameter file has.
+"""The node reference (docs/nodes.md, linked from the README) documents the ROS conventions a Jazzy user relies on
+(issue 23's targets), and the two-robot example (docs/launch-and-urdf.md) names keys that the shipped parameter file
+has.
 
 The generated parameter tables are checked against the nodes' specs elsewhere (``tests/ros/test_readme_params.py``);
 these rows are hand-written, so without this test they could be deleted or drift with every test still green.
@@ -13,13 +14,14 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+NODES = (ROOT / "docs" / "nodes.md").read_text(encoding="utf-8")
+LAUNCH = (ROOT / "docs" / "launch-and-urdf.md").read_text(encoding="utf-8")
 
 
 def table_rows() -> dict[str, str]:
-    """First cell (without backticks and the ``(pub, …)`` note) → the whole row, for every README table row."""
+    """First cell (without backticks and the ``(pub, …)`` note) → the whole row, for every docs/nodes.md table row."""
     rows: dict[str, str] = {}
-    for line in README.splitlines():
+    for line in NODES.splitlines():
         m = re.match(r"^\| `([^`]+)`[^|]*\|", line)
         if m:
             rows.setdefault(m.group(1), line)
@@ -34,7 +36,7 @@ def test_topic_and_service_rows_for_tf_and_camera_info_manager() -> None:
     assert "transient local" in rows["/tf_static"]
     assert "sensor_msgs/SetCameraInfo" in rows["~/set_camera_info"]
     for name in ("camera_info_url", "camera_name", "frame_prefix", "frame_id"):
-        assert name in rows, f"README: no parameter row for {name}"
+        assert name in rows, f"docs/nodes.md: no parameter row for {name}"
 
 
 def test_qos_override_rows_name_every_policy() -> None:
@@ -44,7 +46,7 @@ def test_qos_override_rows_name_every_policy() -> None:
 
 
 def test_root_topics_are_named_as_the_exception_to_relative_names() -> None:
-    sentence = re.search(r"Every topic name\s+is relative.*?\n\n", README, re.S)
+    sentence = re.search(r"Every topic name\s+is relative.*?\n\n", NODES, re.S)
     assert sentence is not None
     for topic in ("/tf", "/tf_static", "/diagnostics"):
         assert f"`{topic}`" in sentence.group(0)
@@ -58,6 +60,6 @@ def test_the_two_robot_example_names_keys_of_the_shipped_file() -> None:
     assert "frame_prefix" in stream
     assert "frame_prefix" in ptz
     assert "camera_name" in stream
-    example = README[README.index("Two robots, each with its own copy of the file") :][:1200]
+    example = LAUNCH[LAUNCH.index("Two robots, each with its own copy of the file") :][:1200]
     for needle in ("frame_prefix", "camera_name", "namespace:=robot2", "frame_prefix:=robot2/"):
         assert needle in example, needle
