@@ -27,6 +27,7 @@ from axis_ptz_ros2.vapix import (
     VapixClient,
     VideoParams,
 )
+from tests.support.waiting import succeeds, wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -47,13 +48,13 @@ def client_for(cam: SimulatedCamera, **kw) -> VapixClient:
 
 
 def wait_pose(cam, pan, tilt, zoom, timeout=5.0, tol=1e-3):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    def at() -> tuple[float, float, float] | None:
         p = cam.position()
-        if abs(p[0] - pan) < tol and abs(p[1] - tilt) < tol and abs(p[2] - zoom) < 0.5:
-            return p
-        time.sleep(0.01)
-    raise AssertionError(f"camera at {cam.position()}, expected {(pan, tilt, zoom)}")
+        return p if abs(p[0] - pan) < tol and abs(p[1] - tilt) < tol and abs(p[2] - zoom) < 0.5 else None
+
+    if (p := wait_until(at, timeout, scaled=False, raises=False)) is None:
+        raise AssertionError(f"camera at {cam.position()}, expected {(pan, tilt, zoom)}")
+    return p
 
 
 def jpeg_comment(jpeg: bytes) -> str:
@@ -115,13 +116,11 @@ def test_camera_error_body_maps_to_command_rejected(sim):
 def test_continuous_move_and_stop(sim):
     with client_for(sim) as c:
         c.ptz(ContinuousMove(pan_speed=50, tilt_speed=0))
-        time.sleep(0.3)
-        moved = sim.position()[0]
-        assert moved > 1.0  # + = right in VAPIX
+        wait_until(lambda: sim.position()[0] > 1.0, 5.0, what="the head moving right")  # + = right in VAPIX
         c.ptz(ContinuousMove(pan_speed=0, tilt_speed=0))
-        time.sleep(0.05)
+        wait_until(lambda: not sim.state.moving(), 5.0, what="the head to stop")
         stopped = sim.position()[0]
-        time.sleep(0.2)
+        time.sleep(0.2)  # a window for a (wrong) drift: the thing under test is that the head stays put
         assert sim.position()[0] == pytest.approx(stopped, abs=1e-6)
 
 
@@ -216,14 +215,13 @@ def test_http_errors_and_reboot_map_to_the_error_tree(sim):
         sim.reboot(1.0)
         with pytest.raises(CameraUnreachable):
             c.query_position()
-        deadline = time.monotonic() + 5
-        while True:
-            try:
-                c.query_position()
-                break
-            except CameraUnreachable:
-                assert time.monotonic() < deadline, "camera did not come back after the reboot"
-                time.sleep(0.1)
+        wait_until(
+            succeeds(c.query_position, CameraUnreachable),
+            5.0,
+            0.1,
+            scaled=False,
+            what="the camera to come back after the reboot",
+        )
 
 
 def test_fault_free_default_after_setting():

@@ -10,6 +10,7 @@ import pytest
 
 from axis_ptz_ros2.sim import SimulatedCamera
 from axis_ptz_ros2.vapix import CameraConfig, ResponseParseError, VapixClient
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -26,9 +27,11 @@ def test_reply_that_is_a_video_stream_is_refused_quickly():
         assert time.monotonic() - t0 < 3.0
         # The same client still works for real replies afterwards (the stream's connection was closed).
         assert vapix.query_position().zoom == 1
-        deadline = time.monotonic() + 5
-        while cam.request_counts.endpoints.get("video", 0) and threading.active_count() > before + 1:
-            if time.monotonic() > deadline:
-                break
-            time.sleep(0.05)
+        wait_until(
+            lambda: not cam.request_counts.endpoints.get("video", 0) or threading.active_count() <= before + 1,
+            5.0,
+            0.05,
+            scaled=False,
+            raises=False,
+        )
         assert threading.active_count() <= before + 1

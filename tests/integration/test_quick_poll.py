@@ -26,6 +26,7 @@ from axis_ptz_ros2.vapix import (
     VapixClient,
 )
 from axis_ptz_ros2.vapix.keepalive import KeepAliveTransport, _read_reply
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 POSITION_BODY = b"pan=12.5\r\ntilt=-3.25\r\nzoom=7\r\n"
@@ -48,20 +49,21 @@ def _socket(client: VapixClient) -> socket.socket:
 
 def _counts(cam: SimulatedCamera, replies: int):
     """The simulator's counters once it has counted ``replies`` replies (it counts a reply after sending it)."""
-    deadline = time.monotonic() + 2.0
-    while sum(cam.request_counts.status.values()) < replies and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: sum(cam.request_counts.status.values()) >= replies, 2.0, scaled=False, raises=False)
     return cam.request_counts
 
 
 def _reset_counts(cam: SimulatedCamera) -> None:
     """Reset the simulator's counters once the replies so far are counted (no count for 0.2 s)."""
-    last, quiet_since = -1, time.monotonic()
-    while time.monotonic() - quiet_since < 0.2:
-        n = sum(cam.request_counts.status.values())
-        if n != last:
-            last, quiet_since = n, time.monotonic()
-        time.sleep(0.02)
+    seen = {"n": -1, "since": time.monotonic()}
+
+    def quiet() -> bool:
+        n, now = sum(cam.request_counts.status.values()), time.monotonic()
+        if n != seen["n"]:
+            seen["n"], seen["since"] = n, now
+        return now - seen["since"] >= 0.2
+
+    wait_until(quiet, 30.0, 0.02, what="the simulator's counters to stay put for 0.2 s")
     cam.reset_counts()
 
 
@@ -123,10 +125,7 @@ def test_digest_signed_ahead_and_rechallenged(mode):
             c.query_position()
             assert c.quick_replies == quick + 1  # quick again with the new nonce
             cam.set_auth_options(nonce_lifetime_s=0.2)  # nonces expire (stale=true) while polling
-            deadline = time.monotonic() + 1.5
-            while time.monotonic() < deadline:
-                c.query_position()
-                time.sleep(0.05)
+            wait_until(lambda: (c.query_position(), c.auth_counters.stale >= 2)[1], 1.5, 0.05)
             assert c.auth_counters.stale >= 2
             assert c.auth_counters.refusals == 0
         with _quick(cam.port, username="operator", password="wrong-pw") as c:
@@ -228,17 +227,16 @@ def test_reboot_with_errors_then_recovery_on_the_quick_path(sim):
         c.query_position()
         sim.reboot(0.4, errors_s=0.4, error_kind="503")
         seen: set[type] = set()
-        deadline = time.monotonic() + 8.0
-        recovered = False
-        while time.monotonic() < deadline:
+
+        def answered_after_errors() -> bool:
             try:
                 c.query_position()
-                if seen:
-                    recovered = True
-                    break
             except AxisPtzError as err:
                 seen.add(type(err))
-            time.sleep(0.05)
+                return False
+            return bool(seen)
+
+        recovered = wait_until(answered_after_errors, 8.0, 0.05, scaled=False, raises=False)
         assert seen, "no error during the reboot"
         assert recovered, f"no recovery after {seen}"
         quick = c.quick_replies
@@ -283,7 +281,7 @@ class Scripted:
                     if part is None:  # close the connection
                         return
                     if isinstance(part, float):
-                        time.sleep(part)
+                        time.sleep(part)  # the scripted server: a reply that comes this late
                         continue
                     try:
                         conn.sendall(part)

@@ -9,6 +9,7 @@ import pytest
 
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera
 from tests.support.sim import COM, PART_HEADER, parts, read_stream
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=CIF&fps=30"
@@ -144,19 +145,24 @@ def test_reboot_refuses_then_recovers_on_same_port():
         # while the camera reboots (3 s: ample margin on a loaded machine) nothing is served, and once its
         # listening socket is gone connections are refused (until then a connection may be reset instead)
         refused = False
-        while cam.rebooting and not refused:
+
+        def refused_or_back() -> bool:
+            nonlocal refused
+            if not cam.rebooting:
+                return True
             try:
                 r = httpx.get(cam.base_url + "/axis-cgi/com/ptz.cgi?query=speed", timeout=1.0)
             except httpx.ConnectError:
                 refused = True
+                return True
             except (httpx.ReadError, httpx.RemoteProtocolError, httpx.ReadTimeout):
-                time.sleep(0.05)
-            else:
-                assert not cam.rebooting, f"served while rebooting: {r.status_code}"
+                return False
+            assert not cam.rebooting, f"served while rebooting: {r.status_code}"
+            return True
+
+        wait_until(refused_or_back, 60.0, 0.05, scaled=False)
         assert refused, "no connection was refused during the reboot"
-        t_end = time.monotonic() + 15
-        while cam.rebooting and time.monotonic() < t_end:
-            time.sleep(0.05)
+        wait_until(lambda: not cam.rebooting, 15.0, 0.05, scaled=False, raises=False)
         assert not cam.rebooting
         assert cam.port == port
         r = httpx.get(cam.base_url + "/axis-cgi/com/ptz.cgi?query=position", timeout=2.0)

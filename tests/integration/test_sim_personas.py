@@ -13,6 +13,7 @@ from axis_ptz_ros2.sim.cli import build_parser
 from axis_ptz_ros2.sim.persona import AXIS_214, AXIS_Q6075, persona
 from axis_ptz_ros2.sim.ptz import Speeds
 from tests.support.sim import decode, frames, read_stream
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 USER, PASSWORD = "root", "modern-pw"
@@ -188,15 +189,11 @@ def test_pan_wraps_the_short_way_across_the_seam(modern, mc):
 def test_tilt_range_and_v3_move_step(modern, mc):
     modern.teleport(0.0, 0.0, 1.0)
     mc.get("/axis-cgi/com/ptz.cgi?tilt=-60")
-    t_end = time.monotonic() + 3.0
-    while modern.state.moving() and time.monotonic() < t_end:
-        time.sleep(0.01)
+    wait_until(lambda: not modern.state.moving(), 3.0, scaled=False, raises=False)
     assert modern.position()[1] == pytest.approx(-60.0)
     modern.teleport(0.0, 0.0, 1.0)
     mc.get("/axis-cgi/com/ptz.cgi?move=right")
-    t_end = time.monotonic() + 3.0
-    while modern.state.moving() and time.monotonic() < t_end:
-        time.sleep(0.01)
+    wait_until(lambda: not modern.state.moving(), 3.0, scaled=False, raises=False)
     hfov = math.degrees(AXIS_Q6075.zoom_model.hfov(1.0))
     assert modern.position()[0] == pytest.approx(0.25 * hfov, abs=1e-3)  # VAPIX v3: 25 % of the field width
 

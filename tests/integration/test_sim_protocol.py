@@ -8,15 +8,14 @@ import pytest
 
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION
 from tests.support.sim import blob, decode
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 PTZ = "/axis-cgi/com/ptz.cgi"
 
 
 def wait_still(cam, timeout=6.0):
-    t_end = time.monotonic() + timeout
-    while cam.state.moving() and time.monotonic() < t_end:
-        time.sleep(0.02)
+    wait_until(lambda: not cam.state.moving(), timeout, 0.02, scaled=False, raises=False)
 
 
 def query_position(client):
@@ -64,7 +63,7 @@ def test_errors_are_200_error_text_and_change_nothing(cam, client, query, messag
     r = client.get(PTZ, params=query)
     assert r.status_code == 200
     assert r.text == f"Error:\n{message}\n"
-    time.sleep(0.05)
+    time.sleep(0.05)  # a window for a (wrong) move: the thing under test is that the head stays put
     assert cam.position() == pytest.approx(before)
 
 
@@ -93,25 +92,24 @@ def test_dynamics_report_intermediate_positions(cam, client):
     t0 = time.monotonic()
     client.get(PTZ, params={"pan": "170"})  # 340 deg at 100 deg/s = 3.4 s
     t1 = time.monotonic()
-    time.sleep(0.5)
+    wait_until(lambda: cam.position()[0] > -120.0, 10.0, what="the head under way")  # 50 deg of 340
     t2 = time.monotonic()
     pan = float(query_position(client)["pan"])
     t3 = time.monotonic()
     assert -170 < pan < 170
     assert 100 * (t2 - t1) - 0.01 <= pan + 170 <= 100 * (t3 - t0) + 0.01
     client.get(PTZ, params={"continuouspantiltmove": "-50,0"})  # cancels the absolute move: -50 deg/s
-    time.sleep(0.1)
-    ta = time.monotonic()
+    ta = time.monotonic()  # the reply came after the simulator applied the command
     p1 = cam.position()[0]
     tb = time.monotonic()
-    time.sleep(0.3)
+    wait_until(lambda: cam.position()[0] < p1 - 15.0, 10.0, what="the head 15 deg further left")
     tc = time.monotonic()
     p2 = cam.position()[0]
     td = time.monotonic()
     assert 50 * (tc - tb) - 0.01 <= p1 - p2 <= 50 * (td - ta) + 0.01
     client.get(PTZ, params={"continuouspantiltmove": "0,0"})
     p2 = cam.position()[0]
-    time.sleep(0.2)
+    time.sleep(0.2)  # a window for a (wrong) drift: the thing under test is that the head stays put
     assert cam.position()[0] == pytest.approx(p2, abs=0.01)
 
 

@@ -15,18 +15,14 @@ from axis_ptz_ros2.sim import SimulatedCamera
 from axis_ptz_ros2.streaming import ReaderConfig, StreamReader
 from axis_ptz_ros2.vapix import CameraConfig, Resolution, VapixClient, VideoParams
 from tests.support.stamps import sim_stamp
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 VIDEO = "/axis-cgi/mjpg/video.cgi?resolution=176x144&fps=10"
 
 
 def _wait(pred, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return
-        time.sleep(0.01)
-    raise AssertionError("timed out")
+    wait_until(pred, timeout, scaled=False)
 
 
 def test_blackhole_connects_hang_and_open_streams_go_mute():

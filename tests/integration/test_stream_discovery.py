@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import socket
 import threading
-import time
 
 import pytest
 
@@ -12,6 +11,7 @@ from axis_ptz_ros2.camera_models import CameraProfile
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery, probe_tcp
 from axis_ptz_ros2.vapix import CameraConfig, CameraUnreachable, Resolution, VapixClient, VideoParams
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -64,9 +64,7 @@ def test_learns_the_camera_once_at_start_up_and_opens_its_stream():
     with SimulatedCamera() as cam, VapixClient(CameraConfig(cam.host, cam.port, timeout_s=3.0)) as client:
         d = seen.discovery(client)
         d.start()
-        deadline = time.monotonic() + 10
-        while not d.learned and time.monotonic() < deadline:
-            time.sleep(0.02)
+        wait_until(lambda: d.learned, 10.0, 0.02, scaled=False, raises=False)
         d.stop(2.0)
         assert Resolution(704, 576) in d.learned
         assert seen.lists == [d.learned], "the list is handed over once"
@@ -93,7 +91,7 @@ def test_an_absent_camera_is_probed_with_tcp_and_retried_with_back_off():
         with pytest.raises(CameraUnreachable, match="not accepting connections"):
             d.open(P176, 0.5)  # then a bare TCP connect decides
         d.start()
-        time.sleep(0.6)
+        wait_until(lambda: len(seen.problems) >= 3, 5.0, what="the start-up thread to keep asking")
         d.stop(2.0)
         assert len(seen.problems) >= 3, "the start-up thread keeps asking"
         assert all(p.startswith("cannot ask the camera what it is") for p in seen.problems)

@@ -50,3 +50,17 @@ def wait_until(
     if not raises:
         return v
     raise AssertionError(f"timed out after {timeout:.1f} s waiting for {what or predicate}")
+
+
+def succeeds(call: Callable[[], Any], *errors: type[BaseException]) -> Callable[[], bool]:
+    """A predicate for :func:`wait_until`: True once ``call()`` returns without raising one of ``errors`` (any
+    other exception propagates)."""
+
+    def attempt() -> bool:
+        try:
+            call()
+        except errors:
+            return False
+        return True
+
+    return attempt
