@@ -46,6 +46,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
 from axis_ptz_ros2.sim.world import PtzLimits, TargetSpec, load_world  # noqa: E402
+from tests.support.waiting import wait_until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -136,12 +137,8 @@ def sim_pose(cam: SimulatedCamera) -> tuple[float, float, float]:
 
 
 def wait_sim_still(cam: SimulatedCamera, timeout: float = 10.0) -> tuple[float, float, float]:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if not cam.state.moving():
-            return sim_pose(cam)
-        time.sleep(0.01)
-    raise AssertionError("simulated head still moving")
+    wait_until(lambda: not cam.state.moving(), timeout, what="the simulated head to stop moving")
+    return sim_pose(cam)
 
 
 def motion_requests(cam: SimulatedCamera) -> list[Any]:
@@ -186,10 +183,8 @@ def wait_velocity_stop(ros: Any, cam: SimulatedCamera, timeout: float) -> tuple[
 
 
 def connect(ros: Any, pub: Any) -> Any:
-    """Wait until the node's subscription matched (and give the other side's discovery a moment)."""
-    ros.wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
-    time.sleep(0.3)
-    return pub
+    """Wait until the node's subscription and ``pub`` have matched each other (both sides)."""
+    return ros.wait_matched(pub, 10.0)
 
 
 def cmd(pan: float = NAN, tilt: float = NAN, zoom: float = NAN, speed: float = NAN) -> PtzCommand:
@@ -272,8 +267,10 @@ def test_out_of_limits_refused_and_never_sent(ros: Any, node: PtzNode, cam: Simu
         assert not resp.success
         assert "limits" in resp.message, resp.message
     pub = connect(ros, probe.create_publisher(PtzCommand, "ptz/cmd/absolute", COMMAND_QOS))
+    refused0 = node.commander.stats.refused
     pub.publish(cmd(pan=math.radians(-200.0)))
-    time.sleep(0.3)
+    ros.wait_for(lambda: node.commander.stats.refused > refused0, 5.0)  # the node took it and refused it
+    assert "limits" in node.commander.stats.last_refusal, node.commander.stats.last_refusal
     assert motion_requests(cam) == []  # the camera never saw a command
     assert cam.position() == pytest.approx((0.0, 0.0, 1.0))
     # a command right at the limit is accepted
@@ -303,7 +300,7 @@ def test_velocity_moves_then_stops_by_itself(ros: Any, node: PtzNode, cam: Simul
     # just before each request is applied (same thread), so only scheduling jitter separates them.
     assert p == pytest.approx(rate * moved_for, rel=0.05)
     assert t == pytest.approx(-p / 2.0, rel=0.05)
-    time.sleep(0.3)
+    time.sleep(0.3)  # a window for a (wrong) second stop or move: the thing under test is that the head stays put
     assert sim_pose(cam) == pytest.approx((p, t, 1.0), abs=1e-6)
 
 
@@ -347,7 +344,7 @@ def test_area_zoom_fills_the_view_with_the_box(ros: Any, node: PtzNode, cam: Sim
     ros.wait_for(
         lambda: node.poller.latest is not None and abs(node.poller.latest.reading.tilt - math.radians(38)) < 1e-3
     )
-    time.sleep(0.1)
+    time.sleep(0.1)  # let the state loop hand this sample to the commander too (not observable from outside)
     box = find_marker(snapshot(cam), UP_COLOR)
     assert box is not None
     probe = ros.probe()
@@ -479,7 +476,7 @@ def test_burst_of_relative_commands_coalesces(ros: Any, node: PtzNode, cam: Simu
     gen0 = node.commander.generation
     for _ in range(300):
         pub.publish(cmd(pan=step))
-        time.sleep(1.0 / 30.0)
+        time.sleep(1.0 / 30.0)  # pace the commands as a 30 Hz joystick does: the load is the thing under test
     # the moment the node has taken the last command (every command counts one generation) ...
     ros.wait_for(lambda: node.commander.generation == gen0 + 300, 20.0)
     n_at_last = len(motion_requests(cam))
@@ -512,14 +509,16 @@ def test_state_survives_errors_stall_and_reboot(ros: Any, node: PtzNode, cam: Si
         )
 
     for code in (500, 503):
+        failed0 = node.poller.stats.failed
         cam.set_faults(http_error=code)
-        time.sleep(0.8)
+        ros.wait_for(lambda f=failed0: node.poller.stats.failed >= f + 2, 5.0)  # the node is blind
         cam.teleport(10.0 + code / 100.0, 0.0, 1)  # the head moved while we were blind
         cam.set_faults(FaultConfig())
         resumes_at(10.0 + code / 100.0)
     # a stall: every reply 1.5 s late (> state_timeout 0.5 s)
+    failed0 = node.poller.stats.failed
     cam.set_faults(latency_ms=1500.0)
-    time.sleep(1.5)
+    ros.wait_for(lambda: node.poller.stats.failed > failed0, 5.0)  # a poll timed out
     cam.teleport(-33.0, 0.0, 1)
     cam.set_faults(FaultConfig())
     resumes_at(-33.0, 8.0)
@@ -638,7 +637,7 @@ def test_home_and_preset_right_after_velocity_are_not_stopped_by_the_watchdog(
         assert r.success, r.message
         assert "arrived" in r.message
         assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)  # the sim's ground truth
-        time.sleep(0.5)  # nothing stops or moves the head afterwards either
+        time.sleep(0.5)  # a window for a (wrong) stop or move after arrival: the thing under test is none comes
         assert cam.position() == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)
         assert_not_stopped_by_the_watchdog(cam, timeout, arrived)
         # the same for a preset goto with wait
@@ -655,7 +654,7 @@ def test_home_and_preset_right_after_velocity_are_not_stopped_by_the_watchdog(
         assert r.success, r.message
         assert "arrived" in r.message
         assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
-        time.sleep(0.5)
+        time.sleep(0.5)  # a window for a (wrong) stop or move after arrival: the thing under test is none comes
         assert cam.position() == pytest.approx((150.0, -20.0, 3000.0), abs=1e-3)
         assert_not_stopped_by_the_watchdog(cam, timeout, arrived)
     finally:
@@ -708,7 +707,7 @@ def test_infinite_values_are_refused_never_sent(ros: Any, node: PtzNode, cam: Si
     pub_vel.publish(PtzVelocity(pan_rate=math.inf, tilt_rate=0.0, zoom_rate=0.0))
     pub_vel.publish(PtzVelocity(pan_rate=0.0, tilt_rate=-math.inf, zoom_rate=0.0))
     ros.wait_for(lambda: node.commander.stats.refused >= refused0 + 9, 5.0)
-    time.sleep(0.3)
+    time.sleep(0.3)  # a window for a (wrong) move or stop sent after the refusal: the thing under test is none comes
     assert motion_requests(cam) == []  # neither a move, nor a "keep this axis" move, nor a silent stop
     assert cam.position() == pytest.approx((-10.0, 0.0, 1.0), abs=1e-3)
 
@@ -881,7 +880,7 @@ def test_move_action_cancel_stops_the_head(ros: Any, node: PtzNode, cam: Simulat
     assert not cam.state.moving()
     stopped = cam.position()
     assert 1.0 < stopped[0] < 89.0  # VAPIX +pan = right = REP-103 -90: stopped on the way
-    time.sleep(0.5)
+    time.sleep(0.5)  # a window for a (wrong) restart of the move: the thing under test is that none comes
     assert cam.position() == pytest.approx(stopped, abs=1e-6)  # and stays stopped
     assert res.result.state.pan == pytest.approx(-math.radians(stopped[0]), abs=1e-3), res.result.message
 

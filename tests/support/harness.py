@@ -47,6 +47,25 @@ class RosHarness:
         """
         return wait_until(predicate, timeout, period)
 
+    def wait_matched(self, pub: Any, timeout: float = 10.0) -> Any:
+        """Wait until ``pub`` has matched a subscription and every subscription on its topic in this harness's
+        nodes has matched every publisher its node's graph knows, ``pub`` included (both sides of the DDS match:
+        a volatile message published before the reader matched the writer is lost). Returns ``pub``."""
+        topic = pub.topic_name
+
+        def matched() -> bool:
+            if pub.get_subscription_count() == 0:
+                return False
+            return all(
+                sub.get_publisher_count() >= node.count_publishers(topic)
+                for node in list(self.nodes)
+                for sub in list(node.subscriptions)
+                if sub.topic_name == topic
+            )
+
+        self.wait_for(matched, timeout)
+        return pub
+
     def call(self, client: Any, request: Any, timeout: float = 10.0) -> Any:
         """Call a service from the test thread while the executor spins in the background."""
         assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
