@@ -13,15 +13,17 @@ Layers, lowest first — a module may import its own layer and the layers below 
 and ROS (``rclpy`` and message packages) only in layer 3. The simulator is a stand-in for hardware: the product's
 layers below it must not import it (``test_package_imports.py`` checks who may).
 
-The graph is the runtime one: imports under ``if TYPE_CHECKING:`` are annotations (the simulator's request handlers
-name the camera type they are handed), not dependencies, and are left out.
+Every import counts, also those under ``if TYPE_CHECKING:`` (annotation-only): a module whose annotations name
+another cannot be read or type-checked without it, so an annotation is a dependency as much as a call (issue 38).
+A handler that must not know its owner is typed against a small interface in a module of its own (e.g.
+``sim/view.py``'s ``CameraView``, ``web/handler.py``'s ``ConsoleHost``).
 """
 
 from __future__ import annotations
 
 import pytest
 
-from tests.unit.test_package_imports import PACKAGE, import_graph
+from tests.unit.test_package_imports import PACKAGE, import_graph, imported_names
 
 pytestmark = pytest.mark.unit
 
@@ -52,7 +54,7 @@ def _layer(module: str) -> int:
 
 
 def _graph() -> dict[str, set[str]]:
-    full = import_graph(runtime_only=True)
+    full = import_graph()
     return {m: {t for t in ts if t in full or t.split(".")[0] in ROS_ROOTS} for m, ts in full.items()}
 
 
@@ -87,9 +89,9 @@ def test_ros_only_in_nodes() -> None:
     assert not bad, "\n".join(sorted(bad))
 
 
-def _cycles() -> list[list[str]]:
-    """Strongly connected components of more than one module (Tarjan), package ``__init__`` re-exports aside."""
-    graph = {m: {t for t in ts if t in GRAPH and not _is_package(t)} for m, ts in GRAPH.items() if not _is_package(m)}
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node of ``graph`` (Tarjan), each sorted; a node that
+    imports itself is one too. Edges to nodes outside ``graph`` are ignored."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -102,7 +104,9 @@ def _cycles() -> list[list[str]]:
         counter[0] += 1
         stack.append(v)
         on_stack.add(v)
-        for w in graph.get(v, ()):
+        for w in sorted(graph.get(v, ())):
+            if w not in graph:
+                continue
             if w not in index:
                 visit(w)
                 low[v] = min(low[v], low[w])
@@ -116,7 +120,7 @@ def _cycles() -> list[list[str]]:
                 component.append(w)
                 if w == v:
                     break
-            if len(component) > 1:
+            if len(component) > 1 or v in graph.get(v, ()):
                 found.append(sorted(component))
 
     for v in sorted(graph):
@@ -129,5 +133,39 @@ def _is_package(module: str) -> bool:
     return (PACKAGE.parent / module.replace(".", "/") / "__init__.py").exists()
 
 
+def module_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Module → module edges of the package: package ``__init__`` modules left out (importing ``a.b`` runs
+    ``a/__init__`` first, so a package that re-exports its submodules would close a loop with each of them)."""
+    return {
+        m: {t for t in ts if t.startswith("axis_ptz_ros2") and t in graph and not _is_package(t)}
+        for m, ts in graph.items()
+        if not _is_package(m)
+    }
+
+
+def test_the_cycle_finder_finds_circles() -> None:
+    """On small graphs: a two-module circle, a three-module one, a self-import; none in a tree."""
+    assert cycles({"a": {"b"}, "b": {"a"}, "c": {"a"}}) == [["a", "b"]]
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set()}) == [["a", "b", "c"]]
+    assert cycles({"a": {"a"}}) == [["a"]]
+    assert cycles({"a": {"b", "c"}, "b": {"c"}, "c": {"x"}}) == []
+
+
+def test_an_annotation_only_circle_is_a_circle() -> None:
+    """Two modules that import each other only for annotations (``if TYPE_CHECKING:``) form a circle."""
+    owner = "from axis_ptz_ros2.demo.handler import Handler\nclass Owner: ...\n"
+    handler = (
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from axis_ptz_ros2.demo.owner import Owner\n"
+        "class Handler:\n    owner: Owner\n"
+    )
+    graph = {
+        "axis_ptz_ros2.demo.owner": imported_names(owner, "axis_ptz_ros2.demo.owner"),
+        "axis_ptz_ros2.demo.handler": imported_names(handler, "axis_ptz_ros2.demo.handler"),
+    }
+    assert cycles(graph) == [["axis_ptz_ros2.demo.handler", "axis_ptz_ros2.demo.owner"]]
+
+
 def test_no_cycles() -> None:
-    assert not _cycles(), _cycles()
+    """No circle anywhere in the package, annotation-only imports included."""
+    found = cycles(module_graph(GRAPH))
+    assert not found, "import circles (strongly connected modules):\n" + "\n".join(" <-> ".join(c) for c in found)

@@ -33,25 +33,14 @@ def module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def imported_names(source: str, module: str, is_package: bool = False, *, runtime_only: bool = False) -> set[str]:
+def imported_names(source: str, module: str, is_package: bool = False) -> set[str]:
     """Every module ``source`` (the text of ``module``) may import; ``from x import y`` gives ``x`` and ``x.y``
-    (``y`` may be a submodule). ``runtime_only``: leave out imports under ``if TYPE_CHECKING:`` (annotations)."""
+    (``y`` may be a submodule). Imports under ``if TYPE_CHECKING:`` count like any other: a module whose
+    annotations name another cannot be read or type-checked without it."""
     package = module if is_package else module.rpartition(".")[0]
     out: set[str] = set()
     tree = ast.parse(source)
-    type_only = (
-        {
-            id(child)
-            for node in ast.walk(tree)
-            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
-            for child in ast.walk(node)
-        }
-        if runtime_only
-        else set()
-    )
     for node in ast.walk(tree):
-        if id(node) in type_only:
-            continue
         if isinstance(node, ast.Import):
             out.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -75,13 +64,13 @@ def imported_names(source: str, module: str, is_package: bool = False, *, runtim
     return out
 
 
-def import_graph(*, runtime_only: bool = False) -> dict[str, set[str]]:
+def import_graph() -> dict[str, set[str]]:
     """Module → the modules it imports, for every module of the package (see :func:`imported_names`)."""
     graph = {}
     for path in sorted(PACKAGE.rglob("*.py")):
         name = module_name(path)
         source = path.read_text(encoding="utf-8")
-        graph[name] = imported_names(source, name, path.name == "__init__.py", runtime_only=runtime_only)
+        graph[name] = imported_names(source, name, path.name == "__init__.py")
     return graph
 
 

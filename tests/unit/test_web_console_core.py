@@ -17,8 +17,8 @@ from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.web import api
 from axis_ptz_ros2.web.api import BadRequest
 from axis_ptz_ros2.web.auth import AuthThrottle, client_key
+from axis_ptz_ros2.web.backend import CommandResult
 from axis_ptz_ros2.web.panorama import cloud_in_base, look_target
-from axis_ptz_ros2.web.server import CommandResult
 from axis_ptz_ros2.web.view import (
     ConsoleModel,
     budget_answer,

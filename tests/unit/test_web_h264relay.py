@@ -16,6 +16,7 @@ av = pytest.importorskip("av")
 
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
 from axis_ptz_ros2.media.frame import EncodedFrame  # noqa: E402
+from axis_ptz_ros2.web.backend import CommandResult  # noqa: E402
 from axis_ptz_ros2.web.h264relay import (  # noqa: E402
     CONTENT_TYPE,
     MAX_CLIENT_QUEUE,
@@ -24,7 +25,8 @@ from axis_ptz_ros2.web.h264relay import (  # noqa: E402
     decode_records,
     encode_record,
 )
-from axis_ptz_ros2.web.server import CommandResult, ConsoleServer, FrameSlot  # noqa: E402
+from axis_ptz_ros2.web.relay import FrameSlot  # noqa: E402
+from axis_ptz_ros2.web.server import ConsoleServer  # noqa: E402
 
 pytestmark = pytest.mark.unit
 

@@ -32,8 +32,8 @@ from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.keymap import Command as TeleopCommand
 from axis_ptz_ros2.web import api
+from axis_ptz_ros2.web.backend import CommandResult
 from axis_ptz_ros2.web.panorama import cloud_msg_in_base, look_target
-from axis_ptz_ros2.web.server import CommandResult
 from axis_ptz_ros2.web.view import (
     ConsoleModel,
     budget_answer,

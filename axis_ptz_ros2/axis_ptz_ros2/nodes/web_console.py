@@ -40,8 +40,10 @@ from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.web_commands import ConsoleCommands
 from axis_ptz_ros2.nodes.web_streams import ConsoleStreams
 from axis_ptz_ros2.web.auth import AuthThrottle, load_token
+from axis_ptz_ros2.web.backend import CommandResult
 from axis_ptz_ros2.web.h264relay import H264Slot
-from axis_ptz_ros2.web.server import CommandResult, ConsoleServer, FrameSlot, serve
+from axis_ptz_ros2.web.relay import FrameSlot
+from axis_ptz_ros2.web.server import ConsoleServer, serve
 from axis_ptz_ros2.web.view import ConsoleModel, keymap_json
 
 PARAMS: tuple[ParamSpec, ...] = (

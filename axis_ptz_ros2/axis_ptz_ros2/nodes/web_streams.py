@@ -1,6 +1,6 @@
 """The web console's video: image topics subscribed only while an HTTP client watches them, relayed as they are.
 
-Each stream (``ptz``, ``panorama``, ``overlay``) has a :class:`~axis_ptz_ros2.web.server.FrameSlot` the HTTP
+Each stream (``ptz``, ``panorama``, ``overlay``) has a :class:`~axis_ptz_ros2.web.relay.FrameSlot` the HTTP
 threads read from; the PTZ video also has an :class:`~axis_ptz_ros2.web.h264relay.H264Slot` (FFMPEGPacket access
 units for WebCodecs pages). When the first client comes or the last goes, the HTTP thread triggers a guard
 condition and the executor subscribes to exactly the topics someone watches. What arrives of the PTZ video is
@@ -23,7 +23,7 @@ from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, stamp_s
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.streaming.receiver import PtsGaps
 from axis_ptz_ros2.web.h264relay import H264Slot
-from axis_ptz_ros2.web.server import FrameSlot
+from axis_ptz_ros2.web.relay import FrameSlot
 from axis_ptz_ros2.web.view import ConsoleModel
 
 

@@ -3,8 +3,10 @@
 :class:`SimulatedCamera` owns what a camera is: its persona, PTZ head, parameter tree, credentials
 (:class:`~axis_ptz_ros2.sim.digest.CameraAuth`), picture (:class:`~axis_ptz_ros2.sim.frames.FrameSource`),
 faults, request log, and its life: start, stop, reboot (with or without a black hole). It serves through any
-number of :class:`Listener` s that it opens and closes together: today the VAPIX HTTP server
-(:mod:`axis_ptz_ros2.sim.http`), later an RTSP one. Protocol handlers use only its public methods.
+number of :class:`Listener` s that it opens and closes together: the VAPIX HTTP server
+(:mod:`axis_ptz_ros2.sim.http`) and, on personas that stream H.264, the RTSP one (:mod:`axis_ptz_ros2.sim.rtsp`).
+Protocol handlers see it through :class:`~axis_ptz_ros2.sim.view.CameraView` (only the members they use), so
+they never import this module.
 
 Endpoints and behaviour follow vapix.md §11 (the simulator contract); see :mod:`axis_ptz_ros2.sim.http.server`.
 """
@@ -149,8 +151,9 @@ class SimulatedCamera:
         self._error_kind = "503"
         self.video_ok_at: float | None = None  #: wall time (time.time()) video was served again after a reboot
         self._lifecycle = threading.Lock()
-        self.frames_sent = 0
-        self.snapshots_sent = 0
+        self._counters = threading.Lock()  #: guards the two counters below (handler threads advance them)
+        self._frames_sent = 0
+        self._snapshots_sent = 0
 
     def __repr__(self) -> str:
         url = self.base_url if self.port else None
@@ -315,6 +318,31 @@ class SimulatedCamera:
     def serving_errors(self) -> bool:
         """Whether the camera is in the "web server up, video not yet" phase of a reboot."""
         return time.monotonic() < self._errors_until
+
+    # ---- counters (handler threads advance them, under the camera's lock) -------------------------------
+    def count_frame_sent(self) -> int:
+        """One more MJPEG frame sent; the new total."""
+        with self._counters:
+            self._frames_sent += 1
+            return self._frames_sent
+
+    def count_snapshot(self) -> int:
+        """One more ``image.cgi`` snapshot sent; the new total (its stamp)."""
+        with self._counters:
+            self._snapshots_sent += 1
+            return self._snapshots_sent
+
+    @property
+    def frames_sent(self) -> int:
+        """MJPEG frames sent since start-up."""
+        with self._counters:
+            return self._frames_sent
+
+    @property
+    def snapshots_sent(self) -> int:
+        """``image.cgi`` snapshots sent since start-up."""
+        with self._counters:
+            return self._snapshots_sent
 
     # ---- ground truth and control ----------------------------------------------------------------------
     def current_params(self) -> dict[str, str]:

@@ -13,13 +13,11 @@ import json
 import math
 import threading
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from axis_ptz_ros2.sim.digest import CHALLENGE_STYLES
 from axis_ptz_ros2.sim.faults import REBOOT_ERROR_KINDS, FaultConfig
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.view import CameraView
 
 
 @dataclass(frozen=True)
@@ -31,7 +29,7 @@ class ControlReply:
     reboot_s: float | None = None
     reboot_opts: dict[str, Any] = field(default_factory=dict)
 
-    def start_reboot(self, cam: SimulatedCamera) -> None:
+    def start_reboot(self, cam: CameraView) -> None:
         """Start the requested reboot, if any (in the background: it returns at once)."""
         if self.reboot_s is not None:
             threading.Thread(target=cam.reboot, args=(self.reboot_s,), kwargs=self.reboot_opts, daemon=True).start()
@@ -64,7 +62,7 @@ def _nonce_lifetime(value: str) -> float:
     return s
 
 
-def handle(cam: SimulatedCamera, path: str, args: list[tuple[str, str]]) -> ControlReply:
+def handle(cam: CameraView, path: str, args: list[tuple[str, str]]) -> ControlReply:
     """Answer a ``/sim/…`` request (``args``: query string pairs, in order). Every argument is checked before any is
     applied: a request with one bad argument is refused (400, the reason) and changes nothing."""
     if path == "/sim/state":

@@ -1,8 +1,9 @@
 """The simulated cameras' parameter trees, what ``param.cgi?action=list`` prints of them, and which are
 read-only (vapix.md §4.7, §6; ROS-free).
 
-A persona (:mod:`axis_ptz_ros2.sim.persona`) names its tree builder: :func:`axis214_tree` (the 214 of the thesis,
-firmware 4.49, VAPIX 2) or :func:`modern_tree` (an AXIS OS PTZ dome). :func:`list_params` answers
+A persona (:mod:`axis_ptz_ros2.sim.persona`) names its tree by a :data:`TreeTag`; :func:`parameter_tree` builds
+it with the builder of that tag: :func:`axis214_tree` (``axis214``: the 214 of the thesis, firmware 4.49, VAPIX 2)
+or :func:`modern_tree` (``modern``: an AXIS OS PTZ dome). :func:`list_params` answers
 ``action=list`` the way the real cameras do; :func:`preset_params` mirrors server presets under
 ``PTZ.Preset.P0.*``.
 """
@@ -11,13 +12,39 @@ from __future__ import annotations
 
 import fnmatch
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from typing import Literal, Protocol
 
 from axis_ptz_ros2.geometry import ZoomModel
 from axis_ptz_ros2.sim.world import PtzLimits
 
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.persona import Persona
+#: The parameter trees there are, by tag: a persona names its own (``Persona.tree``).
+TreeTag = Literal["axis214", "modern"]
+
+
+class TreeFacts(Protocol):
+    """What a parameter tree shows of the persona it is built for (a :class:`~.persona.Persona` has these)."""
+
+    @property
+    def resolutions(self) -> Mapping[str, tuple[int, int]]:
+        """The resolution names listed in ``Properties.Image.Resolution``."""
+        ...
+
+    @property
+    def default_resolution(self) -> str:
+        """``Image.I0.Appearance.Resolution``."""
+        ...
+
+    @property
+    def api_version(self) -> int:
+        """``Properties.API.HTTP.Version``."""
+        ...
+
+    @property
+    def https(self) -> bool:
+        """``HTTPS.Enabled`` (before the camera's own setting overrides it)."""
+        ...
+
 
 _SUPPORT = [
     "AbsolutePan",
@@ -96,7 +123,7 @@ def _limit_l1(limits: PtzLimits, zoom: ZoomModel, narrowest: float, floor: int) 
     }
 
 
-def axis214_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
+def axis214_tree(persona: TreeFacts, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
     """The 214's parameters (names without the ``root.`` prefix) in listing order."""
     p: dict[str, str] = {
         "Brand.Brand": "AXIS",
@@ -240,7 +267,7 @@ _Q6075_SUPPORT = {
 }
 
 
-def modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
+def modern_tree(persona: TreeFacts, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
     """A current AXIS OS PTZ dome's parameters (names as in vapix.md §4.7, §6; values per the persona)."""
     resolutions = ",".join(persona.resolutions)
     optical_end = zoom.optical_max_zoom or limits.max_zoom
@@ -291,6 +318,23 @@ def modern_tree(persona: Persona, limits: PtzLimits, zoom: ZoomModel, mac: str, 
         }
     )
     return p
+
+
+TreeBuilder = Callable[[TreeFacts, PtzLimits, ZoomModel, str, str], dict[str, str]]
+
+#: The builder of each tree tag.
+TREE_BUILDERS: dict[str, TreeBuilder] = {"axis214": axis214_tree, "modern": modern_tree}
+
+
+def parameter_tree(
+    tag: str, persona: TreeFacts, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str
+) -> dict[str, str]:
+    """The parameters (names without ``root.``, in listing order) of the tree ``tag`` for ``persona``;
+    :class:`ValueError` for an unknown tag."""
+    builder = TREE_BUILDERS.get(tag)
+    if builder is None:
+        raise ValueError(f"unknown parameter tree {tag!r}; known: {', '.join(TREE_BUILDERS)}")
+    return builder(persona, limits, zoom, mac, auth)
 
 
 def preset_params(presets: list[tuple[int, str, float, float, float]], home: int) -> dict[str, str]:

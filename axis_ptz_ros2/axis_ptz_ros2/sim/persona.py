@@ -17,12 +17,12 @@ pages in :mod:`axis_ptz_ros2.sim.http.pages`; :func:`persona` looks a model up b
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from axis_ptz_ros2.geometry import PtzKinematics, ZoomCurve, ZoomModel
 from axis_ptz_ros2.sim.camera_model import CameraModel
-from axis_ptz_ros2.sim.params import axis214_tree, modern_tree
+from axis_ptz_ros2.sim.params import TREE_BUILDERS, TreeTag, parameter_tree
 from axis_ptz_ros2.sim.ptz import Speeds
 from axis_ptz_ros2.sim.scene import PtzLimits
 
@@ -40,9 +40,6 @@ SQUARE_PIXEL_FACTOR = 12.0 / 11.0  # PAL
 # --------------------------------------------------------------------------------------------------------
 # Personas
 # --------------------------------------------------------------------------------------------------------
-TreeBuilder = Callable[["Persona", PtzLimits, ZoomModel, str, str], dict[str, str]]
-
-
 @dataclass(frozen=True)
 class Persona:
     """Everything that differs between simulated camera models (frozen data; see the module docstring).
@@ -62,7 +59,7 @@ class Persona:
     api_version: int
     default_auth: str
     https: bool
-    tree: TreeBuilder
+    tree: TreeTag  # which parameter tree it answers param.cgi with (sim/params.py builds it)
     camera_model_file: str
     speeds: Speeds = field(default_factory=Speeds)
     limits: PtzLimits | None = None
@@ -78,6 +75,10 @@ class Persona:
     frame_rate: int = 30  # pictures per second at most, whatever fps= asks (see the class docstring)
 
     def __post_init__(self) -> None:
+        if self.tree not in TREE_BUILDERS:
+            raise ValueError(
+                f"persona {self.key}: unknown parameter tree {self.tree!r}; known: {', '.join(TREE_BUILDERS)}"
+            )
         if not 1 <= self.frame_rate <= 120:
             raise ValueError(f"persona {self.key}: frame_rate={self.frame_rate} outside 1…120 pictures per second")
 
@@ -111,7 +112,7 @@ class Persona:
 
     def parameter_tree(self, limits: PtzLimits, zoom: ZoomModel, mac: str, auth: str) -> dict[str, str]:
         """The camera's parameters (names without ``root.``) in listing order."""
-        return self.tree(self, limits, zoom, mac, auth)
+        return parameter_tree(self.tree, self, limits, zoom, mac, auth)
 
 
 #: The 214's picture (``sim/camera_model.py``; README "What the simulated camera's pictures are made of").
@@ -159,7 +160,7 @@ AXIS_214 = Persona(
     api_version=2,
     default_auth="none",
     https=False,
-    tree=axis214_tree,
+    tree="axis214",
     camera_model_file="axis214.yaml",
     preset_params=True,  # every recorded listing keeps presets under PTZ.Preset.P0 (assumed for fw 4.49)
     server_header="",  # a real Axis MJPEG reply has no Server header; for other replies of fw 4.49: unknown
@@ -240,7 +241,7 @@ AXIS_Q6075 = Persona(
     api_version=3,
     default_auth="digest",
     https=True,
-    tree=modern_tree,
+    tree="modern",
     camera_model_file="q6075.yaml",
     speeds=Speeds(pan_deg_s=450.0, tilt_deg_s=300.0, zoom_full_travel_s=4.0, focus_full_travel_s=1.0),
     limits=Q6075_LIMITS,

@@ -13,27 +13,29 @@ put into a URL; the cookie is ``HttpOnly; SameSite=Strict`` (and ``Secure`` over
 
 from __future__ import annotations
 
-import ipaddress
 import json
 import math
 import socket
+import threading
+from collections.abc import Callable
 from contextlib import suppress
 from html import escape as html_escape
 from http import HTTPStatus
 from http.cookies import SimpleCookie
 from http.server import BaseHTTPRequestHandler
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 from urllib.parse import parse_qs, quote, unquote, urlsplit
 
 from axis_ptz_ros2.vapix.mjpeg import multipart_content_type
 from axis_ptz_ros2.web.api import COMMANDS as COMMAND_FIELDS
 from axis_ptz_ros2.web.api import STREAM_NAMES, BadRequest
+from axis_ptz_ros2.web.auth import AuthThrottle
+from axis_ptz_ros2.web.backend import ConsoleBackend
 from axis_ptz_ros2.web.h264relay import CONTENT_TYPE as H264_CONTENT_TYPE
+from axis_ptz_ros2.web.loopback import is_loopback
 from axis_ptz_ros2.web.relay import BOUNDARY, FrameSlot, h264_parts, jpeg_parts, relay
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.web.server import ConsoleServer
+from axis_ptz_ros2.web.tls import TlsIdentity
 
 STATIC_TYPES = {
     ".html": "text/html; charset=utf-8",
@@ -48,20 +50,28 @@ STREAMS = STREAM_NAMES
 COMMANDS = tuple(COMMAND_FIELDS)
 
 
-def is_loopback(host: str) -> bool:
-    """True for 127.0.0.0/8, ::1 and ``localhost``."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
+class ConsoleHost(Protocol):
+    """What a handler uses of the server it runs in (:class:`.server.ConsoleServer` is one)."""
+
+    backend: ConsoleBackend
+    bind: str
+    io_timeout: float
+    log: Callable[[str], None] | None
+    static_dir: Path
+    stop_event: threading.Event
+    throttle: AuthThrottle
+    tls: TlsIdentity | None
+    token: str | None
+
+    def token_ok(self, presented: str | None) -> bool:
+        """Whether ``presented`` is the configured token (True when none is configured)."""
+        ...
 
 
 class ConsoleHandler(BaseHTTPRequestHandler):
     """One connection to the console: strict parsing, the guards, the routes of :data:`.api.ROUTES`."""
 
-    server: ConsoleServer
+    server: ConsoleHost  # type: ignore[assignment]  # the stdlib declares its BaseServer
     protocol_version = "HTTP/1.1"
     server_version = "axis_web_console/1"
     default_request_version = "HTTP/1.0"  # errors on unparsable request lines still get a status line

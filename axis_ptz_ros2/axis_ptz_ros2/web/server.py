@@ -1,10 +1,10 @@
 """The web console's HTTP server (ROS-free): lifecycle, TLS per connection, the backend interface, :func:`serve`.
 
 One :class:`ConsoleServer` (a stdlib ``ThreadingHTTPServer``) runs in one managed thread and talks to the ROS
-side only through a :class:`ConsoleBackend` (the ``axis_web_console`` node implements it). Each connection gets
+side only through a :class:`.backend.ConsoleBackend` (the ``axis_web_console`` node implements it). Each connection gets
 its own thread: the TLS handshake (when serving HTTPS), then one :class:`.handler.ConsoleHandler` (strict parsing,
 Host/token/origin guards, the routes); video goes out through :mod:`.relay` (newest-frame slots, MJPEG) and
-:mod:`.h264relay`. This module keeps re-exporting the names those two modules took over.
+:mod:`.h264relay`. Which hosts are loopback: :mod:`.loopback`.
 
 Security: by default the server binds 127.0.0.1 (the handler then answers only loopback ``Host`` names: no DNS
 rebinding); binding any other address requires a token, which every request must then carry, and HTTPS
@@ -21,63 +21,17 @@ import threading
 import time
 from collections.abc import Callable
 from contextlib import suppress
-from dataclasses import dataclass, field
 from http.server import ThreadingHTTPServer
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
-from axis_ptz_ros2.web.api import integer as integer  # re-exported for callers of this module
-from axis_ptz_ros2.web.api import number as number
 from axis_ptz_ros2.web.auth import AuthThrottle, token_matches
-from axis_ptz_ros2.web.h264relay import H264Slot
-from axis_ptz_ros2.web.handler import COMMANDS as COMMANDS  # the names below were defined here before the split
-from axis_ptz_ros2.web.handler import COOKIE as COOKIE
-from axis_ptz_ros2.web.handler import MAX_BODY as MAX_BODY
-from axis_ptz_ros2.web.handler import STATIC_TYPES as STATIC_TYPES
-from axis_ptz_ros2.web.handler import STREAMS as STREAMS
-from axis_ptz_ros2.web.handler import ConsoleHandler as ConsoleHandler
-from axis_ptz_ros2.web.handler import is_loopback as is_loopback
-from axis_ptz_ros2.web.relay import BOUNDARY as BOUNDARY
-from axis_ptz_ros2.web.relay import FrameSlot as FrameSlot
+from axis_ptz_ros2.web.backend import ConsoleBackend
+from axis_ptz_ros2.web.handler import ConsoleHandler, ConsoleHost
+from axis_ptz_ros2.web.loopback import is_loopback
 from axis_ptz_ros2.web.tls import TlsIdentity, load_identity
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Backend interface
-# ---------------------------------------------------------------------------------------------------------
-@dataclass
-class CommandResult:
-    """Outcome of an operator command: HTTP status, ``ok`` and a human-readable message (+ extra fields)."""
-
-    ok: bool
-    message: str
-    status: int = 200
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    def body(self) -> dict[str, Any]:
-        """The JSON answer ``{ok, message, ...}``."""
-        return {"ok": self.ok, "message": self.message, **self.extra}
-
-
-class ConsoleBackend(Protocol):
-    """What the HTTP side needs from the ROS side."""
-
-    def slot(self, name: str) -> FrameSlot | None:
-        """The frame slot of stream ``name`` (``ptz``, ``panorama``, ``overlay``), or None if not served."""
-
-    def h264_slot(self, name: str) -> H264Slot | None:
-        """The H.264 relay of stream ``name`` (only ``ptz``), or None if not served."""
-
-    def state(self) -> dict[str, Any]:
-        """Everything the page shows (JSON-serialisable)."""
-
-    def keymap(self) -> dict[str, Any]:
-        """The keyboard teleop key map as JSON (one table drives the terminal teleop and the page)."""
-
-    def command(self, name: str, body: dict[str, Any]) -> CommandResult:
-        """Run one of :data:`COMMANDS` (may raise :class:`BadRequest`); must return within a bounded time."""
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -258,6 +212,10 @@ class ConsoleServer(ThreadingHTTPServer):
         if not presented:
             return False
         return token_matches(presented, self.token)
+
+
+#: (for mypy) a ConsoleServer is what a :class:`ConsoleHandler` needs of its server
+_SERVER_IS_A_HOST: type[ConsoleHost] = ConsoleServer
 
 
 def serve(

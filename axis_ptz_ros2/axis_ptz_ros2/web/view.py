@@ -21,7 +21,7 @@ from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.teleop import keymap
 from axis_ptz_ros2.teleop.status import video_text as video_text  # re-exported: the keyboard teleop's words
 from axis_ptz_ros2.web.api import BadRequest, video_limits
-from axis_ptz_ros2.web.server import CommandResult
+from axis_ptz_ros2.web.backend import CommandResult
 
 #: Browser ``KeyboardEvent.key`` for the key map's special keys (letters and digits are themselves).
 BROWSER_KEYS = {"<left>": "ArrowLeft", "<right>": "ArrowRight", "<up>": "ArrowUp", "<down>": "ArrowDown",

@@ -16,24 +16,73 @@ import os
 import secrets
 import socket
 import time
-from typing import TYPE_CHECKING
+from io import BufferedIOBase
+from typing import Protocol
 
 from axis_ptz_ros2.sim.faults import FaultConfig
 from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.http.vapix import ImageRequest, Reply, image_args
+from axis_ptz_ros2.sim.view import CameraView
 from axis_ptz_ros2.vapix.mjpeg import multipart_content_type, part_header
 
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.http.server import CameraRequestHandler
-
 BOUNDARY = "myboundary"
+
+
+class VideoConnection(Protocol):
+    """The HTTP connection a stream is written to (the server's request handler implements it)."""
+
+    close_connection: bool
+    protocol_version: str
+
+    @property
+    def cam(self) -> CameraView:
+        """The camera this connection talks to."""
+        ...
+
+    @property
+    def wfile(self) -> BufferedIOBase:
+        """The connection's output stream."""
+        ...
+
+    @property
+    def connection(self) -> socket.socket:
+        """The connection's socket."""
+        ...
+
+    def log_request(self, code: int | str = "-", size: int | str = "-") -> None:
+        """Log the status (the stdlib's hook)."""
+        ...
+
+    def send_response_only(self, code: int, message: str | None = None) -> None:
+        """The status line alone."""
+        ...
+
+    def send_header(self, keyword: str, value: str) -> None:
+        """One header line."""
+        ...
+
+    def end_headers(self) -> None:
+        """The blank line after the headers."""
+        ...
+
+    def send(self, reply: Reply, extra: list[tuple[str, str]] | None = None) -> None:
+        """A whole reply."""
+        ...
+
+    def write(self, data: bytes) -> None:
+        """Write honouring the bandwidth cap fault."""
+        ...
+
+    def hold_silently(self) -> None:
+        """Go mute while the camera drops packets, then reset the connection."""
+        ...
 
 
 class _StreamClosedError(Exception):
     """The MJPEG connection ended (client gone, camera stopped, or a drop fault)."""
 
 
-def serve_video(handler: CameraRequestHandler, args: list[tuple[str, str]]) -> None:
+def serve_video(handler: VideoConnection, args: list[tuple[str, str]]) -> None:
     """Answer ``video.cgi`` on ``handler``'s connection: the stream until it ends, then close."""
     try:
         req = image_args(handler.cam, args, video=True)
@@ -58,7 +107,7 @@ def serve_video(handler: CameraRequestHandler, args: list[tuple[str, str]]) -> N
         handler.hold_silently()  # the camera went mute mid-stream: no FIN, the client must time out
 
 
-def _stream(handler: CameraRequestHandler, req: ImageRequest) -> None:
+def _stream(handler: VideoConnection, req: ImageRequest) -> None:
     cam = handler.cam
     w, h, comp, overlay = req.width, req.height, req.compression, req.overlay
     duration, nframes = req.duration, req.nbrofframes
@@ -104,7 +153,7 @@ def _stream(handler: CameraRequestHandler, req: ImageRequest) -> None:
             _, jpeg = pending.popleft()
             seq += 1
             _send_part(handler, seq, jpeg, faults)
-            cam.frames_sent += 1
+            cam.count_frame_sent()
             if faults.stall_after_frames and seq == faults.stall_after_frames and not stalled:
                 stalled = True
                 if stop.wait(faults.stall_seconds):
@@ -131,7 +180,7 @@ def _stream(handler: CameraRequestHandler, req: ImageRequest) -> None:
             stop.wait(delay)
 
 
-def _send_part(handler: CameraRequestHandler, seq: int, jpeg: bytes, faults: FaultConfig) -> None:
+def _send_part(handler: VideoConnection, seq: int, jpeg: bytes, faults: FaultConfig) -> None:
     data = stamp(jpeg, seq)
     if faults.truncate_every and seq % faults.truncate_every == 0:
         data = data[: max(16, len(data) // 2)]

@@ -24,23 +24,21 @@ import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import TYPE_CHECKING, Any
+from typing import Any
 from urllib.parse import parse_qsl
 
 from axis_ptz_ros2.sim import control
 from axis_ptz_ros2.sim.http.mjpeg import serve_video
 from axis_ptz_ros2.sim.http.pages import UNAUTHORIZED_HTML
 from axis_ptz_ros2.sim.http.vapix import ENDPOINTS, HANDLERS, HTML, Reply, error_page, not_found
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.view import CameraView
 
 
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
     block_on_close = False
     allow_reuse_address = True
-    camera: SimulatedCamera
+    camera: CameraView
     tls: ssl.SSLContext | None = None
     conns: set[socket.socket]
     conns_lock: threading.Lock
@@ -68,7 +66,7 @@ class _Server(ThreadingHTTPServer):
 class HttpListener:
     """The camera's VAPIX HTTP(S) server on ``host:port`` (port 0: any free one, kept across reopenings)."""
 
-    def __init__(self, camera: SimulatedCamera, host: str, port: int) -> None:
+    def __init__(self, camera: CameraView, host: str, port: int) -> None:
         """Not listening yet: :meth:`open`."""
         self._camera = camera
         self._host = host
@@ -142,7 +140,7 @@ class CameraRequestHandler(BaseHTTPRequestHandler):
         """Silent (and so never logs credentials)."""
 
     @property
-    def cam(self) -> SimulatedCamera:
+    def cam(self) -> CameraView:
         """The camera this connection talks to."""
         return self.server.camera
 

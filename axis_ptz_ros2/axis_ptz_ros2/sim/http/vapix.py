@@ -11,17 +11,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS, stamp
 from axis_ptz_ros2.sim.http.pages import ERROR_HTML, NOT_FOUND_HTML
 from axis_ptz_ros2.sim.params import READ_ONLY_PREFIXES, list_params
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.request_args import int_arg
+from axis_ptz_ros2.sim.view import CameraView
 from axis_ptz_ros2.sim.world import PtzLimits
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
 
 Args = list[tuple[str, str]]
 
@@ -79,7 +76,7 @@ class ImageRequest:
     clock: bool
 
 
-def image_args(cam: SimulatedCamera, args: Args, video: bool) -> ImageRequest:
+def image_args(cam: CameraView, args: Args, video: bool) -> ImageRequest:
     """Validate image/video arguments (raises :class:`ValueError` with the camera's message)."""
     a = {k.lower(): v for k, v in args}
     p = cam.params
@@ -105,7 +102,7 @@ def image_args(cam: SimulatedCamera, args: Args, video: bool) -> ImageRequest:
     return ImageRequest(w, h, compression, overlay, fps, duration, nbrofframes, bool(parts))
 
 
-def ptz(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def ptz(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``ptz.cgi``: a move, a query or a preset (204 when there is nothing to say)."""
     cam.requests.log_ptz(method, query, args)
     try:
@@ -115,7 +112,7 @@ def ptz(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
     return Reply(204) if reply is None else Reply(200, reply)
 
 
-def ptzconfig(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def ptzconfig(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``ptzconfig.cgi``."""
     cam.requests.log_ptz(method, query, args)
     try:
@@ -125,7 +122,7 @@ def ptzconfig(cam: SimulatedCamera, method: str, args: Args, query: str) -> Repl
     return Reply(204)
 
 
-def param(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def param(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``param.cgi``: ``action=list`` and ``action=update`` (new PTZ limits apply to the head at once)."""
     action = next((v for k, v in args if k == "action"), "")
     if action == "list":
@@ -156,7 +153,7 @@ def param(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
     return Reply(200, "\n".join(lines) + "\n" if lines else "OK\n")
 
 
-def imagesize(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def imagesize(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``imagesize.cgi``."""
     if cam.faults.no_imagesize:  # firmware without imagesize.cgi (issue 23)
         return not_found("/axis-cgi/imagesize.cgi")
@@ -173,24 +170,23 @@ def imagesize(cam: SimulatedCamera, method: str, args: Args, query: str) -> Repl
     return Reply(200, f"image width = {w}\nimage height = {h}\n")
 
 
-def videostatus(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def videostatus(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``videostatus.cgi``."""
     return Reply(200, "Video 1 = video\n")
 
 
-def image(cam: SimulatedCamera, method: str, args: Args, query: str) -> Reply:
+def image(cam: CameraView, method: str, args: Args, query: str) -> Reply:
     """``image.cgi``: one stamped JPEG snapshot."""
     try:
         req = image_args(cam, args, video=False)
     except ValueError as err:
         return Reply(400, f"Error:\n{err}\n")
-    cam.snapshots_sent += 1
-    jpeg = stamp(cam.frame_jpeg(req.width, req.height, req.compression, req.overlay), cam.snapshots_sent)
+    jpeg = stamp(cam.frame_jpeg(req.width, req.height, req.compression, req.overlay), cam.count_snapshot())
     return Reply(200, jpeg, "image/jpeg", {"Cache-Control": "no-cache", "Pragma": "no-cache"})
 
 
 #: handlers by endpoint name (the MJPEG stream, ``video``, is served by :mod:`axis_ptz_ros2.sim.http.mjpeg`)
-HANDLERS: dict[str, Callable[[SimulatedCamera, str, Args, str], Reply]] = {
+HANDLERS: dict[str, Callable[[CameraView, str, Args, str], Reply]] = {
     "ptz": ptz,
     "ptzconfig": ptzconfig,
     "param": param,

@@ -21,15 +21,12 @@ import threading
 import time
 import urllib.parse
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.sim.frames import MAX_FPS
 from axis_ptz_ros2.sim.rtsp.media import MEDIA_PATH, MediaError, MediaRequest, parameter_sets, parse_media_args, sdp
 from axis_ptz_ros2.sim.rtsp.session import RtspSession, StreamClosedError
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.view import CameraView
 
 DEFAULT_SESSION_TIMEOUT_S = 60.0  #: what Axis cameras announce (h264.md)
 MAX_REQUEST_BYTES = 16384
@@ -72,7 +69,7 @@ class RtspListener:
     """The camera's RTSP server on ``host:port`` (port 0: any free one, kept across reopenings)."""
 
     def __init__(
-        self, camera: SimulatedCamera, host: str, port: int, session_timeout_s: float = DEFAULT_SESSION_TIMEOUT_S
+        self, camera: CameraView, host: str, port: int, session_timeout_s: float = DEFAULT_SESSION_TIMEOUT_S
     ) -> None:
         """Not listening yet: :meth:`open`."""
         if not session_timeout_s > 0:

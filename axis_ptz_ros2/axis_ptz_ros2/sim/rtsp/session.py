@@ -19,7 +19,6 @@ import secrets
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -30,9 +29,7 @@ from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.sim.rtsp.media import MediaRequest
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, H264Packetizer, interleave, sender_report
-
-if TYPE_CHECKING:
-    from axis_ptz_ros2.sim.camera import SimulatedCamera
+from axis_ptz_ros2.sim.view import CameraView
 
 SR_INTERVAL_S = 1.0  #: seconds between RTCP sender reports (RFC 3550 allows ~5 s; 1 s lets clients sync fast)
 
@@ -46,7 +43,7 @@ class RtspSession:
 
     def __init__(
         self,
-        cam: SimulatedCamera,
+        cam: CameraView,
         request: MediaRequest,
         params: annexb.ParameterSets,
         timeout_s: float,
