@@ -25,6 +25,7 @@ from std_msgs.msg import String  # noqa: E402
 from axis_ptz_ros2.nodes.runner import Spinner, new_executor, retrieve_task_errors, spin_once  # noqa: E402
 from tests.ros.processes import node_process  # noqa: E402
 from tests.support.harness import DEADLINE_SCALE  # noqa: E402
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -69,12 +70,7 @@ def _context_node(name: str) -> tuple[Context, rclpy.node.Node]:
 
 
 def _wait(pred, timeout: float = 10.0) -> bool:  # noqa: ANN001
-    deadline = time.monotonic() + timeout * DEADLINE_SCALE
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
+    return bool(wait_until(pred, timeout, raises=False))
 
 
 def test_spinner_survives_a_destroyed_event_handler_and_keeps_delivering():
@@ -88,7 +84,7 @@ def test_spinner_survives_a_destroyed_event_handler_and_keeps_delivering():
     broken.event_handlers[0].destroy()  # every wait-set build raises InvalidHandle until the subscription goes
     spinner = Spinner(executor, "test-spinner").start()
     try:
-        time.sleep(0.2)
+        assert _wait(lambda: executor.spins >= 5)  # the wait-set build failed on the broken handle, again and again
         assert spinner.alive()
         assert spinner.error is None
         node.destroy_subscription(broken)  # what the destroying thread does next
@@ -122,9 +118,9 @@ def test_spinner_blocks_until_there_is_work_and_stops_at_once():
     executor._wait_for_ready_callbacks = counting  # type: ignore[method-assign] # noqa: SLF001
     spinner = Spinner(executor, "test-spinner").start()
     try:
-        time.sleep(0.3)  # settle (node added: one rebuild)
+        time.sleep(0.3)  # settle (node added: one rebuild; how many is rclpy's business, not observable here)
         before = builds[0]
-        time.sleep(1.5)
+        time.sleep(1.5)  # a measuring window: the thing under test is how many wait sets are built in it
         assert builds[0] - before <= 1, f"{builds[0] - before} wait-set generators in 1.5 s with nothing to do"
         pub.publish(String(data="one"))
         assert _wait(lambda: got == ["one"])
@@ -149,10 +145,10 @@ def test_pool_executor_submits_each_callback_once_and_loses_no_message():
     ticks = [0]
 
     def on_command(msg: String) -> None:
-        time.sleep(0.003)  # a camera request
+        time.sleep(0.003)  # the simulated work of a callback: a camera request
         got.append(msg.data)
 
-    node.create_subscription(String, "cmd", on_command, QoSProfile(depth=200), callback_group=commands)
+    sub = node.create_subscription(String, "cmd", on_command, QoSProfile(depth=200), callback_group=commands)
     node.create_timer(0.02, lambda: ticks.__setitem__(0, ticks[0] + 1), callback_group=commands)
     node.create_timer(0.05, lambda: None, callback_group=MutuallyExclusiveCallbackGroup())
     pub_ctx, pub_node = _context_node("pool_probe_pub")
@@ -161,13 +157,12 @@ def test_pool_executor_submits_each_callback_once_and_loses_no_message():
     executor.add_node(node)
     spinner = Spinner(executor, "test-pool").start()
     try:
-        assert _wait(lambda: pub.get_subscription_count() > 0)
-        time.sleep(0.2)
+        assert _wait(lambda: pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0)  # matched both ways
         before, ticks_before = executor.submitted, ticks[0]
         sent = [str(i) for i in range(150)]
         for text in sent:
             pub.publish(String(data=text))
-            time.sleep(0.01)
+            time.sleep(0.01)  # pace the commands (100 Hz) so that they interleave with the timer: the load under test
         assert _wait(lambda: len(got) == len(sent)), f"{len(got)} of {len(sent)} commands ran"
         assert got == sent
         callbacks = len(sent) + (ticks[0] - ticks_before) + 10  # + the 20 Hz timer's ticks at most
@@ -213,10 +208,13 @@ def test_pool_executor_waits_for_a_pool_thread_instead_of_spinning_on_a_handed_o
         for _ in range(4):  # every pool thread (new_executor: 4) blocked in a callback
             hold_pub.publish(String(data="hold"))
         assert _wait(lambda: busy[0] == 4)
+        submitted = executor.submitted
         cmd_pub.publish(String(data="go"))
-        time.sleep(0.3)  # the message arrives and is handed over; no pool thread can take it
+        assert _wait(
+            lambda: executor.submitted > submitted
+        )  # it arrived and is handed over; no pool thread can take it
         before = executor.spins
-        time.sleep(1.0)
+        time.sleep(1.0)  # a measuring window: the thing under test is how many wait-set rounds come in it
         rounds = executor.spins - before
         assert not got
         assert rounds <= 40, f"{rounds} wait-set rounds in 1 s while the task waited for a pool thread"
@@ -324,7 +322,7 @@ def test_axis_camera_stops_cleanly_within_2_s_and_ignores_a_second_signal(camera
     with node_process(argv) as proc:
         out = _read_until(proc, b"PTZ node up", 30.0)
         assert b"PTZ node up" in out, out.decode(errors="replace")[-2000:]
-        time.sleep(0.5)  # spinning
+        time.sleep(0.5)  # let it get into its spin (not observable from outside): the signal must come while it spins
         t0 = time.monotonic()
         proc.send_signal(sig)
         proc.send_signal(sig)  # an impatient second signal (spinning: a flag; in clean-up: ignored) changes nothing
@@ -363,7 +361,7 @@ def test_a_clean_up_that_hangs_ends_the_process_with_every_threads_stack_in_the_
     with node_process([sys.executable, "-c", HANGING_CLEAN_UP, "--ros-args", "-r", "__ns:=/spin_hang"]) as proc:
         out = _read_until(proc, b"up", 30.0)
         assert b"up" in out, out.decode(errors="replace")[-2000:]
-        time.sleep(0.5)  # spinning
+        time.sleep(0.5)  # let it get into its spin (not observable from outside): the signal must come while it spins
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         code = proc.wait(10)
