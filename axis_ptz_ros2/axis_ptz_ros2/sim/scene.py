@@ -25,7 +25,7 @@ from axis_ptz_ros2.geometry import FloatArray, Transform, equirect_to_direction
 from axis_ptz_ros2.sim import textures
 from axis_ptz_ros2.sim.world import PtzLimits as PtzLimits  # re-exported: persona.py imports it from here
 from axis_ptz_ros2.sim.world import SimWorld as SimWorld  # re-exported: camera.py, frames.py
-from axis_ptz_ros2.sim.world import TargetSpec
+from axis_ptz_ros2.sim.world import TargetSpec, target_frame
 from axis_ptz_ros2.sim.world import load_world as load_world  # re-exported: camera.py
 
 U8Array = npt.NDArray[np.uint8]
@@ -54,14 +54,10 @@ class Target:
         self.name = spec.name
         self.center = np.asarray(spec.center, dtype=np.float64)
         self.width, self.height = spec.size
-        if spec.normal is None:
-            to_cam = facing_point - self.center
-            to_cam[2] = 0.0 if np.linalg.norm(to_cam[:2]) > 1e-6 else to_cam[2]
-            n = _unit(to_cam)
-        else:
-            n = _unit(spec.normal)
+        normal = None if spec.normal is None else np.asarray(spec.normal, dtype=np.float64)
+        n, right, _ = target_frame(self.center, normal, np.asarray(spec.up, dtype=np.float64), facing_point)
         self.normal = n
-        self.right = _unit(np.cross(np.asarray(spec.up, dtype=np.float64), n))
+        self.right = right
         self.up = _unit(np.cross(n, self.right))
         tex, feats = self._build_texture()
         self.texture: U8Array = tex
@@ -84,6 +80,8 @@ class Target:
             return textures.checker_texture(w, h)
         if s.kind == "facade":
             return textures.facade_texture(w, h, s.text)
+        if s.kind == "image":  # a PNG/JPEG file (checked when the world was loaded)
+            return textures.image_texture(s.file)
         raise ValueError(f"unknown target kind {s.kind!r} for target {s.name!r}")
 
     @property

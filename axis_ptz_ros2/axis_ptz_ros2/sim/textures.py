@@ -9,7 +9,9 @@ corner, (1, 1) = bottom-right outer corner); :mod:`axis_ptz_ros2.sim.scene` turn
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -298,6 +300,122 @@ def facade_texture(width_m: float, height_m: float, text: str) -> tuple[U8Array,
         cv2.line(img, (m(x + 0.03), m(0.35)), (m(x + 0.03), H - 1), (160, 165, 168, 255), max(1, m(0.02)))
     img[:, :, 3] = 255  # a wall: OpenCV's anti-aliased small print also blends the alpha channel
     return img, {"center": (0.5, 0.5)}
+
+
+# --------------------------------------------------------------------------------------------------------
+# Image targets (kind ``image``): a PNG or JPEG file drawn on the target's rectangle
+# --------------------------------------------------------------------------------------------------------
+MAX_IMAGE_SIDE = 4096  #: pixels: the widest or tallest image a target may use
+#: pixels of one image (a texture costs 4 bytes a texel, plus a third for its mip levels: at most 85 MiB)
+MAX_IMAGE_PIXELS = MAX_IMAGE_SIDE * MAX_IMAGE_SIDE
+MAX_IMAGE_FILE_BYTES = 64 * 2**20  #: bytes of one image file
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+
+
+class ImageError(ValueError):
+    """An image file cannot be a target's texture; the message says why (and the bound it broke)."""
+
+
+def image_header(data: bytes) -> tuple[int, int, str]:
+    """(width, height, "png" | "jpeg") from a PNG's IHDR or a JPEG's frame header, without decoding the pixels
+    (so an image too large to decode is refused before it costs any memory)."""
+    if data.startswith(_PNG_SIGNATURE):
+        if len(data) < 33 or data[12:16] != b"IHDR":
+            raise ImageError("not a valid PNG file (no IHDR header)")
+        w, h = struct.unpack(">II", data[16:24])
+        return int(w), int(h), "png"
+    if data.startswith(b"\xff\xd8"):
+        w, h, _ = _jpeg_walk(data)
+        return w, h, "jpeg"
+    raise ImageError("not a PNG or JPEG file")
+
+
+def _jpeg_walk(data: bytes) -> tuple[int, int, int]:
+    """(width, height, offset of the first start-of-scan) of a JPEG file, from its marker segments."""
+    i, size = 2, None
+    while i + 4 <= len(data):
+        if data[i] != 0xFF:
+            raise ImageError(f"not a valid JPEG file (no marker at byte {i})")
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # stand-alone markers
+            i += 2
+            continue
+        if marker == 0xD9:
+            break
+        (length,) = struct.unpack(">H", data[i + 2 : i + 4])
+        if length < 2:
+            raise ImageError(f"not a valid JPEG file (segment length {length} at byte {i})")
+        if marker in _JPEG_SOF and i + 9 <= len(data):
+            h, w = struct.unpack(">HH", data[i + 5 : i + 9])
+            size = (int(w), int(h))
+        if marker == 0xDA:
+            if size is None:
+                break
+            return size[0], size[1], i
+        i += 2 + length
+    raise ImageError("not a valid JPEG file (no frame header or no scan: truncated or corrupt)")
+
+
+def decode_image(data: bytes) -> U8Array:
+    """A PNG or JPEG file's bytes → BGRA uint8 texture with premultiplied alpha (grey, 16-bit and palette images
+    converted; no alpha: opaque). Raises :class:`ImageError` for anything else, a truncated or corrupt file, or an
+    image beyond :data:`MAX_IMAGE_SIDE` / :data:`MAX_IMAGE_PIXELS` (checked from the header, before decoding)."""
+    if len(data) > MAX_IMAGE_FILE_BYTES:
+        raise ImageError(f"file of {len(data)} bytes; at most {MAX_IMAGE_FILE_BYTES} bytes allowed")
+    w, h, fmt = image_header(data)
+    if w < 1 or h < 1:
+        raise ImageError(f"image of {w}x{h} pixels: empty")
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
+        raise ImageError(
+            f"image of {w}x{h} pixels: too large; at most {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE} "
+            f"({MAX_IMAGE_PIXELS} pixels) per image"
+        )
+    if fmt == "jpeg" and data.rfind(b"\xff\xd9") < _jpeg_walk(data)[2]:
+        raise ImageError("truncated JPEG file (no end-of-image marker after its scan)")
+    if fmt == "png" and data.rfind(b"IEND") < 0:
+        raise ImageError("truncated PNG file (no IEND chunk)")
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ImageError(f"cannot decode this {fmt.upper()} file (corrupt or truncated)")
+    if img.shape[:2] != (h, w):
+        raise ImageError(f"decoded {img.shape[1]}x{img.shape[0]} pixels, the header says {w}x{h} (corrupt file)")
+    if img.dtype == np.uint16:
+        img = (np.asarray(img, dtype=np.uint16) >> 8).astype(np.uint8)
+    if img.dtype != np.uint8:
+        raise ImageError(f"unsupported pixel type {img.dtype}")
+    if img.ndim == 2:
+        return np.asarray(cv2.cvtColor(img, cv2.COLOR_GRAY2BGRA), dtype=np.uint8)
+    if img.shape[2] == 3:
+        return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA), dtype=np.uint8)
+    if img.shape[2] == 4:
+        return _premultiply(np.ascontiguousarray(img))
+    raise ImageError(f"unsupported image with {img.shape[2]} channels")
+
+
+def image_texture(path: str | Path) -> tuple[U8Array, Features]:
+    """The texture of an ``image`` target: the file's pixels, one texel each, stretched over the target's
+    rectangle (top row of the image at the target's top). Raises :class:`ImageError` (or ``OSError``)."""
+    return decode_image(Path(path).read_bytes()), {"center": (0.5, 0.5)}
+
+
+def texture_shape(kind: str, width_m: float, height_m: float) -> tuple[int, int]:
+    """(columns, rows) of the texture the builder of ``kind`` makes for a ``width_m``×``height_m`` target (not for
+    ``image`` targets: their file says). Lets a world file's textures be bounded before any is built."""
+    if kind in ("plate", "hazard", "calib"):
+        return 2000, int(round(2000 * height_m / width_m))
+    if kind == "marker":
+        return 1600, int(round(1600 * height_m / width_m))
+    if kind == "person":
+        return int(round(2400 * width_m / height_m)), 2400
+    if kind == "checker":
+        return 2000, 1400
+    if kind == "facade":
+        return int(round(width_m * FACADE_PX_PER_M)), int(round(height_m * FACADE_PX_PER_M))
+    raise ValueError(f"no procedural texture for kind {kind!r}")
 
 
 TextureBuilder = Callable[..., tuple[U8Array, Features]]
