@@ -9,7 +9,6 @@ sign mapping, its request log) and the frames themselves.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
+from tests.support.waiting import wait_until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -69,9 +69,7 @@ def _largest(cam: SimulatedCamera) -> tuple[int, int]:
 
 
 def _wait_still(cam: SimulatedCamera, timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while cam.state.moving() and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: not cam.state.moving(), timeout, scaled=False, raises=False)
     assert not cam.state.moving(), "simulated head still moving"
 
 
@@ -178,14 +176,14 @@ def test_ptz_moves_take_the_short_way_on_the_modern_dome(ros: Any, cam: Simulate
     req.command = PtzCommand(pan=math.radians(-175.0), tilt=NAN, zoom=NAN, speed=NAN)  # VAPIX +175
     req.wait = False
     fut = absolute.call_async(req)
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
+
+    def arrived() -> bool:  # sampling the pan all the way
         seen.append(cam.position()[0])
         if fut.done() and not reply_box:
             reply_box.append(fut.result())
-        if reply_box and not cam.state.moving() and abs(cam.position()[0] - 175.0) < 0.01:
-            break
-        time.sleep(0.005)
+        return bool(reply_box) and not cam.state.moving() and abs(cam.position()[0] - 175.0) < 0.01
+
+    wait_until(arrived, 10.0, 0.005, scaled=False, raises=False)
     assert reply_box, "no answer from ptz/move_absolute"
     assert reply_box[0].success, reply_box[0].message
     assert cam.position()[0] == pytest.approx(175.0, abs=0.01)
@@ -201,8 +199,16 @@ def test_verify_tls_false_warns_once(ros: Any, cam: SimulatedCamera, connection:
     ]
     ros.add(StreamNode(context=ros.context, parameter_overrides=insecure))
     ros.add(PtzNode(context=ros.context, parameter_overrides=insecure))
-    time.sleep(0.5)
-    err = capfd.readouterr().err
+    # both nodes made their camera configuration (and logged) in their constructors; the log line may still be
+    # on its way through the logging backend
+    err = ""
+
+    def logged() -> bool:
+        nonlocal err
+        err += capfd.readouterr().err
+        return "verify_tls is false" in err
+
+    wait_until(logged, 5.0, 0.05, raises=False)
     assert err.count("verify_tls is false") == 1, err[-2000:]
 
 
@@ -231,16 +237,17 @@ def test_demo_with_the_modern_camera_serves_1080p_through_the_console(tmp_path: 
         url = demo.wait_ready(90.0)
         assert demo.sim_url.startswith("https://")
         host, port = url.removeprefix("http://").split(":")
-        deadline = time.monotonic() + 30
         state: dict[str, Any] = {}
-        while time.monotonic() < deadline:
+
+        def shows_1080p() -> bool:
+            nonlocal state
             conn = http.client.HTTPConnection(host, int(port), timeout=5)
             conn.request("GET", "/api/state")
             state = json.loads(conn.getresponse().read())
             conn.close()
-            if "1920x1080" in json.dumps(state):
-                break
-            time.sleep(0.5)
+            return "1920x1080" in json.dumps(state)
+
+        wait_until(shows_1080p, 30.0, 0.5, scaled=False, raises=False)
         assert "1920x1080" in json.dumps(state), state
         assert "704x576" not in json.dumps(state.get("resolutions", state))
         logs = "".join(p.read_text(errors="replace") for p in tmp_path.glob("axis_camera*.log"))
