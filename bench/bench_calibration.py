@@ -25,7 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
@@ -37,8 +37,6 @@ from axis_ptz_ros2.calibration.solver import (
     calibrate,
     rotation_error_deg,
 )
-from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import ZoomModel
 
 
 @dataclass
@@ -226,8 +224,9 @@ def main() -> None:
 
     # (e) −10 % focal error
     t0 = time.perf_counter()
-    hfov = math.radians(CameraModel().zoom.hfov_wide_deg)
-    wrong = CameraModel(zoom=ZoomModel(hfov_wide_deg=2 * math.degrees(math.atan(math.tan(hfov / 2) / 0.9))))
+    cm = syn.default_camera_model()
+    hfov = math.radians(cm.zoom.hfov_wide_deg)
+    wrong = replace(cm, zoom=replace(cm.zoom, hfov_wide_deg=2 * math.degrees(math.atan(math.tan(hfov / 2) / 0.9))))
     detected = 0
     scales = []
     for i in range(n):
@@ -303,8 +302,8 @@ def run_real_like(trials: int, seed0: int, model: str, fixed: bool) -> RealStats
     """Real-like trials (see the module docstring)."""
     st = RealStats()
     ci = syn.real_like_camera_info(model)
-    cm = CameraModel().with_camera_info(ci)
-    naive = CameraModel()
+    cm = syn.default_camera_model().with_camera_info(ci)
+    naive = syn.default_camera_model()
     for i in range(trials):
         rng = np.random.default_rng(seed0 + i)
         px = float(rng.uniform(1.0, 3.0))

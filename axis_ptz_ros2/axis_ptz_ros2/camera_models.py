@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from axis_ptz_ros2.config import CONFIG_DIR, CameraModel, _share_config_dir, load_camera_model
+from axis_ptz_ros2.config import CONFIG_DIR, CameraModel, CameraModelError, _share_config_dir, load_camera_model
 from axis_ptz_ros2.geometry import ZoomModel
 from axis_ptz_ros2.vapix import AxisPtzError, CameraConfig, PtzLimits, VapixClient
 from axis_ptz_ros2.vapix.models import CIF_NTSC, CIF_PAL, Resolution
@@ -95,14 +95,15 @@ class Optics:
 
 
 def generic_model(optics: Optics, base: CameraModel | None = None) -> CameraModel:
-    """A camera model for an unknown camera: ``base`` (``config/generic.yaml``) with the camera's optics.
+    """A camera model for an unknown camera: ``base`` (default :func:`load_generic_base`, ``config/generic.yaml``)
+    with the camera's optics.
 
     HFOV wide/tele from ``MaxFieldAngle``/``MinFieldAngle`` (1/10°, vapix.md §8.3 strategy 2), magnification
     linear in zoom units (every published table is), digital zoom above 9999 when ``DigitalZoom=true`` with the
     magnification ``query=attributes`` reports (else none assumed). Square pixels for a digital sensor with the
     aspect of its largest resolution; a 4:3 analogue frame otherwise.
     """
-    base = base or CameraModel(name="generic Axis PTZ")
+    base = base or load_generic_base()
     z = base.zoom
     lim = optics.limits
     hfov_wide, max_mag = z.hfov_wide_deg, z.max_magnification
@@ -138,12 +139,15 @@ def generic_model(optics: Optics, base: CameraModel | None = None) -> CameraMode
 
 
 def load_generic_base() -> CameraModel:
-    """``config/generic.yaml`` (convention, head geometry, fallback limits and speeds of an unknown camera)."""
-    for d in model_dirs():
+    """``config/generic.yaml`` (convention, head geometry, fallback limits and speeds of an unknown camera);
+    :class:`CameraModelError` if no model folder has it (the code holds no camera's figures to fall back on)."""
+    dirs = model_dirs()
+    for d in dirs:
         path = d / GENERIC_MODEL_FILE
         if path.exists():
             return load_camera_model(path)
-    return CameraModel(name="generic Axis PTZ")
+    where = ", ".join(str(d) for d in dirs) or f"{CONFIG_DIR} (missing)"
+    raise CameraModelError(f"no {GENERIC_MODEL_FILE} in the camera-model folders ({where})")
 
 
 def select_camera_model(prod_nbr: str, short_name: str, optics: Optics) -> tuple[CameraModel, str]:

@@ -7,7 +7,10 @@ Formats (YAML, versioned by a ``format`` key):
   (fallback limits in VAPIX degrees/units when the camera cannot report them), ``max_speed`` (deg/s), and
   optionally ``camera_info`` — a measured calibration in the ROS camera calibration YAML format, as a path
   (relative to the model file) or inline — with ``camera_info_zoom`` (VAPIX units it was measured at; default
-  the wide end). Unknown fields, duplicate keys and broken YAML are refused with the file and field named.
+  the wide end). ``name``, ``zoom`` (at least ``hfov_wide_deg`` and ``max_magnification``), ``head``, ``limits``
+  and ``max_speed`` are required: the code holds no camera's figures, and a file without one of them is refused
+  naming the file and the key. Unknown fields, duplicate keys and broken YAML are refused with the file and
+  field named.
 * ``axis_ptz_ros2/mount/v1`` — ``config/mount.yaml``: the fixed ``parent_frame → child_frame`` transform
   (``xyz`` metres, ``rpy`` radians, REP-103), optional pan/tilt encoder offsets (rad) and a 6×6 covariance
   (x, y, z, rotX, rotY, rotZ). Written by ``axis_calibrate``, loaded by the PTZ node.
@@ -31,7 +34,7 @@ from axis_ptz_ros2.camera_info import (
     nominal_camera_info,
 )
 from axis_ptz_ros2.geometry import (
-    AXIS_214_ZOOM,
+    ZOOM_REQUIRED,
     Intrinsics,
     Mount,
     PanDirection,
@@ -75,14 +78,14 @@ def default_config_path(name: str) -> Path:
 
 @dataclass(frozen=True, slots=True)
 class FallbackLimits:
-    """Limits in VAPIX units, used only when the camera does not report them."""
+    """Limits in VAPIX units, used only when the camera does not report them (every field from the model file)."""
 
-    min_pan_deg: float = -170.0
-    max_pan_deg: float = 170.0
-    min_tilt_deg: float = -30.0
-    max_tilt_deg: float = 90.0
-    min_zoom: int = 1
-    max_zoom: int = 9999
+    min_pan_deg: float
+    max_pan_deg: float
+    min_tilt_deg: float
+    max_tilt_deg: float
+    min_zoom: int
+    max_zoom: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,15 +96,18 @@ class CameraModel:
     ``camera_calibration`` tool) taken at zoom ``camera_info_zoom``: when present it replaces the nominal
     wide-end intrinsics — principal point and distortion kept, focal length scaled with the zoom curve
     (:meth:`camera_info_at`).
+
+    The model's facts (name, optics, head geometry, fallback limits, top speeds) have no defaults here: they come
+    from its file (``config/<model>.yaml``, :func:`load_camera_model`), never from code.
     """
 
-    name: str = "AXIS 214 PTZ"
-    convention: VapixConvention = field(default_factory=VapixConvention)
-    zoom: ZoomModel = AXIS_214_ZOOM
-    head: PtzKinematics = field(default_factory=PtzKinematics)
-    limits: FallbackLimits = field(default_factory=FallbackLimits)
-    max_pan_speed_dps: float = 100.0
-    max_tilt_speed_dps: float = 90.0
+    name: str
+    zoom: ZoomModel
+    head: PtzKinematics
+    limits: FallbackLimits
+    max_pan_speed_dps: float
+    max_tilt_speed_dps: float
+    convention: VapixConvention = field(default_factory=VapixConvention)  # the documented VAPIX one
     camera_info: CameraInfoData | None = None
     camera_info_zoom: float | None = None  # zoom units of the measurement (None: the wide end, zoom.min_zoom)
 
@@ -147,6 +153,33 @@ CAMERA_MODEL_KEYS: dict[str, set[str] | None] = {
 }
 
 
+#: What a camera-model file must give (top-level key → the keys it must hold; None: a scalar). A file without one
+#: is refused naming the file and the key: no camera's figures are filled in from code.
+CAMERA_MODEL_REQUIRED: dict[str, tuple[str, ...] | None] = {
+    "name": None,
+    "zoom": ZOOM_REQUIRED,
+    "head": ("h_tilt", "d_opt"),
+    "limits": tuple(FallbackLimits.__dataclass_fields__),
+    "max_speed": ("pan_dps", "tilt_dps"),
+}
+_REQUIRED_WHAT = {
+    "name": "the model's name",
+    "zoom": "the optics",
+    "head": "the head geometry: h_tilt, d_opt in metres",
+    "limits": "fallback PTZ limits in VAPIX degrees/units",
+    "max_speed": "top pan/tilt speeds in deg/s",
+}
+
+
+def _check_required(d: dict[str, Any], source: str) -> None:
+    for key, inner in CAMERA_MODEL_REQUIRED.items():
+        if d.get(key) is None:
+            raise CameraModelError(f"{source}: missing key '{key}' ({_REQUIRED_WHAT[key]})")
+        missing = [k for k in inner or () if k not in d[key]]
+        if missing:
+            raise CameraModelError(f"{source}: {key}: missing key '{missing[0]}' (needs {', '.join(inner or ())})")
+
+
 def _check_model_keys(d: dict[str, Any], source: str) -> None:
     unknown = sorted(str(k) for k in d if k not in CAMERA_MODEL_KEYS)
     if unknown:
@@ -175,23 +208,24 @@ def camera_model_from_dict(
     fmt = d.get("format", CAMERA_MODEL_FORMAT)
     if fmt != CAMERA_MODEL_FORMAT:
         raise CameraModelError(f"{source}: unsupported camera model format {fmt!r}, expected {CAMERA_MODEL_FORMAT!r}")
+    _check_required(d, source)
     conv = d.get("convention") or {}
-    head = d.get("head") or {}
-    speed = d.get("max_speed") or {}
+    head = d["head"]
+    speed = d["max_speed"]
     where = "convention"
     try:
         convention = VapixConvention(PanDirection(conv.get("pan_direction", "cw")), Mount(conv.get("mount", "upright")))
         where = "zoom"
-        zoom = ZoomModel.from_dict(d.get("zoom") or {})
+        zoom = ZoomModel.from_dict(d["zoom"])
         where = "head"
-        d_opt = tuple(float(v) for v in head.get("d_opt", (0.0, 0.0, 0.0)))
+        d_opt = tuple(float(v) for v in head["d_opt"])
         if len(d_opt) != 3:
             raise ValueError(f"d_opt needs three values [x, y, z] (m), got {list(d_opt)}")
-        kin = PtzKinematics(h_tilt=float(head.get("h_tilt", 0.0687)), d_opt=(d_opt[0], d_opt[1], d_opt[2]))
+        kin = PtzKinematics(h_tilt=float(head["h_tilt"]), d_opt=(d_opt[0], d_opt[1], d_opt[2]))
         where = "limits"
-        limits = FallbackLimits(**(d.get("limits") or {}))
+        limits = FallbackLimits(**d["limits"])
         where = "max_speed"
-        pan_dps, tilt_dps = float(speed.get("pan_dps", 100.0)), float(speed.get("tilt_dps", 90.0))
+        pan_dps, tilt_dps = float(speed["pan_dps"]), float(speed["tilt_dps"])
         where = "camera_info_zoom"
         ci_zoom = d.get("camera_info_zoom")
         ci_zoom_f = None if ci_zoom is None else float(ci_zoom)
@@ -210,7 +244,7 @@ def camera_model_from_dict(
     except CameraInfoError as err:
         raise CameraModelError(f"{source}: camera_info: {err}") from err
     return CameraModel(
-        name=str(d.get("name", "AXIS 214 PTZ")),
+        name=str(d["name"]),
         convention=convention,
         zoom=zoom,
         head=kin,

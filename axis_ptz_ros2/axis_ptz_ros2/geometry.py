@@ -12,7 +12,8 @@ Conventions (see README "Conventions" and geometry-and-calibration.md §1-§5):
 * Kinematic chain: ``T_base_opt(p, t) = T_base_ptz · Rz(p) · Trans(0, 0, h_tilt) · Ry(−t) · Trans(d_opt) ·
   R_body_opt``.
 * Zoom: VAPIX units 1…9999 map to magnification ``m(z)`` through a per-camera monotone table (default:
-  linear in magnification, Axis 214: HFOV 47.98° wide, 18.88× tele); ``HFOV = 2·atan(tan(HFOV_w/2)/m)``.
+  linear in magnification; each camera's HFOV and magnification from its ``config/<model>.yaml``);
+  ``HFOV = 2·atan(tan(HFOV_w/2)/m)``.
 * Pinhole for a W×H stream: ``fx = (W/2)/tan(HFOV/2)``, ``fy = fx·(H/W)·image_aspect`` (4:3 analogue image
   for the 214, so PAL 704×576 has fy = fx·12/11), ``cx = (W−1)/2``, ``cy = (H−1)/2``.
 * Equirectangular panorama W×H: column 0 at azimuth +π, row 0 at elevation +π/2 (NIFTi/TRADR compatible).
@@ -302,7 +303,7 @@ class PtzKinematics:
     """Pan/tilt head geometry in ``ptz_base`` (metres): tilt axis ``h_tilt`` above the pan origin; optical
     centre at ``d_opt`` from the tilt axis in the tilted head frame (x forward, y left, z up)."""
 
-    h_tilt: float = 0.0687
+    h_tilt: float = 0.0  # a model's own figures come from its camera-model file (``head:``)
     d_opt: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def head_to_ptz_base(self, pan: float, tilt: float) -> Transform:
@@ -413,6 +414,11 @@ class ZoomCurve(StrEnum):
     LOG = "log"  # m = M**t
 
 
+#: The fields a zoom model must be given (the optics); the others have neutral defaults (VAPIX 1…9999, linear
+#: curve, a 4:3 frame, no digital zoom).
+ZOOM_REQUIRED = ("hfov_wide_deg", "max_magnification")
+
+
 @dataclass(frozen=True, slots=True)
 class ZoomModel:
     """Zoom units ↔ magnification ↔ field of view for one camera model.
@@ -429,8 +435,8 @@ class ZoomModel:
     width for streams at least as wide as the sensor, else the full height (sides cropped).
     """
 
-    hfov_wide_deg: float = 47.98
-    max_magnification: float = 18.88
+    hfov_wide_deg: float  # no default: a camera model's optics come from its file (config/<model>.yaml)
+    max_magnification: float
     min_zoom: int = 1
     max_zoom: int = 9999
     curve: ZoomCurve = ZoomCurve.LINEAR
@@ -466,6 +472,9 @@ class ZoomModel:
     def from_dict(d: dict[str, Any]) -> ZoomModel:
         """Build from a configuration mapping (keys as the dataclass fields; ``table`` as [[z, m], ...])."""
         kw: dict[str, Any] = dict(d)
+        missing = [k for k in ZOOM_REQUIRED if k not in kw]
+        if missing:
+            raise ValueError(f"missing key(s) {missing} (the optics: wide-end HFOV in degrees, tele magnification)")
         if "curve" in kw:
             kw["curve"] = ZoomCurve(kw["curve"])
         if "table" in kw:
@@ -540,7 +549,10 @@ class ZoomModel:
         return Intrinsics(width, height, fx, fy, (width - 1) / 2.0, (height - 1) / 2.0)
 
 
-AXIS_214_ZOOM = ZoomModel()
+#: The Axis 214's optics as config/axis214.yaml gives them, for the simulator's world loader (its fallback when a
+#: world file has no ``ptz.zoom_model``). The driver, the calibration and the nodes read config/axis214.yaml;
+#: tests/unit/test_camera_facts.py keeps this copy equal to it.
+AXIS_214_ZOOM = ZoomModel(hfov_wide_deg=47.98, max_magnification=18.88)
 
 
 # --------------------------------------------------------------------------------------------------------

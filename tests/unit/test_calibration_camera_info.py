@@ -8,8 +8,9 @@ import textwrap
 import cv2
 import numpy as np
 import pytest
+import yaml
 
-from axis_ptz_ros2.calibration.synthetic import real_like_camera_info
+from axis_ptz_ros2.calibration.synthetic import default_camera_model, real_like_camera_info
 from axis_ptz_ros2.camera_info import (
     CameraInfoData,
     CameraInfoError,
@@ -20,7 +21,7 @@ from axis_ptz_ros2.camera_info import (
     project,
     undistort_pixels,
 )
-from axis_ptz_ros2.config import CameraModel, CameraModelError, default_config_path, load_camera_model
+from axis_ptz_ros2.config import CameraModelError, default_config_path, load_camera_model
 from axis_ptz_ros2.geometry import AXIS_214_ZOOM
 from axis_ptz_ros2.strict_yaml import YamlError, loads_strict
 
@@ -163,8 +164,8 @@ def test_camera_model_with_measured_camera_info(tmp_path):
     assert cm2.camera_info_at(2000.0, 704, 576).fx == pytest.approx(measured.fx)
     assert cm2.camera_info_at(1.0, 704, 576).fx == pytest.approx(measured.fx / AXIS_214_ZOOM.magnification(2000.0))
     # no camera_info: the nominal model, unchanged (the default config files load)
-    nominal = CameraModel()
-    assert nominal.intrinsics(1.0, 704, 576) == AXIS_214_ZOOM.intrinsics(1.0, 704, 576)
+    nominal = default_camera_model()
+    assert nominal.intrinsics(1.0, 704, 576) == nominal.zoom.intrinsics(1.0, 704, 576)
     load_camera_model()
 
 
@@ -181,22 +182,36 @@ def test_fill_camera_info_msg_copies_the_measured_values():
     assert m.r == list(ci.R)
 
 
+def _shipped_model_with(change: dict) -> str:
+    """``config/axis214.yaml`` with ``change`` applied (a mapping section updated, anything else replaced)."""
+    doc = yaml.safe_load(default_config_path("axis214.yaml").read_text(encoding="utf-8"))
+    for key, value in change.items():
+        if isinstance(value, dict) and isinstance(doc.get(key), dict):
+            doc[key] = {**doc[key], **value}
+        else:
+            doc[key] = value
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
 @pytest.mark.parametrize(
-    ("text", "match"),
+    ("change", "match"),
     [
-        ("zoom:\n  hfov_wide_degs: 40\n", r"zoom\.hfov_wide_degs: unknown field"),
-        ("zooom: {}\n", r"unknown field\(s\) \['zooom'\]"),
+        ({"zoom": {"hfov_wide_degs": 40}}, r"zoom\.hfov_wide_degs: unknown field"),
+        ({"zooom": {}}, r"unknown field\(s\) \['zooom'\]"),
         ("head:\n  h_tilt: 0.1\n  h_tilt: 0.2\n", "duplicate key 'h_tilt'"),
         ("head: {h_tilt: [0.1\n", "not valid YAML"),
-        ("convention: {pan_direction: left}\n", "convention: 'left' is not a valid PanDirection"),
-        ("zoom: {hfov_wide_deg: 400}\n", "zoom: hfov_wide_deg must be in"),
-        ("camera_info: missing.yaml\n", "camera_info: .*missing.yaml: cannot read"),
-        ("head: {d_opt: [0.1, 0.0]}\n", "d_opt needs three values"),
+        ({"convention": {"pan_direction": "left"}}, "convention: 'left' is not a valid PanDirection"),
+        ({"zoom": {"hfov_wide_deg": 400}}, "zoom: hfov_wide_deg must be in"),
+        ({"camera_info": "missing.yaml"}, "camera_info: .*missing.yaml: cannot read"),
+        ({"head": {"d_opt": [0.1, 0.0]}}, "d_opt needs three values"),
     ],
 )
-def test_camera_model_errors_name_the_file_and_field(tmp_path, text, match):
+def test_camera_model_errors_name_the_file_and_field(tmp_path, change, match):
     p = tmp_path / "model.yaml"
-    p.write_text(f"format: axis_ptz_ros2/camera_model/v1\n{text}")
+    if isinstance(change, str):  # broken YAML: refused before any field is read
+        p.write_text(f"format: axis_ptz_ros2/camera_model/v1\n{change}")
+    else:
+        p.write_text(_shipped_model_with(change))
     with pytest.raises(CameraModelError, match=match) as exc:
         load_camera_model(p)
     assert str(p) in str(exc.value)

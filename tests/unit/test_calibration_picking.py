@@ -7,6 +7,7 @@ mount); the picking code itself only ever sees a guessed (nominal) mount.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -34,7 +35,8 @@ from axis_ptz_ros2.calibration.picking import (
     pick_view,
     picking_noise,
 )
-from axis_ptz_ros2.config import CameraModel, load_mount
+from axis_ptz_ros2.calibration.synthetic import default_camera_model
+from axis_ptz_ros2.config import load_mount
 from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.pointcloud import CloudField, decode_cloud
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
@@ -98,7 +100,7 @@ def test_dots_found_with_subpixel_accuracy_on_two_boards(renderer):
     dots = detect_dots(img)
     feats = scene_dot_features(shared_scene(WORLD))
     K = WORLD.zoom_model.intrinsics(zoom, W, H)
-    cm = CameraModel(head=WORLD.kinematics)
+    cm = replace(default_camera_model(), head=WORLD.kinematics)
     guess = NOMINAL @ cm.head.optical_in_ptz_base(math.radians(pan), math.radians(tilt))
     pairs = associate_dots(dots, feats, guess, K)
     labels = sorted(f.label for _, f in pairs)
@@ -136,7 +138,7 @@ def test_association_uses_the_guess_and_refuses_far_or_ambiguous():
         Feature("b/dot_red", "red", (4.0, 0.7, 0.0)),  # 10° to the left
         Feature("a/dot_blue", "blue", (4.0, -0.2, 0.0)),
     ]
-    cm = CameraModel()
+    cm = default_camera_model()
     K = cm.zoom.intrinsics(1.0, W, H)
     T_opt = cm.head.optical_in_ptz_base(0.0, 0.0)
     T_opt = Transform(T_opt.R, np.zeros(3))
@@ -219,7 +221,7 @@ def test_plane_refinement_removes_range_noise():
 def test_pick_view_end_to_end_without_ros(renderer, cloud):
     pan, tilt, zoom = 25.0, 7.0, 1.0
     img = _view(renderer, pan, tilt, zoom)
-    cm = CameraModel(head=WORLD.kinematics)
+    cm = replace(default_camera_model(), head=WORLD.kinematics)
     feats = scene_dot_features(shared_scene(WORLD))
     picked = pick_view(img, cloud, math.radians(pan), math.radians(tilt), zoom, feats, cm, NOMINAL)
     assert len(picked) == 8

@@ -132,7 +132,7 @@ def test_fixed_camera_single_pose(tmp_path, model, noise, seed):
 def test_fixed_camera_default_noise_is_not_refused():
     """Issue 12: the old 3 cm / 0.5° gate refused even noise-free single-view data; now the result is written
     with its uncertainty, and --max-sigma makes it strict."""
-    cm = CameraModel().with_camera_info(syn.real_like_camera_info("plumb_bob"))
+    cm = syn.default_camera_model().with_camera_info(syn.real_like_camera_info("plumb_bob"))
     scene = syn.make_fixed_scene(8, cm, points_per_view=12, pixel_noise_px=0.0, point_noise_m=0.0)
     r = calibrate(scene.views, cm, fixed=True)
     assert r.refused_reason is None
@@ -143,7 +143,7 @@ def test_fixed_camera_default_noise_is_not_refused():
 
 
 def test_duplicate_rows_refused_with_file_and_line(tmp_path, capsys):
-    cm = CameraModel()
+    cm = syn.default_camera_model()
     scene = syn.make_scene(4, n_views=3, pixel_noise_px=1.0, point_noise_m=0.0, camera_model=cm)
     v = scene.views[1]
     zero = Correspondence((0.0, 0.0), (0.0, 0.0, 0.0), "zero")
@@ -202,7 +202,7 @@ def test_focal_check_does_not_cry_wolf_on_a_calibrated_camera():
     """With measured intrinsics, picking noise and outliers, the free-focal diagnostic reports an estimate with
     its σ and calls it significant only when it is (the old check, testing the inliers it picked itself,
     claimed 13–15 % on a camera calibrated from 23 images)."""
-    cm = CameraModel().with_camera_info(syn.real_like_camera_info("plumb_bob"))
+    cm = syn.default_camera_model().with_camera_info(syn.real_like_camera_info("plumb_bob"))
     for seed in range(3):
         scene = syn.make_scene(
             700 + seed, pixel_noise_px=3.0, point_noise_m=0.02, outlier_fraction=0.1, camera_model=cm

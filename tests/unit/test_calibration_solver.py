@@ -1,6 +1,7 @@
 """Joint multi-view extrinsic calibration on seeded synthetic scenes with ground truth."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,8 +16,7 @@ from axis_ptz_ros2.calibration.solver import (
     log_so3,
     rotation_error_deg,
 )
-from axis_ptz_ros2.config import CameraModel, load_mount, save_mount
-from axis_ptz_ros2.geometry import ZoomModel
+from axis_ptz_ros2.config import load_mount, save_mount
 
 pytestmark = pytest.mark.unit
 
@@ -129,7 +129,7 @@ def test_too_few_points_refused():
 
 
 def test_narrow_angular_spread_refused():
-    cm = CameraModel()
+    cm = syn.default_camera_model()
     scene = syn.make_scene(
         4,
         n_views=3,
@@ -158,9 +158,10 @@ def test_outliers_rejected():
 
 def test_minus_ten_percent_focal_error_detected():
     scene = syn.make_scene(21, pixel_noise_px=1.0, point_noise_m=0.02)
-    hfov = math.radians(CameraModel().zoom.hfov_wide_deg)
+    cm = syn.default_camera_model()
+    hfov = math.radians(cm.zoom.hfov_wide_deg)
     wrong_hfov = 2.0 * math.degrees(math.atan(math.tan(hfov / 2.0) / 0.9))  # fx 10 % too small
-    wrong = CameraModel(zoom=ZoomModel(hfov_wide_deg=wrong_hfov))
+    wrong = replace(cm, zoom=replace(cm.zoom, hfov_wide_deg=wrong_hfov))
     # the wrong focal makes the fixed-focal fit disagree with most points: refused, and the reason says why
     with pytest.raises(CalibrationRefused, match="too few inliers.*focal length looks .* too short") as exc:
         calibrate(scene.views, wrong)

@@ -40,7 +40,7 @@ def test_digital_zoom_above_the_optical_end():
     for z in (1, 500, 9999, 12000, 19999):
         assert Q.zoom_for_magnification(Q.magnification(z)) == pytest.approx(z, abs=1e-6)
     with pytest.raises(ValueError, match="optical_max_zoom"):
-        ZoomModel(max_zoom=9999, optical_max_zoom=20000)
+        ZoomModel(hfov_wide_deg=63.7, max_magnification=40.0, max_zoom=9999, optical_max_zoom=20000)
 
 
 def test_model_files_selected_by_reported_product():

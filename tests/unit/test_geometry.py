@@ -52,12 +52,12 @@ def test_zoom_model_matches_axis_214_lens_calculator():
 
 
 def test_zoom_table_interpolates_monotonically_in_log_magnification():
-    m = g.ZoomModel(table=((1, 1.0), (3868, 2.0), (7736, 3.0), (9999, 3.584961)))
+    m = g.ZoomModel(47.98, 18.88, table=((1, 1.0), (3868, 2.0), (7736, 3.0), (9999, 3.584961)))
     assert m.magnification(3868) == pytest.approx(2.0)
     assert m.magnification(2000) == pytest.approx(math.exp(math.log(2.0) * 1999 / 3867))
     assert m.zoom_for_magnification(3.0) == pytest.approx(7736)
     with pytest.raises(ValueError, match="monotone"):
-        g.ZoomModel(table=((1, 2.0), (10, 1.0)))
+        g.ZoomModel(47.98, 18.88, table=((1, 2.0), (10, 1.0)))
 
 
 def test_kinematics_optical_axis_and_frames():

@@ -8,6 +8,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import replace
 from typing import Any
 from urllib.parse import parse_qs
 
@@ -15,8 +16,8 @@ import httpx
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Mount, PanDirection, PtzKinematics, Transform, VapixConvention, ZoomModel
+from axis_ptz_ros2.config import CameraModel, load_camera_model
+from axis_ptz_ros2.geometry import AXIS_214_ZOOM, Mount, PanDirection, PtzKinematics, Transform, VapixConvention
 from axis_ptz_ros2.ptz.axis_backend import AxisBackend, speed_to_vapix
 from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
@@ -231,7 +232,7 @@ def test_joint_offsets_round_trip() -> None:
 
 
 def test_center_and_area_zoom_use_the_exact_geometry() -> None:
-    zm = ZoomModel()
+    zm = AXIS_214_ZOOM
     r = PtzReading(0.3, math.radians(40.0), 2000.0, 0)
     # centring on the principal point is a no-op
     p, t = center_target(r, (704 - 1) / 2, (576 - 1) / 2, 704, 576, zm)
@@ -254,7 +255,7 @@ def test_center_and_area_zoom_use_the_exact_geometry() -> None:
 
 
 def test_zoom_target_forms() -> None:
-    zm = ZoomModel()
+    zm = AXIS_214_ZOOM
     assert zoom_target(zm, 1234.0, None, None) == 1234.0
     assert zm.magnification(zoom_target(zm, None, 5.0, None)) == pytest.approx(5.0)
     assert zm.hfov(zoom_target(zm, None, None, math.radians(10.0))) == pytest.approx(math.radians(10.0))
@@ -308,7 +309,7 @@ def _backend(model: CameraModel, log: list[dict[str, list[str]]], limits_ok: boo
 
 def test_axis_backend_signs_units_and_limits() -> None:
     log: list[dict[str, list[str]]] = []
-    b = _backend(CameraModel(), log)
+    b = _backend(load_camera_model(), log)
     assert isinstance(b, PtzBackend)
     lim = b.limits()
     assert (lim.pan_min, lim.pan_max) == pytest.approx((math.radians(-170), math.radians(170)))
@@ -331,7 +332,7 @@ def test_axis_backend_signs_units_and_limits() -> None:
 
 def test_axis_backend_ceiling_mount_and_fallback_limits() -> None:
     log: list[dict[str, list[str]]] = []
-    model = CameraModel(convention=VapixConvention(PanDirection.CW, Mount.CEILING))
+    model = replace(load_camera_model(), convention=VapixConvention(PanDirection.CW, Mount.CEILING))
     b = _backend(model, log, limits_ok=False)
     lim = b.limits()
     assert b.limits_source == "camera_model"
@@ -346,7 +347,7 @@ def test_axis_backend_errors_become_backend_errors() -> None:
 
     cfg = CameraConfig(port=8080, username="root", password="s3cret")
     c = VapixClient(cfg, transport=httpx.MockTransport(handler))
-    b = AxisBackend(cfg, CameraModel(), command_client=c, state_client=c)
+    b = AxisBackend(cfg, load_camera_model(), command_client=c, state_client=c)
     with pytest.raises(PtzBackendError) as err:
         b.read_state()
     assert "s3cret" not in str(err.value)

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel
+from axis_ptz_ros2.geometry import AXIS_214_ZOOM, PtzKinematics, Transform
 from axis_ptz_ros2.ptz.backend import PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, SlotStats
 from axis_ptz_ros2.ptz.commander import Commander, CommanderStats, Tolerances
@@ -35,8 +35,8 @@ from tests.unit.test_ptz_core import LIM, FakeClock, MemoryHead, RosFreeWait, _d
 
 pytestmark = pytest.mark.unit
 
-ZOOM = ZoomModel()
-HEAD = PtzKinematics()
+ZOOM = AXIS_214_ZOOM
+HEAD = PtzKinematics(h_tilt=0.0687)
 
 
 # ------------------------------------------------------------------------------------------------------

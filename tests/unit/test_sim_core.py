@@ -178,9 +178,9 @@ class FakeClock:
 
 
 @pytest.fixture
-def head():
+def head(world):
     clock = FakeClock()
-    return sp.PtzState(clock=clock), clock
+    return sp.PtzState(zoom_model=world.zoom_model, clock=clock), clock
 
 
 def test_position_format_and_errors_change_nothing(head):
@@ -254,7 +254,7 @@ def test_arrive_now_stops_everything_and_clamps(head):
     assert st.position() == pytest.approx((-170.0, 20.0, 9999.0))  # the continuous move did not resume
     with pytest.raises(ValueError, match="finite"):
         st.arrive_now(math.nan, 0.0, 1.0)
-    endless = sp.PtzState(limits=PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 9999), clock=clock)
+    endless = sp.PtzState(st.zoom_model, limits=PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 9999), clock=clock)
     endless.arrive_now(190.0, 0.0, 1.0)
     assert endless.position()[0] == pytest.approx(-170.0)  # wrapped, not clamped
 

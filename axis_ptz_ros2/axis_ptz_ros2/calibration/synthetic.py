@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.calibration.correspondences import Correspondence, View
 from axis_ptz_ros2.camera_info import CameraInfoData, project, undistort_pixels
-from axis_ptz_ros2.config import CameraModel
+from axis_ptz_ros2.config import CameraModel, load_camera_model
 from axis_ptz_ros2.geometry import PtzKinematics, Transform, rot_z
 
 FloatArray = npt.NDArray[np.float64]
@@ -54,6 +54,13 @@ class SyntheticScene:
         if not self.outliers:
             return np.zeros(sum(len(v.points) for v in self.views), dtype=bool)
         return np.concatenate(self.outliers)
+
+
+def default_camera_model() -> CameraModel:
+    """The camera of a scene that names none: the Axis 214 of ``config/axis214.yaml`` with its optical centre on
+    the tilt axis (``d_opt`` zero, as these scenes have always had it)."""
+    cm = load_camera_model()
+    return replace(cm, head=replace(cm.head, d_opt=(0.0, 0.0, 0.0)))
 
 
 def random_mount(rng: np.random.Generator, around: Transform = THESIS_MOUNT) -> Transform:
@@ -183,7 +190,7 @@ def make_scene(
 ) -> SyntheticScene:
     """A multi-view scene: pans evenly spread over ``pan_span_deg`` (±jitter), random tilt and zoom."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    cm = camera_model or CameraModel()
+    cm = camera_model or default_camera_model()
     T = truth if truth is not None else random_mount(rng)
     span = math.radians(pan_span_deg)
     base = np.linspace(-span / 2, span / 2, n_views) if n_views > 1 else np.zeros(1)
@@ -301,7 +308,7 @@ def thesis_like_scene(
 ) -> SyntheticScene:
     """The 2015 set-up (thesis §6.4): one wide view, 6 nearly coplanar points 2.5–4 m away, 2 cm picks."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    cm = camera_model or CameraModel()
+    cm = camera_model or default_camera_model()
     T = random_mount(rng)
     made = make_view(
         rng,

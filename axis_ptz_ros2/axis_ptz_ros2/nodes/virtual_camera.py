@@ -139,7 +139,7 @@ class VirtualCameraNode(Node):
 
         model_path = Path(p["camera_model"]) if p["camera_model"] else default_config_path("virtual_camera.yaml")
         raw = view_model_dict(yaml.safe_load(model_path.read_text(encoding="utf-8")) or {}, self.width, self.height)
-        self.model = camera_model_from_dict(raw)
+        self.model = camera_model_from_dict(raw, str(model_path))
         self.zoom_model = self.model.zoom
         robot = load_robot(p["robot_file"] or None)
         T_base_pano = robot.panorama.pose

@@ -91,8 +91,8 @@ class _Axis:
 class PtzState:
     """Thread-safe state and dynamics of the simulated head. All public angles are VAPIX degrees."""
 
+    zoom_model: ZoomModel  # the optics: the world file's or the persona's (no camera's figures in code)
     limits: PtzLimits = field(default_factory=PtzLimits)
-    zoom_model: ZoomModel = field(default_factory=ZoomModel)
     speeds: Speeds = field(default_factory=Speeds)
     default_image_size: tuple[int, int] = (704, 576)
     clock: Callable[[], float] = time.monotonic
