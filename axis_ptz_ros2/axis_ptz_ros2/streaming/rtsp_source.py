@@ -2,8 +2,11 @@
 
 :class:`RtspH264Source` plays the camera's ``/axis-media/media.amp`` with
 :class:`~axis_ptz_ros2.vapix.rtsp_client.RtspClient` (our client: it owns the playing session, so
-``SET_PARAMETER`` ``Renew-Stream: yes`` reaches the stream we play) and hands every access unit, stamped with the
-camera's capture time (RTCP sender reports), to a sink: the stream node's
+``SET_PARAMETER`` ``Renew-Stream: yes`` reaches the stream we play) and hands every access unit, stamped on this
+host's clock (its RTP time mapped by :class:`~axis_ptz_ros2.streaming.clock_sync.StreamClock`: capture time plus
+the fixed latency, never backwards, whatever the camera's clock says; the camera's clock offset is in
+:attr:`RtspSourceStats.camera_clock_offset_s`, and a camera more than 1 s off is reported once), to a sink: the
+stream node's
 :class:`~axis_ptz_ros2.streaming.h264.H264Stage` (:meth:`~axis_ptz_ros2.streaming.h264.H264Stage.on_access_unit`),
 which puts SPS/PPS in front of every IDR and publishes on both H.264 topics.
 
@@ -35,6 +38,7 @@ from typing import Final, Protocol
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.streaming.clock_sync import StreamClock
 from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import ReaderConfig
@@ -103,6 +107,8 @@ class RtspSourceStats:
     adjustments: int = 0  #: bitrate changes applied to the playing stream (Adjustable-Stream-Configuration)
     refused: int = 0  #: access units the sink could not take (malformed)
     last_error: str = ""
+    #: s: the camera's wall clock behind (+) or ahead (−) of the host's (RTCP sender reports); None before one
+    camera_clock_offset_s: float | None = None
 
 
 def camera_streams_h264(client: VapixClient) -> bool:
@@ -204,6 +210,7 @@ class RtspH264Source:
         self._adjustable = True  #: ask for adjustablelivestream=1 until the camera refuses it
         self.supported: bool | None = None  #: None until the camera has said whether it streams H.264
         self.stats = RtspSourceStats()
+        self.stamps = StreamClock()  #: RTP time → host time, never backwards (one per stream, across sessions)
 
     # -- control (any thread) ----------------------------------------------------------------------------------
     @property
@@ -290,6 +297,7 @@ class RtspH264Source:
                 return
             self._session = session
         self.stats.connects += 1
+        self.stamps.new_session()
         self._sink.idr_sent()  # a new session starts with an IDR (PLAY): what was wanted is on its way
         width, height = request_size(request)
         opened = self._clock()
@@ -318,7 +326,7 @@ class RtspH264Source:
                 if au.keyframe:
                     width, height = _size_of(au.data, (width, height))
                     self._backoff.reset()
-                stamp = au.capture_ns if au.capture_ns is not None else time.time_ns()
+                stamp = self._stamp(au)
                 frame = EncodedFrame(au.data, au.keyframe, self.stats.access_units, width, height, au.capture_ns)
                 self.stats.access_units += 1
                 if self._sink.on_access_unit(frame, stamp) is None:
@@ -333,6 +341,22 @@ class RtspH264Source:
             self.stats.reconnects += 1
             self._event(f"RTSP H.264 stream lost: {error}")
             self._wake.wait(self._backoff.next())
+
+    def _stamp(self, au: ClientAccessUnit) -> int:
+        """Host time of ``au`` (its RTP time through :class:`StreamClock`), the camera's offset in the stats."""
+        arrival = au.arrival_ns if au.arrival_ns is not None else time.time_ns()
+        if au.report_rtp is not None and au.report_arrival_ns is not None:
+            self.stamps.sender_report(au.report_rtp, au.report_arrival_ns)
+        stamp = self.stamps.stamp(au.rtp_timestamp, arrival, au.capture_ns)
+        offset = self.stamps.camera_offset_ns
+        self.stats.camera_clock_offset_s = None if offset is None else offset / 1e9
+        if offset is not None and self.stamps.take_offset_warning() and self._on_event is not None:
+            side = "behind" if offset > 0 else "ahead of"
+            self._on_event(
+                f"RTSP H.264: the camera's clock is {abs(offset) / 1e9:.1f} s {side} this host's: set NTP on the "
+                "camera (frames are stamped on this host's clock)"
+            )
+        return stamp
 
 
 def _reason(err: BaseException) -> str:

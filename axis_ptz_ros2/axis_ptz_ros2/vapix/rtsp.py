@@ -26,7 +26,7 @@ import httpx
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
-from axis_ptz_ros2.vapix.auth import AuthMode
+from axis_ptz_ros2.vapix.auth import BASIC_OVER_HTTP_HINT, AuthMode
 from axis_ptz_ros2.vapix.errors import (
     AuthError,
     AxisPtzError,
@@ -129,11 +129,27 @@ def parse_rtsp_response(raw: bytes) -> RtspResponse:
     return RtspResponse(int(parts[1]), parts[2] if len(parts) > 2 else "", headers, body)
 
 
-def check_rtsp_status(resp: RtspResponse, where: str) -> RtspResponse:
-    """``resp`` if it is 2xx; else :class:`AuthError` (401/403) or :class:`RtspStatusError` naming ``where``
-    (method and host, never a URL with credentials)."""
+#: the HTTP side's hint (:data:`~axis_ptz_ros2.vapix.auth.BASIC_OVER_HTTP_HINT`) for RTSP, which has no TLS here
+RTSP_BASIC_HINT: Final = (
+    "the camera offers only Basic authentication on RTSP; auth 'auto' never sends a password in clear: "
+    "set auth: basic explicitly (accepting that risk)"
+)
+
+
+def rtsp_auth_hint(auth: RtspDigestAuth, resp: RtspResponse, request: httpx.Request) -> str:
+    """Why a final 401/403 to ``request`` (as signed by ``auth``) happened, worded like the HTTP side's hints
+    (:meth:`~axis_ptz_ros2.vapix.auth.NegotiatingAuth.failure_hint`); never a secret."""
+    challenge = resp.headers.get("www-authenticate")
+    fake = httpx.Response(resp.status, headers=[("WWW-Authenticate", challenge)] if challenge else [], request=request)
+    hint = auth.failure_hint(fake)
+    return RTSP_BASIC_HINT if hint == BASIC_OVER_HTTP_HINT else hint
+
+
+def check_rtsp_status(resp: RtspResponse, where: str, hint: str = "") -> RtspResponse:
+    """``resp`` if it is 2xx; else :class:`AuthError` (401/403, with ``hint``: what to change) or
+    :class:`RtspStatusError` naming ``where`` (method and host, never a URL with credentials)."""
     if resp.status in (401, 403):
-        raise AuthError(f"{where}: refused ({resp.status} {resp.reason})")
+        raise AuthError(f"{where}: refused ({resp.status} {resp.reason})" + (f": {hint}" if hint else ""))
     if not 200 <= resp.status < 300:
         raise RtspStatusError(f"{where}: {resp.status} {resp.reason}", status_code=resp.status)
     return resp
@@ -209,7 +225,8 @@ class RtspControl:
                 req = flow.send(httpx.Response(resp.status, headers=_www_authenticate(resp), content=b"", request=req))
             except StopIteration:
                 break
-        return check_rtsp_status(resp, f"RTSP {method} {self._host}:{self._port}")
+        hint = rtsp_auth_hint(self._auth, resp, req) if resp.status in (401, 403) else ""
+        return check_rtsp_status(resp, f"RTSP {method} {self._host}:{self._port}", hint)
 
     def _exchange(self, method: str, authorization: str | None, extra: dict[str, str], body: bytes) -> RtspResponse:
         self._cseq += 1

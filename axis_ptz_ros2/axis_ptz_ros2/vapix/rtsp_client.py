@@ -11,9 +11,21 @@ stream, not an IDR in the one we play. This client plays and controls on one RTS
 - RFC 6184 depacketising (:mod:`.rtsp_rtp`): FU-A, STAP-A, single NAL units; an access unit with a gap or a
   corrupt fragment is dropped whole, never passed on half.
 - SPS/PPS from the SDP (``sprop-parameter-sets``) in front of every IDR (Axis sends them only in the SDP).
-- Capture time from the RTCP sender reports (NTP wall clock ↔ RTP time).
+- Capture time from the RTCP sender reports (NTP wall clock ↔ RTP time); every access unit also carries its
+  arrival time and the latest report's RTP time and arrival (host clock), for
+  :class:`~axis_ptz_ros2.streaming.clock_sync.StreamClock`.
 - Open and read timeouts, a bounded queue of access units (the oldest is dropped when the consumer lags), keep-
   alive ``GET_PARAMETER`` at a third of the session timeout, typed errors (:mod:`~axis_ptz_ros2.vapix.errors`).
+- Every request of the session is signed once the scheme is known (TEARDOWN and the keep-alive too), the Digest
+  ``nc`` counted in the order the requests go out; a camera that offers only Basic to ``auth: auto`` is refused
+  with the HTTP side's hint (set ``auth: basic``).
+- What the camera cannot give us is said: an SDP without H.264 video (:class:`NoH264VideoError`, naming what it
+  offers), a SETUP answered with UDP transport (:class:`UdpTransportError`).
+- A lost IDR (a sequence gap inside or before it): no P-frame is handed out until the next IDR, and one is asked
+  for (``Renew-Stream``, at most once a second). Before the session's first IDR, no P-frame either.
+- A request from the server mid-stream (``OPTIONS``, ``GET_PARAMETER`` … as text between the ``$`` frames) is
+  answered (``200 OK`` with its ``CSeq``; ``501`` for other methods); garbage between frames is skipped up to the
+  next frame or message (:attr:`RtspClient.garbage_bytes`), at most :data:`MAX_MESSAGE` bytes of it in a row.
 Credentials never reach a log line, a repr or an exception message.
 """
 
@@ -21,6 +33,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import re
 import select
 import socket
 import threading
@@ -47,6 +60,7 @@ from axis_ptz_ros2.vapix.rtsp import (
     RtspResponse,
     check_rtsp_status,
     parse_rtsp_response,
+    rtsp_auth_hint,
     sprop_parameter_sets,
 )
 from axis_ptz_ros2.vapix.rtsp_auth import RtspDigestAuth
@@ -54,16 +68,39 @@ from axis_ptz_ros2.vapix.rtsp_rtp import H264Depacketizer, RtpPacketError, Sende
 
 MAX_QUEUE: Final = 8  #: access units held for a slow consumer (then the oldest is dropped)
 MAX_MESSAGE: Final = 1 << 20
+IDR_REQUEST_INTERVAL_S: Final = 1.0  #: Renew-Stream after a lost IDR at most this often
+UDP_TRANSPORT: Final = "camera answered SETUP with UDP transport; only RTP over the RTSP TCP connection is supported"
+_REQUEST_LINE: Final = re.compile(rb"([A-Z][A-Z_]{1,31}) (\S{1,2048}) RTSP/1\.0\r\n")
+_REQUEST_START: Final = re.compile(rb"[A-Z][A-Z_]{0,31}( \S*( R?T?S?P?/?1?\.?0?\r?)?)?")
+_RESYNC: Final = re.compile(rb"\$|RTSP/1\.0 |[A-Z][A-Z_]{1,31} \S{1,2048} RTSP/1\.0\r\n")
+_STATIC_PAYLOADS: Final = {0: "PCMU/8000", 8: "PCMA/8000", 14: "MPA/90000", 26: "JPEG/90000", 32: "MPV/90000"}
+
+
+class RtspUnsupportedError(ResponseParseError):
+    """The camera answered, but with something this client cannot play (retrying does not help)."""
+
+
+class NoH264VideoError(RtspUnsupportedError):
+    """The SDP holds no H.264 video media (``m=video`` with ``a=rtpmap:<pt> H264/90000``); the message names
+    what the camera offers."""
+
+
+class UdpTransportError(RtspUnsupportedError):
+    """The camera answered SETUP with UDP transport (no ``interleaved=``)."""
 
 
 @dataclass(frozen=True, slots=True)
 class ClientAccessUnit:
-    """One access unit: Annex B (SPS/PPS in front of an IDR), RTP time, capture time (None before an SR)."""
+    """One access unit: Annex B (SPS/PPS in front of an IDR), RTP time, capture time on the camera's wall clock
+    (None before an SR), arrival time on the host's wall clock (:func:`time.time_ns` when its last packet came)."""
 
     data: bytes
     keyframe: bool
     rtp_timestamp: int
     capture_ns: int | None
+    arrival_ns: int | None = None
+    report_rtp: int | None = None  #: the RTP time of the latest RTCP sender report (None before one)
+    report_arrival_ns: int | None = None  #: … and when it arrived (host clock)
 
 
 class RtspClient:
@@ -93,6 +130,7 @@ class RtspClient:
         self._buf = b""
         self._cseq = 0
         self._wlock = threading.Lock()
+        self._sign_lock = threading.Lock()  # signing (Digest nc) and sending in one order
         self._cond = threading.Condition()
         self._replies: dict[int, RtspResponse] = {}
         self._queue: collections.deque[ClientAccessUnit] = collections.deque(maxlen=max_queue)
@@ -103,12 +141,22 @@ class RtspClient:
         self._clock = SenderReportClock()
         self._params: annexb.ParameterSetTracker | None = None
         self._channels = (0, 1)
+        self._rx_ns = 0  # host time the last chunk arrived
+        self._report: tuple[int, int] | None = None  # (RTP time, arrival) of the latest sender report
+        self._await_idr = True  # no P-frame before the session's first IDR, nor after a lost one
+        self._idr_asked = -1e9
+        self._stray = ""  # a reply nobody waits for (for the timeout message)
+        self._garbage_run = 0  # garbage bytes skipped since the last good message
         self._session_url = self.url  #: the aggregate control URL (PLAY, SET_PARAMETER, keep-alive, TEARDOWN)
         self.session_id: str | None = None  #: the playing session's id (what SET_PARAMETER names)
         self.session_timeout_s = 60.0
         self.sdp = ""
         self.overflowed = 0  #: access units dropped because the consumer lagged
         self.refused = 0  #: access units refused (an IDR before any SPS/PPS is known, corrupt NAL units)
+        self.held_back = 0  #: P-frames not handed out (before the first IDR, or after a lost one)
+        self.idr_requests = 0  #: Renew-Stream sent after a lost IDR
+        self.server_requests = 0  #: requests the server sent mid-stream (answered)
+        self.garbage_bytes = 0  #: bytes skipped between messages
 
     def __repr__(self) -> str:
         return f"RtspClient({self._host}:{self._port}, session={self.session_id!r})"
@@ -126,9 +174,9 @@ class RtspClient:
             self._sock = socket.create_connection((self._host, self._port), timeout=self._open_timeout_s)
             describe = self._call("DESCRIBE", self.url, {"Accept": "application/sdp"}, deadline=deadline)
             self.sdp = describe.body.decode("utf-8", "replace")
+            control, payload_type = h264_media(self.sdp, f"RTSP DESCRIBE {self._where()}")
             self._params = annexb.ParameterSetTracker(sprop_parameter_sets(self.sdp))
             base = describe.headers.get("content-base", self.url)
-            control = _control(self.sdp, video=True)
             aggregate = _control(self.sdp, video=False)
             if aggregate in ("", "*"):
                 self._session_url = base
@@ -142,7 +190,10 @@ class RtspClient:
             if not sid.strip():
                 raise ResponseParseError(f"RTSP SETUP {self._where()}: no Session header in the reply")
             self.session_id = sid.strip()
-            self._channels = _interleaved_channels(setup.headers.get("transport", ""))
+            transport = setup.headers.get("transport", "")
+            if transport and "interleaved=" not in transport.lower():
+                raise UdpTransportError(f"RTSP SETUP {self._where()}: {UDP_TRANSPORT} (Transport: {transport[:80]})")
+            self._channels = _interleaved_channels(transport)
             for item in rest.split(";"):
                 k, _, v = item.strip().partition("=")
                 if k.lower() == "timeout" and v.isdigit() and int(v) > 0:
@@ -150,7 +201,7 @@ class RtspClient:
             play = self._call(
                 "PLAY", self._session_url, {"Session": self.session_id, "Range": "npt=0.000-"}, deadline=deadline
             )
-            self._depack = H264Depacketizer(first_seq=_rtp_info_seq(play.headers.get("rtp-info", "")))
+            self._depack = H264Depacketizer(payload_type, _rtp_info_seq(play.headers.get("rtp-info", "")))
         except BaseException:
             self.close()
             raise
@@ -165,7 +216,7 @@ class RtspClient:
             return
         if self.session_id is not None:
             with contextlib.suppress(OSError, AxisPtzError):
-                self._send("TEARDOWN", self._session_url, {"Session": self.session_id}, b"", sock)
+                self._send_signed("TEARDOWN", self._session_url, {"Session": self.session_id}, b"", sock)
         with contextlib.suppress(OSError):
             sock.shutdown(socket.SHUT_RDWR)
         sock.close()
@@ -223,22 +274,37 @@ class RtspClient:
     def _call(
         self, method: str, url: str, headers: dict[str, str], body: bytes = b"", *, deadline: float
     ) -> RtspResponse:
-        """One request with the Digest negotiation; a non-2xx final status raises."""
-        self._auth.rtsp_uri = url
-        flow = self._auth.auth_flow(httpx.Request(method, "http://rtsp.invalid/"))
-        req = next(flow)
-        while True:
+        """One request with the Digest negotiation; a non-2xx final status raises (401/403 with a hint)."""
+        with self._sign_lock:
+            self._auth.rtsp_uri = url
+            flow = self._auth.auth_flow(httpx.Request(method, "http://rtsp.invalid/"))
+            req = next(flow)
             cseq = self._send(method, url, {**headers, **_auth_header(req)}, body, self._sock)
+        while True:
             resp = self._await(cseq, deadline, method)
             challenge = resp.headers.get("www-authenticate")
             fake = httpx.Response(
                 resp.status, headers=[("WWW-Authenticate", challenge)] if challenge else [], request=req
             )
-            try:
-                req = flow.send(fake)
-            except StopIteration:
-                break
-        return check_rtsp_status(resp, f"RTSP {method} {self._where()}")
+            with self._sign_lock:
+                self._auth.rtsp_uri = url
+                try:
+                    req = flow.send(fake)
+                except StopIteration:
+                    break
+                cseq = self._send(method, url, {**headers, **_auth_header(req)}, body, self._sock)
+        hint = rtsp_auth_hint(self._auth, resp, req) if resp.status in (401, 403) else ""
+        return check_rtsp_status(resp, f"RTSP {method} {self._where()}", hint)
+
+    def _send_signed(
+        self, method: str, url: str, headers: dict[str, str], body: bytes, sock: socket.socket | None
+    ) -> int:
+        """Send without waiting for the reply (TEARDOWN, keep-alive, Renew-Stream from the reader), signed as
+        the session's requests are (nothing to sign with before a challenge was taken)."""
+        with self._sign_lock:
+            self._auth.rtsp_uri = url
+            value = self._auth.preemptive(httpx.Request(method, "http://rtsp.invalid/"))
+            return self._send(method, url, {**headers, **({"Authorization": value} if value else {})}, body, sock)
 
     def _send(self, method: str, url: str, headers: dict[str, str], body: bytes, sock: socket.socket | None) -> int:
         if sock is None:
@@ -265,7 +331,7 @@ class RtspClient:
                             raise self._error
                         left = deadline - time.monotonic()
                         if left <= 0:
-                            raise CameraTimeout(f"RTSP {method} {self._where()}: no reply in time")
+                            raise CameraTimeout(f"RTSP {method} {self._where()}: no reply in time{self._stray}")
                         self._cond.wait(left)
                     return self._replies.pop(cseq)
             if cseq in self._replies:
@@ -282,7 +348,7 @@ class RtspClient:
                 return
             left = deadline - time.monotonic()
             if left <= 0:
-                raise CameraTimeout(f"RTSP {what} {self._where()}: no data in time")
+                raise CameraTimeout(f"RTSP {what} {self._where()}: no data in time{self._stray}")
             try:
                 ready, _, _ = select.select([sock], [], [], min(left, 0.5))
                 chunk = sock.recv(65536) if ready else None
@@ -291,16 +357,20 @@ class RtspClient:
             if chunk == b"":
                 raise CameraUnreachable(f"RTSP {what} {self._where()}: the camera closed the connection")
             if chunk:
+                self._rx_ns = time.time_ns()
                 self._buf += chunk
                 if len(self._buf) > 4 * MAX_MESSAGE:
                     raise ResponseParseError(f"RTSP {self._where()}: unparsable data piling up")
 
     def _take_message(self) -> bool:
-        """Handle one complete message at the head of the buffer; False if more bytes are needed."""
+        """Handle one message at the head of the buffer (or skip garbage); False if more bytes are needed."""
         buf = self._buf
         if not buf:
             return False
         if buf[0:1] == b"$":
+            if not self._frame_start(buf, 0):
+                self._skip_garbage()
+                return True
             if len(buf) < 4:
                 return False
             n = 4 + int.from_bytes(buf[2:4], "big")
@@ -309,8 +379,38 @@ class RtspClient:
             self._buf = buf[n:]
             self._interleaved(buf[1], buf[4:n])
             return True
-        if not buf.startswith(b"RTSP/"[: len(buf)]):
-            raise ResponseParseError(f"RTSP {self._where()}: garbage between messages ({buf[:16]!r})")
+        if buf.startswith(b"RTSP/"[: len(buf)]):
+            return self._take_reply(buf)
+        line = _REQUEST_LINE.match(buf)
+        if line is not None:
+            return self._take_request(buf, line.group(1).decode("ascii"))
+        if len(buf) < 64 and b"\n" not in buf and _REQUEST_START.fullmatch(buf):
+            return False  # the start of a request line
+        self._skip_garbage()
+        return True
+
+    def _frame_start(self, buf: bytes, pos: int) -> bool:
+        """Whether a ``$`` at ``pos`` can start a frame of ours: one of our channels, an RTP/RTCP version 2."""
+        if len(buf) > pos + 1 and buf[pos + 1] not in self._channels:
+            return False
+        return len(buf) <= pos + 4 or buf[pos + 4] >> 6 == 2
+
+    def _skip_garbage(self) -> None:
+        """Drop bytes up to the next thing that can start a frame or a message (at most MAX_MESSAGE in a row)."""
+        buf = self._buf
+        cut = max(1, len(buf) - 64)  # none: keep the tail (a start may be cut in two)
+        for m in _RESYNC.finditer(buf, 1):
+            if buf[m.start()] != 0x24 or self._frame_start(buf, m.start()):
+                cut = m.start()
+                break
+        self._buf = buf[cut:]
+        self._stray = f" (bytes that are no RTSP came instead, starting {buf[:12]!r})"
+        self.garbage_bytes += cut
+        self._garbage_run += cut
+        if self._garbage_run > MAX_MESSAGE:
+            raise ResponseParseError(f"RTSP {self._where()}: over {MAX_MESSAGE} bytes of garbage between messages")
+
+    def _take_reply(self, buf: bytes) -> bool:
         end = buf.find(b"\r\n\r\n")
         if end < 0:
             if len(buf) > MAX_MESSAGE:
@@ -318,34 +418,80 @@ class RtspClient:
             return False
         head = parse_rtsp_response(buf[: end + 4])
         length = head.headers.get("content-length", "0")
-        if not length.isdigit() or int(length) > MAX_MESSAGE:
+        if not length.isascii() or not length.isdigit() or int(length) > MAX_MESSAGE:
             raise ResponseParseError(f"RTSP {self._where()}: Content-Length {length[:20]!r}")
         if len(buf) < end + 4 + int(length):
             return False
         body = buf[end + 4 : end + 4 + int(length)]
         self._buf = buf[end + 4 + int(length) :]
+        self._garbage_run = 0
         cseq = head.headers.get("cseq", "")
         with self._cond:
-            if cseq.isdigit():
+            if cseq.isascii() and cseq.isdigit() and len(cseq) <= 9:
                 self._replies[int(cseq)] = RtspResponse(head.status, head.reason, head.headers, body)
                 while len(self._replies) > 16:
                     self._replies.pop(next(iter(self._replies)))
+                if int(cseq) > self._cseq or int(cseq) <= 0:
+                    self._stray = f" (a reply with CSeq {cseq} came, for no request of ours)"
+            else:
+                self._stray = f" (a {head.status} reply without a CSeq came)"
             self._cond.notify_all()
         return True
 
+    def _take_request(self, buf: bytes, method: str) -> bool:
+        """A request from the server (OPTIONS, GET_PARAMETER … mid-stream): answered, the stream goes on."""
+        end = buf.find(b"\r\n\r\n")
+        if end < 0:
+            if len(buf) > MAX_MESSAGE:
+                raise ResponseParseError(f"RTSP {self._where()}: request headers over {MAX_MESSAGE} bytes")
+            return False
+        headers: dict[str, str] = {}
+        for raw in buf[:end].decode("latin-1").split("\r\n")[1:]:
+            name, _, value = raw.partition(":")
+            headers[name.strip().lower()] = value.strip()
+        length = headers.get("content-length", "0")
+        if not length.isascii() or not length.isdigit() or int(length) > MAX_MESSAGE:
+            raise ResponseParseError(f"RTSP {self._where()}: Content-Length {length[:20]!r} in a server request")
+        if len(buf) < end + 4 + int(length):
+            return False
+        self._buf = buf[end + 4 + int(length) :]
+        self._garbage_run = 0
+        self.server_requests += 1
+        cseq = headers.get("cseq", "")
+        status = "200 OK" if method in ("OPTIONS", "GET_PARAMETER") else "501 Not Implemented"
+        lines = [f"RTSP/1.0 {status}"]
+        if cseq.isascii() and cseq.isdigit() and len(cseq) <= 9:
+            lines.append(f"CSeq: {cseq}")
+        if self.session_id is not None:
+            lines.append(f"Session: {self.session_id}")
+        sock = self._sock
+        if sock is not None:
+            with self._wlock:
+                try:
+                    sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
+                except OSError as err:
+                    raise CameraUnreachable(f"RTSP {self._where()}: answering {method}: {type(err).__name__}") from err
+        return True
+
     def _interleaved(self, channel: int, packet: bytes) -> None:
+        self._garbage_run = 0
         if channel == self._channels[1]:
             with contextlib.suppress(RtpPacketError):
                 report = parse_sender_report(packet)
                 if report is not None:
                     self._clock.update(report)
+                    self._report = (report.rtp_timestamp, self._rx_ns)
             return
         if channel != self._channels[0]:
             return
+        lost = self._depack.dropped_idrs
         try:
             units = self._depack.push(packet)
         except RtpPacketError:
             return  # counted by the depacketiser; the access unit it belonged to is dropped
+        finally:
+            if self._depack.dropped_idrs != lost:
+                self._lost_idr()
         for unit in units:
             assert self._params is not None
             try:
@@ -354,12 +500,30 @@ class RtspClient:
             except BitstreamError:
                 self.refused += 1
                 continue
-            au = ClientAccessUnit(data, key, unit.timestamp, self._clock.unix_ns(unit.timestamp))
+            if self._await_idr and not key:
+                self.held_back += 1  # undecodable without the IDR it refers to
+                continue
+            self._await_idr = False
+            rtp, arrival = self._report if self._report is not None else (None, None)
+            au = ClientAccessUnit(
+                data, key, unit.timestamp, self._clock.unix_ns(unit.timestamp), self._rx_ns, rtp, arrival
+            )
             with self._cond:
                 if len(self._queue) == self._queue.maxlen:
                     self.overflowed += 1
                 self._queue.append(au)
                 self._cond.notify_all()
+
+    def _lost_idr(self) -> None:
+        """An IDR was lost: hold P-frames back until the next one, and ask for it (not more than once a second)."""
+        self._await_idr = True
+        now = time.monotonic()
+        if self.session_id is None or now - self._idr_asked < IDR_REQUEST_INTERVAL_S:
+            return
+        self._idr_asked = now
+        self.idr_requests += 1
+        headers = {"Session": self.session_id, "Content-Type": "text/parameters"}
+        self._send_signed("SET_PARAMETER", self._session_url, headers, b"Renew-Stream: yes\r\n", self._sock)
 
     def _read_loop(self) -> None:
         keepalive = time.monotonic() + self.session_timeout_s / 3
@@ -367,13 +531,18 @@ class RtspClient:
             while not self._closing.is_set():
                 self._pump(time.monotonic() + self._read_timeout_s, "read")
                 if time.monotonic() >= keepalive and self.session_id is not None:
-                    self._send("GET_PARAMETER", self._session_url, {"Session": self.session_id}, b"", self._sock)
+                    self._send_signed("GET_PARAMETER", self._session_url, {"Session": self.session_id}, b"", self._sock)
                     keepalive = time.monotonic() + self.session_timeout_s / 3
         except AxisPtzError as err:
-            if not self._closing.is_set():
-                with self._cond:
-                    self._error = err
-                    self._cond.notify_all()
+            self._fail(err)
+        except Exception as err:  # noqa: BLE001 - a bug here must end the stream with a typed error, not hang it
+            self._fail(ResponseParseError(f"RTSP {self._where()}: cannot read the stream ({type(err).__name__})"))
+
+    def _fail(self, err: AxisPtzError) -> None:
+        if not self._closing.is_set():
+            with self._cond:
+                self._error = err
+                self._cond.notify_all()
 
     def _where(self) -> str:
         return f"{self._host}:{self._port}{urllib.parse.urlsplit(self.url).path}"
@@ -405,6 +574,36 @@ def _interleaved_channels(transport: str) -> tuple[int, int]:
                 raise ResponseParseError(f"Transport: interleaved={v[:20]!r} is not a channel pair in 0..255")
             return rtp, rtcp
     return 0, 1
+
+
+def h264_media(sdp: str, where: str) -> tuple[str, int]:
+    """``(a=control, payload type)`` of the first H.264 video media of an SDP (``m=video`` with
+    ``a=rtpmap:<pt> H264/90000``); :class:`NoH264VideoError` naming what the SDP offers instead."""
+    sections: list[tuple[str, list[str], dict[str, str], str]] = []  # (media, payload types, rtpmaps, control)
+    for line in sdp.splitlines():
+        line = line.strip()
+        if line.startswith("m="):
+            fields = line[2:].split()
+            sections.append((fields[0] if fields else "?", fields[3:], {}, ""))
+        elif sections and line.startswith("a=rtpmap:"):
+            pt, _, encoding = line[len("a=rtpmap:") :].partition(" ")
+            sections[-1][2][pt.strip()] = encoding.strip()
+        elif sections and line.startswith("a=control:"):
+            media, pts, maps, _ = sections[-1]
+            sections[-1] = (media, pts, maps, line[len("a=control:") :].strip())
+    offers = []
+    for media, pts, maps, control in sections:
+        for pt in pts:
+            encoding = maps.get(pt, "")
+            name, _, rate = encoding.partition("/")
+            if media == "video" and name.upper() == "H264" and rate.split("/")[0] == "90000" and pt.isdigit():
+                return control, int(pt) & 0x7F
+        kinds = [maps.get(pt) or (_STATIC_PAYLOADS.get(int(pt), "") if pt.isdigit() else "") for pt in pts]
+        what = " ".join(dict.fromkeys(k for k in kinds if k)) or ("payload " + ",".join(pts) if pts else "")
+        note = " (event stream)" if media == "application" else ""
+        offers.append(f"m={media}" + (f" {what}" if what else "") + note)
+    offered = "; ".join(offers)[:300] if offers else "no media at all (an empty or non-SDP DESCRIBE answer)"
+    raise NoH264VideoError(f"{where}: the camera offers no H.264 video: {offered}")
 
 
 def _control(sdp: str, *, video: bool) -> str:

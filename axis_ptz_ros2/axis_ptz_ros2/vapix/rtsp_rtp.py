@@ -5,8 +5,10 @@ gives complete access units (Annex B): single NAL unit packets, STAP-A aggregate
 unit ends at the marker bit or when the timestamp changes. Bad input never raises anything but
 :class:`RtpPacketError` (a packet that is not RTP at all, or that the depacketiser cannot parse) and never grows
 without bound: an access unit with a sequence gap, a fragment out of order or a corrupt NAL header is dropped
-whole (:attr:`H264Depacketizer.dropped`), and the next one starts clean. :class:`SenderReportClock` maps RTP
-timestamps to the sender's wall clock from its last sender report.
+whole (:attr:`H264Depacketizer.dropped`; one that held IDR or parameter-set NAL units also counts in
+:attr:`H264Depacketizer.dropped_idrs`: what follows cannot be decoded until the next IDR), and the next one
+starts clean. :class:`SenderReportClock` maps RTP timestamps to the sender's wall clock from its last sender
+report.
 """
 
 from __future__ import annotations
@@ -24,6 +26,27 @@ MAX_NAL_UNITS: Final = 1024
 _START: Final = b"\x00\x00\x00\x01"
 _STAP_A: Final = 24
 _FU_A: Final = 28
+_KEY_KINDS: Final = frozenset({5, 7, 8})  # IDR slice, SPS, PPS
+_UNIT_START_KINDS: Final = frozenset({6, 7, 8, 9})  # SEI, SPS, PPS, access unit delimiter
+
+
+def starts_access_unit(payload: bytes) -> bool:
+    """Whether an RTP payload begins an access unit: its first NAL unit (or first fragment's) is an access unit
+    delimiter, SEI or parameter set, or a slice with ``first_mb_in_slice`` = 0 (its ue(v) is the single bit 1)."""
+    if not payload:
+        return False
+    kind, body = payload[0] & 0x1F, payload[1:]
+    if kind == _STAP_A:
+        if len(payload) < 4:
+            return False
+        kind, body = payload[3] & 0x1F, payload[4:]
+    elif kind == _FU_A:
+        if len(payload) < 3 or not payload[1] & 0x80:  # not the start fragment
+            return False
+        kind, body = payload[1] & 0x1F, payload[2:]
+    if kind in _UNIT_START_KINDS:
+        return True
+    return kind in (1, 5) and bool(body) and bool(body[0] & 0x80)
 
 
 class RtpPacketError(ResponseParseError):
@@ -79,16 +102,20 @@ class H264Depacketizer:
     def __init__(self, payload_type: int | None = None, first_seq: int | None = None) -> None:
         """``payload_type``: accept only this RTP payload type (None: any). ``first_seq``: the sequence number of
         the first packet (``RTP-Info: seq=`` of the PLAY reply); without it, packets lost before the first one
-        that arrives cannot be noticed, so the first access unit is dropped."""
+        that arrives cannot be noticed: the first access unit is taken only if its first packet starts one
+        (:func:`starts_access_unit`: an AUD, SEI or parameter set, or the first slice of a picture), else dropped."""
         self.payload_type = payload_type
         self.dropped = 0  #: access units dropped (gap, out-of-order fragment, corrupt NAL header, too large)
+        self.dropped_idrs = 0  #: … of which held (part of) an IDR or a parameter set
         self.errors = 0  #: packets refused with :class:`RtpPacketError`
         self._nals: list[bytes] = []
+        self._kinds: set[int] = set()  # NAL unit types seen in the access unit in progress (also in fragments)
         self._fu: bytearray | None = None
         self._size = 0
         self._ts: int | None = None
         self._seq: int | None = None if first_seq is None else (first_seq - 1) & 0xFFFF
-        self._bad = first_seq is None
+        self._bad = False
+        self._unsure_start = first_seq is None
 
     def push(self, packet: bytes) -> list[DepacketizedAccessUnit]:
         """Add one RTP packet; return the access units it completes (0, 1 or 2)."""
@@ -112,6 +139,9 @@ class H264Depacketizer:
             if done is not None:
                 out.append(done)
         self._bad = self._bad or gap
+        if self._unsure_start:  # the first packet of all, without RTP-Info: whole only if it starts a unit
+            self._unsure_start = False
+            self._bad = self._bad or not starts_access_unit(rtp.payload)
         self._seq = rtp.seq
         self._ts = rtp.timestamp
         self._payload(rtp.payload)
@@ -128,6 +158,7 @@ class H264Depacketizer:
     def _payload(self, payload: bytes) -> None:
         header = payload[0]
         kind = header & 0x1F
+        self._kinds.add(payload[1] & 0x1F if kind == _FU_A and len(payload) > 1 else kind)
         if header & 0x80:  # forbidden_zero_bit
             self._bad = True
         elif 1 <= kind <= 23:
@@ -144,6 +175,7 @@ class H264Depacketizer:
                 if n == 0 or pos + 2 + n > len(payload):
                     self._bad = True
                     return
+                self._kinds.add(payload[pos + 2] & 0x1F)
                 self._add(payload[pos + 2 : pos + 2 + n])
                 pos += 2 + n
         elif kind == _FU_A:
@@ -185,11 +217,12 @@ class H264Depacketizer:
         self._nals.append(nal)
 
     def _finish(self) -> DepacketizedAccessUnit | None:
-        nals, bad, ts = self._nals, self._bad or self._fu is not None, self._ts
-        self._nals, self._fu, self._size, self._bad, self._ts = [], None, 0, False, None
+        nals, bad, ts, kinds = self._nals, self._bad or self._fu is not None, self._ts, self._kinds
+        self._nals, self._fu, self._size, self._bad, self._ts, self._kinds = [], None, 0, False, None, set()
         if bad or not nals or ts is None:
             if bad:
                 self.dropped += 1
+                self.dropped_idrs += bool(kinds & _KEY_KINDS)
             return None
         return DepacketizedAccessUnit(b"".join(_START + n for n in nals), ts)
 
