@@ -2,8 +2,8 @@
 current-Axis persona (q6075: RTSP H.264 with Digest, plain HTTP here).
 
 PyAV (FFmpeg's h264 decoder, nobody's code here) decodes what arrives on ``image_raw/ffmpeg``; the simulator
-marks each frame's capture time in an SEI, which the node's header stamps (from the RTCP sender reports) must
-match; ``Renew-Stream`` is counted on the simulator's sessions.
+marks each frame's capture time in an SEI, which the node's header stamps (on this host's clock, which is the
+simulator's) must follow within the stream's latency; ``Renew-Stream`` is counted on the simulator's sessions.
 """
 
 from __future__ import annotations
@@ -135,10 +135,12 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
         assert p.key == (NalType.IDR in types)
         if p.key:
             assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
-        # header stamp = the camera's capture time (RTCP sender reports), the simulator's own SEI says when
+        # header stamp = the capture time on this host's clock (streaming/clock_sync.py maps the camera's RTP
+        # time through the arrival times; the simulator's clock is this host's and its SEI says when): never
+        # before the capture (RTP's 11 µs rounding aside), at most the stream's latency after it
         sei = annexb.extract_capture_stamp(p.data)
         assert sei is not None
-        assert abs(p.stamp_ns - sei) < 2_000_000, (p.pts, p.stamp_ns - sei)
+        assert -1_000_000 < p.stamp_ns - sei < 50_000_000, (p.pts, p.stamp_ns - sei)
     assert [p.pts for p in packets] == sorted({p.pts for p in packets})
     by_stamp = {p.stamp_ns: p.data for p in packets}
     with rec.lock:
