@@ -233,3 +233,14 @@ def test_the_demo_world_holds_the_acuity_charts_facing_the_head_at_10_20_and_35_
         # outside the home view (pan 0, ±24° at zoom 1): more than 90° to the side
         az = math.degrees(math.atan2(-to_cam[1], -to_cam[0]))
         assert az < -90.0
+
+
+def test_the_simulator_refuses_a_bad_world_file_with_the_loaders_message(tmp_path, capsys):
+    from axis_ptz_ros2.sim.cli import main
+
+    p = _world_yaml(tmp_path, "missing.png")
+    assert main(["--port", "0", "--world", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "bad world file" in err
+    assert "'board'" in err
+    assert "missing.png" in err

@@ -108,8 +108,13 @@ def main(argv: list[str] | None = None) -> int:
         base.focus_full_travel_s,
     )
     faults = FaultConfig(**{n: getattr(args, f"fault_{n}") for n in FaultConfig.field_names()})
+    try:
+        world = load_world(args.world)
+    except ValueError as err:  # WorldError: names the file, the target and the field
+        print(f"bad world file: {err}", file=sys.stderr)
+        return 2
     cam = SimulatedCamera(
-        world=load_world(args.world),
+        world=world,
         host=args.host,
         port=args.port,
         auth=args.auth,
