@@ -40,6 +40,7 @@ from axis_ptz_ros2.sim.persona import AXIS_214_PICTURE  # noqa: E402
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
 from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.idr import idr_granted_at_once  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -422,7 +423,7 @@ def test_link_monitor_decodes_and_its_loss_report_brings_an_idr(ros: RosHarness,
     # a consumer that lost sync says so: the stream node sends an IDR at once, not at the next periodic one
     rec, _ = subscribe(probe)
     ros.wait_for(lambda: rec.count() >= 5, timeout=5)
-    time.sleep(0.6)  # past the on-demand rate limit of the new subscription's IDR
+    ros.wait_for(lambda: idr_granted_at_once(node._stage), timeout=5)  # past the new subscription's IDRs
     before = node._stage.stats.idr_requests
     pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
     msg = LinkFeedback(consumer="/lossy", frames=10, fps=10.0, kbps=500.0, window_s=1.0, decode_errors=3)
@@ -561,13 +562,12 @@ def test_access_units_lost_on_the_way_lower_the_bitrate_although_delay_and_bytes
 
     seen: list[int] = []
 
-    def climbed() -> bool:
+    def climbed() -> bool:  # a report every 0.3 s (the wait's period)
         report(3)  # a steady count (its first value: the consumer's join) is no news
-        time.sleep(0.3)
         seen.append(node._video.h264_settings().bitrate_kbps)
         return seen[-1] > 400
 
-    ros.wait_for(climbed, timeout=20)
+    ros.wait_for(climbed, timeout=20, period=0.3)
     high = node._video.h264_settings().bitrate_kbps
     assert node._video.state().link_state == "clear"
     report(5)  # two more lost

@@ -215,7 +215,7 @@ def assert_no_new_request_but_reconnects(
 def frames_stay(camera: SimulatedCamera, seconds: float) -> bool:
     """True if the camera sent no frame for ``seconds``."""
     sent = camera.frames_sent
-    time.sleep(seconds)
+    time.sleep(seconds)  # a window in which no frame may be sent: the thing under test is that none is
     return camera.frames_sent == sent
 
 
@@ -236,7 +236,7 @@ def assert_never_repeated(frames: list[Frame]) -> None:
 def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros, camera):
     node = make_node(ros, camera, fps=15)
     probe = ros.probe()
-    time.sleep(0.6)
+    time.sleep(0.6)  # a window for a (wrong) stream request with nobody subscribed: the thing under test is none
     assert camera.request_counts.endpoints.get("video", 0) == 0, "streamed with nobody subscribed"
     assert node._reader.stats().state.value == "idle-lazy"
     rec, subs = subscribe(ros, probe, info=False)
@@ -261,7 +261,7 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
 
 
 def test_parameters_change_the_frames_live(ros, camera):
-    make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
+    node = make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
     probe = ros.probe()
     params_seen: list[VideoParams] = []
     probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
@@ -288,9 +288,13 @@ def test_parameters_change_the_frames_live(ros, camera):
     ros.wait_for(infos_follow, timeout=3)
 
     # fps: measured rate follows
+    connects = node._reader.stats().connects
     (res,) = set_params(ros, probe, fps=5)
     assert res.successful, res.reason
-    time.sleep(0.5)
+    # the reader reconnected at 5 fps and a frame of the new stream is through: what follows is the new rate
+    ros.wait_for(lambda: node._reader.stats().connects > connects and node._reader.stats().params.fps == 5, 5)
+    frames = node._reader.stats().frames
+    ros.wait_for(lambda: node._reader.stats().frames > frames, 5)
     t = time.monotonic()
     ros.wait_for(lambda: len(rec.since(t)) >= 8, timeout=8)
     rate_at_5 = steady_rate(rec.since(t))
@@ -443,7 +447,7 @@ def test_auth_failure_reported_clearly_and_not_hammered(ros, tmp_path):
         diags: list[DiagnosticArray] = []
         probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
         ros.wait_for(lambda: any(ord(s.level) == 2 for d in diags for s in d.status), timeout=5)
-        time.sleep(2.2)
+        time.sleep(2.2)  # a measuring window (auth_retry 1 s): the thing under test is how often it tries in it
         counts = cam.request_counts
         status = [s for d in diags for s in d.status if s.name.endswith("MJPEG stream")][-1]
         assert ord(status.level) == 2
@@ -519,7 +523,7 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
     # that condition, not on a fixed sleep
     def settled() -> bool:
         last = len(params_seen)
-        time.sleep(3.0)
+        time.sleep(3.0)  # a 3 s window in which the setting must not change: the condition is a quiet window
         return len(params_seen) == last
 
     ros.wait_for(settled, timeout=30)

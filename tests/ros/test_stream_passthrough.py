@@ -30,6 +30,8 @@ from axis_ptz_ros2.sim.rtsp.session import RtspSession  # noqa: E402
 from tests.ros.test_stream_h264 import FAST, H264Recorder, Packet, set_params, subscribe  # noqa: E402
 from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.idr import idr_granted_at_once  # noqa: E402
+from tests.support.waiting import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -48,9 +50,7 @@ def sim() -> Iterator[SimulatedCamera]:
 
 @pytest.fixture
 def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    deadline = time.monotonic() + 10
-    while sim.rebooting and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: not sim.rebooting, 10.0, 0.05, scaled=False, raises=False)
     sim.teleport(0.0, 0.0, 1.0)
     sim.reset_counts()
     return sim
@@ -173,11 +173,11 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
 def test_a_late_joiner_gets_an_idr_within_a_second(
     ros: RosHarness, camera: SimulatedCamera, cred: str, renews: list[float]
 ) -> None:
-    make_node(ros, camera, cred, h264_keyframe_interval=300)  # periodic IDRs every second (capped at fps)
+    node = make_node(ros, camera, cred, h264_keyframe_interval=300)  # periodic IDRs every second (capped at fps)
     probe = ros.probe()
     first, _ = subscribe(probe)
     ros.wait_for(lambda: first.count() >= 20, timeout=15)
-    time.sleep(0.6)  # outside the stage's on-demand rate limit
+    ros.wait_for(lambda: idr_granted_at_once(node._stage), timeout=5)  # outside the stage's on-demand rate limit
     before = len(renews)
     joiner_probe = ros.probe("late_joiner")
     late = H264Recorder()
