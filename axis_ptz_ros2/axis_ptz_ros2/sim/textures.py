@@ -396,10 +396,25 @@ def decode_image(data: bytes) -> U8Array:
     raise ImageError(f"unsupported image with {img.shape[2]} channels")
 
 
+_IMAGE_TEXTURES: dict[tuple[str, int, int], U8Array] = {}
+
+
 def image_texture(path: str | Path) -> tuple[U8Array, Features]:
     """The texture of an ``image`` target: the file's pixels, one texel each, stretched over the target's
-    rectangle (top row of the image at the target's top). Raises :class:`ImageError` (or ``OSError``)."""
-    return decode_image(Path(path).read_bytes()), {"center": (0.5, 0.5)}
+    rectangle (top row of the image at the target's top). Raises :class:`ImageError` (or ``OSError``).
+
+    Targets showing the same file share one read-only texture (the demo world's three acuity charts)."""
+    p = Path(path)
+    st = p.stat()
+    key = (str(p.resolve()), st.st_mtime_ns, st.st_size)
+    tex = _IMAGE_TEXTURES.get(key)
+    if tex is None:
+        tex = decode_image(p.read_bytes())
+        tex.setflags(write=False)
+        if len(_IMAGE_TEXTURES) >= 16:
+            _IMAGE_TEXTURES.pop(next(iter(_IMAGE_TEXTURES)))
+        _IMAGE_TEXTURES[key] = tex
+    return tex, {"center": (0.5, 0.5)}
 
 
 def texture_shape(kind: str, width_m: float, height_m: float) -> tuple[int, int]:
