@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import math
+import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -114,8 +115,10 @@ def _file(draw: st.DrawFn) -> str:
         data = draw(st.binary(max_size=300))
         if draw(st.booleans()):
             data = data[:0] + (b"\x89PNG\r\n\x1a\n" if draw(st.booleans()) else b"\xff\xd8") + data
-    path = Path(tempfile.mkstemp(suffix=".img", dir=_FILES)[1])
-    path.write_bytes(data)
+    fd, name = tempfile.mkstemp(suffix=".img", dir=_FILES)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+    path = Path(name)
     return str(path)
 
 
