@@ -19,6 +19,9 @@ Acuity in angle: row ``k``'s stroke subtends ``stroke_mm(k) / distance``; with t
 :class:`Score` gives the smallest row read as logMAR (log10 of the stroke in arc minutes) and in pixels.
 
     python bench/acuity.py picture.jpg [--distance 35]
+
+Needs OpenCV's ArUco detector (``cv2.aruco.ArucoDetector``: OpenCV 4.7 or later, as the main environment's); the
+simulator itself (``kind: image`` targets) needs no more than the declared minimum.
 """
 
 from __future__ import annotations
