@@ -12,15 +12,17 @@ from __future__ import annotations
 
 import base64
 from dataclasses import dataclass
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
 from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
 from axis_ptz_ros2.sim.view import CameraView
+
+if TYPE_CHECKING:  # PyAV: imported when a session first encodes (the simulator runs MJPEG-only without it)
+    from axis_ptz_ros2.media.encoder import EncoderConfig
 
 MEDIA_PATH: Final = "/axis-media/media.amp"
 VIDEO_CODECS: Final = ("h264", "h265", "av1", "mpeg4", "jpeg")  #: what VAPIX names (vapix.md §5.6)
@@ -51,6 +53,8 @@ class MediaRequest:
 
     def encoder_config(self) -> EncoderConfig:
         """The libx264 configuration for this stream (veryfast up to 4CIF, ultrafast above: two shared cores)."""
+        from axis_ptz_ros2.media.encoder import EncoderConfig  # noqa: PLC0415 - PyAV, on first use
+
         preset = "veryfast" if self.width * self.height <= 704 * 576 else "ultrafast"
         return EncoderConfig(
             width=self.width,
@@ -110,6 +114,8 @@ def parse_media_args(cam: CameraView, args: list[tuple[str, str]]) -> MediaReque
 def parameter_sets(request: MediaRequest) -> annexb.ParameterSets:
     """The SPS/PPS the session's encoder will use (libx264 is deterministic for one configuration)."""
     import numpy as np  # noqa: PLC0415 - only here
+
+    from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: PLC0415 - PyAV, on first use
 
     enc = H264Encoder(request.encoder_config())
     au = enc.encode_bgr(np.zeros((request.height, request.width, 3), np.uint8)).data

@@ -19,17 +19,20 @@ import secrets
 import threading
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.sim.rtsp.media import MediaRequest
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, H264Packetizer, interleave, sender_report
 from axis_ptz_ros2.sim.view import CameraView
+
+if TYPE_CHECKING:  # PyAV: imported when a session first encodes (the simulator runs MJPEG-only without it)
+    from axis_ptz_ros2.media.encoder import H264Encoder
 
 SR_INTERVAL_S = 1.0  #: seconds between RTCP sender reports (RFC 3550 allows ~5 s; 1 s lets clients sync fast)
 
@@ -139,6 +142,8 @@ class RtspSession:
     def _stream(self) -> None:
         cam = self.cam
         req = self.request
+        from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: PLC0415 - PyAV, on first use
+
         self._encoder = enc = H264Encoder(req.encoder_config())
         gen = cam.generation
         next_t = time.monotonic()
