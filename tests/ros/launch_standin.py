@@ -157,6 +157,8 @@ def declared_arguments(ld: Recorded) -> dict[str, Any]:
 
 def resolve(value: Any, args: dict[str, Any]) -> str:
     """Text of a substitution (or list of them) given the launch arguments' values."""
+    if isinstance(value, bool | int | float):  # a plain parameter value, as launch_ros passes it on
+        return str(value)
     if isinstance(value, str):
         return value
     if isinstance(value, list | tuple):

@@ -32,6 +32,7 @@ from axis_ptz_ros2.nodes import (
     visualizer,
     web_console,
 )
+from axis_ptz_ros2.sim import cli as sim_cli
 from tests.ros import launch_standin as ls
 
 pytestmark = pytest.mark.ros
@@ -148,6 +149,11 @@ def check_launch(path: Path, args_in: dict[str, str], seen: list[tuple[str, str]
                         ls.resolve(v, args) if not isinstance(v, int | float) else None
                 continue
             assert exe in SCRIPTS, f"{path.name}: {exe} is not a console script of this package"
+            if exe == "axis_camera_sim":  # no ROS node: its arguments must parse (launch's --ros-args ignored)
+                assert not params, f"{path.name}: parameters for {exe}, which has none"
+                argv = [ls.resolve(v, args) for v in a.kwargs.get("arguments", [])]
+                sim_cli.build_parser().parse_args(sim_cli.without_ros_args([*argv, "--ros-args", "-r", "__ns:=/x"]))
+                continue
             assert exe in EXE_NODES, f"{path.name}: {exe} is not a ROS node executable"
             if "name" in a.kwargs:
                 # a name remap renames EVERY node of the process: only for single-node executables
@@ -255,3 +261,27 @@ def test_every_params_file_fits_some_executable(path):
         exes = [exe for exe, nodes in EXE_NODES.items() if node_name in nodes]
         assert exes, f"{path.name}: no executable creates {node_name!r}"
         check_params_file(path, exes[0])
+
+
+def test_camera_launch_with_the_simulated_camera_points_the_driver_at_it():
+    """simulated_camera:=true starts axis_camera_sim and ONE axis_camera whose hostname/port are the simulator's
+    (over the params file); false starts no simulator and leaves the params file's address alone."""
+    path = ROOT / "axis_ptz_ros2" / "launch" / "camera.launch.py"
+    for flag in ("true", "false"):
+        ld = ls.load_launch_file(path)
+        args = {**ls.declared_arguments(ld), "simulated_camera": flag}
+        nodes = [a for a in ls.actions(ld) if isinstance(a, ls.Node) and ls.condition_true(a, args)]
+        exes = [n.kwargs["executable"] for n in nodes]
+        assert exes.count("axis_camera") == 1, exes
+        assert ("axis_camera_sim" in exes) is (flag == "true"), exes
+        cam = next(n for n in nodes if n.kwargs["executable"] == "axis_camera")
+        overrides = {k: v for p in cam.kwargs["parameters"] if isinstance(p, dict) for k, v in p.items()}
+        if flag == "true":
+            sim = next(n for n in nodes if n.kwargs["executable"] == "axis_camera_sim")
+            sim_args = sim_cli.build_parser().parse_args([ls.resolve(v, args) for v in sim.kwargs["arguments"]])
+            assert overrides["hostname"] == sim_args.host
+            assert sim_args.host == "127.0.0.1"
+            assert overrides["port"] == sim_args.port
+        else:
+            assert "hostname" not in overrides
+            assert "port" not in overrides

@@ -88,9 +88,24 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def without_ros_args(argv: list[str]) -> list[str]:
+    """``argv`` without ROS's ``--ros-args … [--]`` sections (``ros2 launch`` may add them to any executable it
+    starts as a node; the simulator is no ROS node and has none)."""
+    out: list[str] = []
+    inside = False
+    for a in argv:
+        if a == "--ros-args":
+            inside = True
+        elif inside and a == "--":
+            inside = False
+        elif not inside:
+            out.append(a)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``axis_camera_sim`` console script."""
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(without_ros_args(sys.argv[1:] if argv is None else argv))
     if not _is_loopback(args.host) and not args.allow_remote:
         print(f"refusing to bind non-loopback address {args.host!r} without --allow-remote", file=sys.stderr)
         return 2
