@@ -15,7 +15,7 @@ import av
 import pytest
 
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraTimeout, CameraUnreachable
-from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspControl
 from axis_ptz_ros2.vapix.rtsp_client import (
     NoH264VideoError,
     RtspClient,
@@ -424,3 +424,20 @@ def test_a_stream_that_stalls_is_a_read_timeout(video: H264Stream) -> None:
         with pytest.raises(CameraTimeout):
             c.read()
         assert time.monotonic() - t0 < 1.5
+
+
+def test_rtsp_control_gives_the_same_basic_only_hint(video: H264Stream) -> None:
+    with ScriptedRtspServer(_script(video, auth="basic")) as server:
+        ctl = RtspControl("127.0.0.1", server.port, username="root", password=PASSWORD, stream=STREAM)
+        try:
+            with pytest.raises(AuthError) as info:
+                ctl.describe()
+        finally:
+            ctl.close()
+        ctl = RtspControl("127.0.0.1", server.port, username="root", password=PASSWORD, auth="basic", stream=STREAM)
+        try:
+            assert "H264/90000" in ctl.describe()
+        finally:
+            ctl.close()
+    assert "set auth: basic" in str(info.value)
+    _no_secret(info.value)

@@ -191,7 +191,7 @@ class RtspClient:
                 raise ResponseParseError(f"RTSP SETUP {self._where()}: no Session header in the reply")
             self.session_id = sid.strip()
             transport = setup.headers.get("transport", "")
-            if transport and "interleaved=" not in transport.lower():
+            if _udp_transport(transport):
                 raise UdpTransportError(f"RTSP SETUP {self._where()}: {UDP_TRANSPORT} (Transport: {transport[:80]})")
             self._channels = _interleaved_channels(transport)
             for item in rest.split(";"):
@@ -560,6 +560,14 @@ def _rtp_info_seq(rtp_info: str) -> int | None:
         if k.lower() == "seq" and v.isascii() and v.isdigit() and len(v) <= 5 and int(v) <= 0xFFFF:
             return int(v)  # a 16-bit sequence number; anything else is not one (and is not wrapped into one)
     return None
+
+
+def _udp_transport(transport: str) -> bool:
+    """Whether a SETUP reply's ``Transport`` is UDP: no ``interleaved=``, and no ``/TCP`` profile (or ports)."""
+    t = transport.lower().replace(" ", "")
+    if not t or "interleaved=" in t:
+        return False
+    return not t.split(";")[0].endswith("/tcp") or "client_port=" in t or "server_port=" in t
 
 
 def _interleaved_channels(transport: str) -> tuple[int, int]:
