@@ -3,8 +3,9 @@
 :class:`RtspH264Source` plays the camera's ``/axis-media/media.amp`` with
 :class:`~axis_ptz_ros2.vapix.rtsp_client.RtspClient` (our client: it owns the playing session, so
 ``SET_PARAMETER`` ``Renew-Stream: yes`` reaches the stream we play) and hands every access unit, stamped on this
-host's clock (its RTP time mapped by :class:`~axis_ptz_ros2.streaming.clock_sync.StreamClock`: capture time plus
-the fixed latency, never backwards, whatever the camera's clock says; the camera's clock offset is in
+host's clock (its RTP time mapped by :class:`~axis_ptz_ros2.streaming.clock_sync.StreamClock`: the capture time
+plus the network's least delay, or the camera's least latency before a sender report; never backwards, whatever
+the camera's clock says; the camera's clock offset is in
 :attr:`RtspSourceStats.camera_clock_offset_s`, and a camera more than 1 s off is reported once), to a sink: the
 stream node's
 :class:`~axis_ptz_ros2.streaming.h264.H264Stage` (:meth:`~axis_ptz_ros2.streaming.h264.H264Stage.on_access_unit`),
