@@ -8,7 +8,6 @@ the camera's limits.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Iterator
 from typing import Any
 from urllib.parse import parse_qsl
@@ -161,13 +160,14 @@ def test_command_topics_then_the_node_still_moves_the_camera(rig: Any) -> None:
 
     # Messages on different topics are not ordered with each other: re-send a valid absolute command on the same
     # topic as the garbage until the camera holds it, so no garbage is still in flight when the service is called.
-    def holds_topic_target() -> bool:
-        absolute.publish(PtzCommand(pan=math.radians(-10.0), tilt=math.radians(5.0), zoom=math.nan, speed=math.nan))
-        time.sleep(0.5)
+    def holds_topic_target() -> bool:  # checked, then sent again, every 0.5 s (the wait's period)
         pan, tilt, _ = cam.position()
-        return abs(pan - 10.0) < 0.5 and abs(tilt - 5.0) < 0.5
+        if abs(pan - 10.0) < 0.5 and abs(tilt - 5.0) < 0.5:
+            return True
+        absolute.publish(PtzCommand(pan=math.radians(-10.0), tilt=math.radians(5.0), zoom=math.nan, speed=math.nan))
+        return False
 
-    ros.wait_for(holds_topic_target, 20.0)
+    ros.wait_for(holds_topic_target, 20.0, period=0.5)
     request = MovePtz.Request(command=PtzCommand(pan=math.radians(-20.0), tilt=math.radians(10.0), zoom=500.0))
     request.wait, request.timeout_s = True, 20.0
     response = _answer(ros, probe, MovePtz, "ptz/move_absolute", request)

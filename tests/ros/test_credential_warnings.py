@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +14,7 @@ import pytest
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.scene import load_world
 from tests.ros.processes import node_process
+from tests.support.waiting import wait_until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 PASSWORD = "Cr3d-Never-Logged"
@@ -25,11 +25,14 @@ def _run(args: list[str], until: str, timeout: float = 60.0) -> str:
     with node_process(args) as proc:
         assert proc.stdout is not None
         os.set_blocking(proc.stdout.fileno(), False)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and until.encode() not in out and proc.poll() is None:
-            chunk = proc.stdout.read() or b""
-            out += chunk
-            time.sleep(0.05)
+        stdout = proc.stdout
+
+        def seen_or_ended() -> bool:
+            nonlocal out
+            out += stdout.read() or b""
+            return until.encode() in out or proc.poll() is not None
+
+        wait_until(seen_or_ended, timeout, 0.05, scaled=False, raises=False)
         proc.send_signal(signal.SIGINT)
         proc.wait(10)
         out += proc.stdout.read() or b""

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from scripts.demo import count_mjpeg_frames
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -39,13 +40,13 @@ class Output:
                 self.text += line
 
     def url(self, timeout: float) -> str:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+
+        def found() -> re.Match[str] | None:
             with self._lock:
-                m = URL_LINE.search(self.text)
-            if m:
-                return m.group(1)
-            time.sleep(0.1)
+                return URL_LINE.search(self.text)
+
+        if m := wait_until(found, timeout, 0.1, scaled=False, raises=False):
+            return m.group(1)
         raise AssertionError(f"no console URL within {timeout:g} s; output:\n{self.text[-3000:]}")
 
     def join(self) -> str:

@@ -23,6 +23,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState  # no
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzState, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import CenterOnPixel, MovePtz, SetZoom  # noqa: E402
 from axis_ptz_ros2 import geometry as g  # noqa: E402
+from axis_ptz_ros2 import transforms  # noqa: E402
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.virtual_camera import VirtualCameraNode  # noqa: E402
 from axis_ptz_ros2.teleop.keymap import TeleopState, apply  # noqa: E402
@@ -198,19 +199,19 @@ def start(ros: Any, tmp_path: Path, rpy: tuple[float, float, float], raw: bool =
 def expected_pixel(info: CameraInfo, pan: float, tilt: float, d_base: np.ndarray) -> np.ndarray:
     """K·R⁻¹·d with K from the received camera_info and R = Rz(pan)·Ry(−tilt)·R_body_opt."""
     K = np.array(info.k).reshape(3, 3)
-    R = g.rot_z(pan) @ g.rot_y(-tilt) @ g.R_BODY_OPT
+    R = transforms.rot_z(pan) @ transforms.rot_y(-tilt) @ transforms.R_BODY_OPT
     p = K @ (R.T @ d_base)
     return p[:2] / p[2]
 
 
 def feed_until_decoded(node: VirtualCameraNode, probe: Probe, pano: np.ndarray) -> None:
-    def fed() -> bool:
-        if node.stats.panoramas_decoded == 0:
-            probe.publish_panorama(pano)
-            time.sleep(0.05)
-        return node.stats.panoramas_decoded > 0
+    def fed() -> bool:  # a panorama every 0.05 s (the wait's period) until one is decoded
+        if node.stats.panoramas_decoded > 0:
+            return True
+        probe.publish_panorama(pano)
+        return False
 
-    probe.ros.wait_for(fed, 10.0)
+    probe.ros.wait_for(fed, 10.0, period=0.05)
 
 
 D_MARKER = g.pan_tilt_to_direction(MARKER_PAN, MARKER_TILT)
@@ -220,7 +221,7 @@ def test_marker_lands_at_K_R_inv_d_through_the_node(ros, tmp_path):
     """JPEG panorama yawed 54° against base_link; pan/tilt/zoom commanded through ptz/move_absolute."""
     rpy = (0.0, 0.0, math.radians(54.0))
     node, probe = start(ros, tmp_path, rpy)
-    R_pano_base = g.rpy_to_matrix(*rpy).T
+    R_pano_base = transforms.rpy_to_matrix(*rpy).T
     feed_until_decoded(node, probe, synthetic_panorama(R_pano_base, D_MARKER))
 
     poses = [  # (pan, tilt, zoom): wide with the marker far off-centre, zoomed in slightly off-centre
@@ -250,7 +251,7 @@ def test_marker_lands_at_K_R_inv_d_through_the_node(ros, tmp_path):
         assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "virtual_camera_optical_frame")
         t, q = tf.transform.translation, tf.transform.rotation
         assert (t.x, t.y, t.z) == pytest.approx(T_PANO, abs=1e-12)  # the view's centre is the panorama's
-        assert np.allclose(g.quaternion_to_matrix(q.x, q.y, q.z, q.w), view.R_base_opt, atol=1e-9)
+        assert np.allclose(transforms.quaternion_to_matrix(q.x, q.y, q.z, q.w), view.R_base_opt, atol=1e-9)
         exp = expected_pixel(info, pan, tilt, D_MARKER)
         assert exp == pytest.approx(direction_pixel(view, D_MARKER), abs=1e-9)
         assert 30 < exp[0] < W - 30
@@ -269,7 +270,7 @@ def test_operator_tools_drive_it_unchanged(ros, tmp_path):
     keyboard teleop step (ptz/cmd/relative), zoom by field of view (ptz/set_zoom), velocity."""
     rpy = (0.03, -0.05, 1.2)
     node, probe = start(ros, tmp_path, rpy, raw=True)
-    feed_until_decoded(node, probe, synthetic_panorama(g.rpy_to_matrix(*rpy).T, D_MARKER))
+    feed_until_decoded(node, probe, synthetic_panorama(transforms.rpy_to_matrix(*rpy).T, D_MARKER))
 
     pan0, tilt0, zoom0 = MARKER_PAN + 0.12, MARKER_TILT + 0.07, 1500.0
     probe.move_abs(pan0, tilt0, zoom0)
@@ -330,13 +331,14 @@ def test_nothing_done_without_subscribers_and_one_decode_per_panorama(ros, tmp_p
     pano = synthetic_panorama(np.eye(3), D_MARKER)
     m = CompressedImage(format="jpeg", data=cv2.imencode(".jpg", pano)[1].tobytes())
 
-    def received() -> bool:
+    def received() -> bool:  # a panorama every 0.05 s (the wait's period) until three arrived
+        if node.stats.panoramas_received >= 3:
+            return True
         pub.publish(m)
-        time.sleep(0.05)
-        return node.stats.panoramas_received >= 3
+        return False
 
-    ros.wait_for(received, 10.0)
-    time.sleep(0.3)
+    ros.wait_for(received, 10.0, period=0.05)
+    time.sleep(0.3)  # a window for a (wrong) decode with nobody watching: the thing under test is that none comes
     assert node.stats.panoramas_decoded == 0  # nobody watches: nothing decoded, nothing rendered
     assert node.stats.frames_published == 0
     received_before = node.stats.panoramas_received  # at most the last of these is still pending
