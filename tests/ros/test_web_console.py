@@ -181,7 +181,7 @@ def test_mjpeg_passthrough_and_lazy_subscription(ros: Any) -> None:
     console = make_console(ros)
     probe = ros.probe()
     pub = probe.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
-    time.sleep(0.3)
+    time.sleep(0.3)  # a window for a (wrong) subscription with nobody watching: the thing under test is none comes
     assert not console.subscribed("ptz"), "subscribed to the image topic with nobody watching"
     assert pub.get_subscription_count() == 0
 
@@ -198,7 +198,7 @@ def test_mjpeg_passthrough_and_lazy_subscription(ros: Any) -> None:
             msg.header.stamp = probe.get_clock().now().to_msg()
             pub.publish(msg)
             i += 1
-            time.sleep(0.05)
+            time.sleep(0.05)  # a 20 Hz camera stream, as the console gets it
 
     def stream_state() -> dict[str, Any]:
         return json.loads(request(console, "GET", "/api/state")[2])["stream"]
@@ -256,14 +256,14 @@ def test_h264_access_units_lost_on_the_way_count_in_the_consoles_feedback(ros: A
         for _ in range(60):  # 3 s at 20 Hz: past the first report window
             send(pts)
             pts += 1
-            time.sleep(0.05)
+            time.sleep(0.05)  # a 20 Hz stream: the report windows count time, so the time itself matters
         ros.wait_for(lambda: any(r.frames > 0 for r in reports), 5.0)
         assert all(r.lost == 0 for r in reports), [r.lost for r in reports]
         pts += 2  # two access units never arrive
         for _ in range(20):
             send(pts)
             pts += 1
-            time.sleep(0.05)
+            time.sleep(0.05)  # a 20 Hz stream: the report windows count time, so the time itself matters
         ros.wait_for(lambda: reports[-1].lost == 2, 5.0)
     finally:
         resp.close()
@@ -280,11 +280,10 @@ def test_slow_client_gets_newest_frame_not_a_queue(ros: Any) -> None:
     ros.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
     pub.publish(CompressedImage(format="jpeg", data=frames[0]))
     assert reader.next() == frames[0]
-    # the client stops reading while 39 frames are published
+    # the client stops reading while 39 frames are published, each one taken by the console before the next
     for f in frames[1:]:
         pub.publish(CompressedImage(format="jpeg", data=f))
-        time.sleep(0.02)
-    ros.wait_for(lambda: console.slot("ptz").latest()[1] == frames[-1], 5.0)
+        ros.wait_for(lambda f=f: console.slot("ptz").latest()[1] == f, 5.0)
     received = []
     while True:
         received.append(reader.next())
@@ -302,10 +301,14 @@ def test_snapshot_and_unknown_stream(ros: Any) -> None:
     pub = probe.create_publisher(CompressedImage, "panorama/image_raw/compressed", STREAM_QOS)
     frame = jpeg(7)
 
-    def keep_publishing() -> None:
+    done = threading.Event()
+
+    def keep_publishing() -> None:  # until the test has its answers (at most 5 s)
         for _ in range(100):
+            if done.is_set():
+                return
             pub.publish(CompressedImage(format="jpeg", data=frame))
-            time.sleep(0.05)
+            time.sleep(0.05)  # a 20 Hz camera stream, as the console gets it
 
     t = threading.Thread(target=keep_publishing, daemon=True)
     t.start()
@@ -315,6 +318,7 @@ def test_snapshot_and_unknown_stream(ros: Any) -> None:
     assert body == frame
     assert request(console, "GET", "/video/overlay.mjpg")[0] == 404  # overlay disabled by parameter
     assert request(console, "GET", "/video/nothing.mjpg")[0] == 404
+    done.set()
     t.join()
 
 
@@ -728,18 +732,21 @@ log = open(os.path.join(tmp, "console.log"), "wb")
 node = subprocess.Popen(["axis_web_console", "--ros-args", "-p", "bind:=0.0.0.0", "-p", f"port:={port}",
                          "-p", f"url_file:={tmp}/url"], env=env, stdout=log, stderr=subprocess.STDOUT)
 out = {}
+
+def wait(pred, timeout):  # this script's condition wait: pred() polled every 0.1 s; its last value
+    deadline = time.monotonic() + timeout
+    while not (v := pred()) and time.monotonic() < deadline:
+        time.sleep(0.1)  # the polling pause of this script's condition wait (it runs in another process)
+    return v
+
+def fingerprint():
+    text = open(os.path.join(tmp, "console.log"), encoding="utf-8", errors="replace").read()
+    return re.search(r"SHA-256 fingerprint ([0-9A-F:]{95})", text)
+
 try:
-    deadline = time.monotonic() + 60
-    while not os.path.exists(f"{tmp}/url") and time.monotonic() < deadline and node.poll() is None:
-        time.sleep(0.1)
+    wait(lambda: os.path.exists(f"{tmp}/url") or node.poll() is not None, 60)
     out["url"] = open(f"{tmp}/url").read().strip()
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        text = open(os.path.join(tmp, "console.log"), encoding="utf-8", errors="replace").read()
-        m = re.search(r"SHA-256 fingerprint ([0-9A-F:]{95})", text)
-        if m:
-            break
-        time.sleep(0.1)
+    m = wait(fingerprint, 10)
     out["logged_fingerprint"] = m.group(1) if m else None
     # what an operator does: fetch the certificate, compare its fingerprint with the logged one, trust it
     pem = ssl.get_server_certificate(("127.0.0.1", port))
@@ -877,7 +884,7 @@ def _raw(port: int, data: bytes, source: str = "127.0.0.1", pause_after: float =
     with socket.create_connection(("127.0.0.1", port), timeout=15, source_address=(source, 0)) as s:
         s.sendall(data)
         if pause_after:  # keep our side open, as a client that stalls mid-body does
-            time.sleep(pause_after)
+            time.sleep(pause_after)  # the stalled client: the time it stalls is the thing under test
         else:
             s.shutdown(socket.SHUT_WR)
         chunks = []
