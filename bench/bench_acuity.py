@@ -45,6 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         "bench/acuity_chart.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
         "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
+        "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
+        "axis_ptz_ros2/axis_ptz_ros2/optics.py",
         "config/sim_world.yaml",
     )
     world = load_world()

@@ -120,6 +120,8 @@ def main() -> None:
     inputs(
         "axis_ptz_ros2/axis_ptz_ros2/calibration",
         "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
+        "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
+        "axis_ptz_ros2/axis_ptz_ros2/optics.py",
         "axis_ptz_ros2/camera_info.py",
         "axis_ptz_ros2/config.py",
         "bench/bench_calibration.py",

@@ -55,7 +55,6 @@ from axis_ptz_ros2.calibration.cli import format_result  # noqa: E402
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
 from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
-from axis_ptz_ros2.geometry import Transform  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import CaptureSession  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
@@ -63,6 +62,7 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.world import load_world  # noqa: E402
+from axis_ptz_ros2.transforms import Transform  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim_picker import SimBoardPicker  # noqa: E402
 

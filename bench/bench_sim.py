@@ -77,7 +77,12 @@ def main() -> int:
         base = m.group(1)
         q = "resolution=704x576&fps=30"
         inputs(
-            "axis_ptz_ros2/axis_ptz_ros2/sim", "axis_ptz_ros2/axis_ptz_ros2/geometry.py", "config", "bench/bench_sim.py"
+            "axis_ptz_ros2/axis_ptz_ros2/sim",
+            "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
+            "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
+            "axis_ptz_ros2/axis_ptz_ros2/optics.py",
+            "config",
+            "bench/bench_sim.py",
         )
         fps, ms, pct = measure(base, proc.pid, q, args.seconds)
         still = (fps, pct)

@@ -34,7 +34,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
-from axis_ptz_ros2 import geometry as g  # noqa: E402
+from axis_ptz_ros2 import transforms  # noqa: E402
 from axis_ptz_ros2.virtual import ViewSpec, VirtualCameraRenderer  # noqa: E402
 
 
@@ -81,6 +81,8 @@ def main() -> None:
     inputs(
         "axis_ptz_ros2/axis_ptz_ros2/virtual",
         "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
+        "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
+        "axis_ptz_ros2/axis_ptz_ros2/optics.py",
         "bench/bench_virtual_camera.py",
     )
     print(
@@ -94,7 +96,7 @@ def main() -> None:
     view = ViewSpec(w, h, math.radians(40.0), math.radians(10.0), hfov)  # Axis 214 wide end
     print(f"view: pan 40°, tilt 10°, hfov {math.degrees(hfov):.2f}° (pan/tilt in base_link, panorama yawed 54°)")
     yaw = math.radians(54.0)  # TRADR panorama frame yawed against base_link
-    r = VirtualCameraRenderer(PW, PH, g.rot_z(yaw))
+    r = VirtualCameraRenderer(PW, PH, transforms.rot_z(yaw))
     out = np.empty((h, w, 3), np.uint8)
 
     results: dict[str, float] = {}
@@ -114,7 +116,7 @@ def main() -> None:
         return ViewSpec(w, h, math.radians(-179.0 + 1.37 * (i % 260)), view.tilt, view.hfov)
 
     results["map rebuild, pan-only change"] = median_ms(lambda i: r.maps(new_pan(i)), args.runs)
-    tilted = VirtualCameraRenderer(PW, PH, g.rpy_to_matrix(0.02, -0.03, yaw))
+    tilted = VirtualCameraRenderer(PW, PH, transforms.rpy_to_matrix(0.02, -0.03, yaw))
     results["map rebuild, non-level panorama (no fast path)"] = median_ms(
         lambda i: tilted.maps(new_tilt_zoom(i)), args.runs
     )

@@ -32,7 +32,7 @@ import cv2
 import httpx
 import numpy as np
 
-from axis_ptz_ros2.geometry import AXIS_214_ZOOM
+from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.camera_model import THESIS_TABLES, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import Intrinsics
+from axis_ptz_ros2.optics import Intrinsics
 from axis_ptz_ros2.strict_yaml import load_strict
 from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
@@ -121,7 +121,7 @@ class CameraInfoData:
         return any(abs(v) > 0.0 for v in self.D)
 
     def intrinsics(self) -> Intrinsics:
-        """The pinhole part (K) as :class:`~axis_ptz_ros2.geometry.Intrinsics` (distortion not included)."""
+        """The pinhole part (K) as :class:`~axis_ptz_ros2.optics.Intrinsics` (distortion not included)."""
         return Intrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
 
     # -- adaptation to another stream ------------------------------------------------------------------

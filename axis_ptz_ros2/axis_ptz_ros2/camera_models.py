@@ -24,7 +24,7 @@ from typing import Any
 import yaml
 
 from axis_ptz_ros2.config import CONFIG_DIR, CameraModel, CameraModelError, _share_config_dir, load_camera_model
-from axis_ptz_ros2.geometry import ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.vapix import AxisPtzError, CameraConfig, PtzLimits, VapixClient
 from axis_ptz_ros2.vapix.models import CIF_NTSC, CIF_PAL, Resolution
 

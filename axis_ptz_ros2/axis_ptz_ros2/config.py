@@ -3,7 +3,7 @@
 Formats (YAML, versioned by a ``format`` key):
 
 * ``axis_ptz_ros2/camera_model/v1`` — ``config/axis214.yaml``: ``convention`` (pan_direction, mount),
-  ``zoom`` (a :class:`~axis_ptz_ros2.geometry.ZoomModel`), ``head`` (h_tilt, d_opt in metres), ``limits``
+  ``zoom`` (a :class:`~axis_ptz_ros2.optics.ZoomModel`), ``head`` (h_tilt, d_opt in metres), ``limits``
   (fallback limits in VAPIX degrees/units when the camera cannot report them), ``max_speed`` (deg/s), and
   optionally ``camera_info`` — a measured calibration in the ROS camera calibration YAML format, as a path
   (relative to the model file) or inline — with ``camera_info_zoom`` (VAPIX units it was measured at; default
@@ -33,17 +33,10 @@ from axis_ptz_ros2.camera_info import (
     load_camera_info,
     nominal_camera_info,
 )
-from axis_ptz_ros2.geometry import (
-    ZOOM_REQUIRED,
-    Intrinsics,
-    Mount,
-    PanDirection,
-    PtzKinematics,
-    Transform,
-    VapixConvention,
-    ZoomModel,
-)
+from axis_ptz_ros2.geometry import Mount, PanDirection, PtzKinematics, VapixConvention
+from axis_ptz_ros2.optics import ZOOM_REQUIRED, Intrinsics, ZoomModel
 from axis_ptz_ros2.strict_yaml import load_strict
+from axis_ptz_ros2.transforms import Transform
 
 CAMERA_MODEL_FORMAT = "axis_ptz_ros2/camera_model/v1"
 MOUNT_FORMAT = "axis_ptz_ros2/mount/v1"

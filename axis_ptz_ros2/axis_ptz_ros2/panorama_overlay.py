@@ -30,8 +30,9 @@ import cv2
 import numpy as np
 
 from axis_ptz_ros2.config import CameraModel, MountConfig, RobotConfig
-from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
+from axis_ptz_ros2.optics import Intrinsics
 from axis_ptz_ros2.pointing import footprint_on_panorama, point_along_ray, project_to_panorama
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 MARKER_BGR = (0, 0, 255)  # red, as in the thesis
 FOOTPRINT_BGR = (0, 255, 255)  # yellow

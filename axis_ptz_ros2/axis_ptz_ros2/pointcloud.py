@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from axis_ptz_ros2.geometry import FloatArray
+from axis_ptz_ros2.transforms import FloatArray
 
 #: sensor_msgs/PointField datatypes → numpy type characters
 _PF_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}

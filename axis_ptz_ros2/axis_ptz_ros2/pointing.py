@@ -16,13 +16,9 @@ from enum import StrEnum
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import (
-    FloatArray,
-    Intrinsics,
-    Transform,
-    direction_to_equirect,
-    equirect_to_direction,
-)
+from axis_ptz_ros2.geometry import direction_to_equirect, equirect_to_direction
+from axis_ptz_ros2.optics import Intrinsics
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 
 class DepthSource(StrEnum):

@@ -39,7 +39,6 @@ from axis_ptz_ros2.calibration.correspondences import load_correspondences  # no
 from axis_ptz_ros2.calibration.picking import picking_noise  # noqa: E402
 from axis_ptz_ros2.calibration.solver import rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_mount, load_robot  # noqa: E402
-from axis_ptz_ros2.geometry import quaternion_to_matrix  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import CaptureSession, _laser_qos  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import main as cli_main  # noqa: E402
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
@@ -50,6 +49,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from axis_ptz_ros2.sim.scene import Scene  # noqa: E402
 from axis_ptz_ros2.sim.world import load_world  # noqa: E402
+from axis_ptz_ros2.transforms import quaternion_to_matrix  # noqa: E402
 from tests.support.sim_picker import scene_dot_features  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(150)]

@@ -39,13 +39,14 @@ from axis_ptz_interfaces.action import PtzMove  # noqa: E402
 from axis_ptz_interfaces.msg import PtzCommand, PtzState, PtzVelocity  # noqa: E402
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom  # noqa: E402
 from axis_ptz_ros2.config import MountConfig, save_mount  # noqa: E402
-from axis_ptz_ros2.geometry import Transform, pan_tilt_to_direction  # noqa: E402
+from axis_ptz_ros2.geometry import pan_tilt_to_direction  # noqa: E402
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.sim.faults import FaultConfig  # noqa: E402
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros  # noqa: E402
 from axis_ptz_ros2.sim.world import PtzLimits, TargetSpec, load_world  # noqa: E402
+from axis_ptz_ros2.transforms import Transform  # noqa: E402
 from tests.support.waiting import wait_until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]

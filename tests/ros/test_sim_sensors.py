@@ -12,7 +12,6 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, PointCloud2
 from tf2_msgs.msg import TFMessage
 
-from axis_ptz_ros2.geometry import Transform, quaternion_to_matrix
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.nodes.laser_sim import LaserSim, cloud_points
 from axis_ptz_ros2.nodes.panorama_sim import PanoramaSim
@@ -20,6 +19,7 @@ from axis_ptz_ros2.nodes.tf_publish import TF_STATIC_QOS
 from axis_ptz_ros2.pointing import project_to_panorama
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import Transform, quaternion_to_matrix
 
 pytestmark = pytest.mark.ros
 

@@ -23,11 +23,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy  # noqa
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
-from axis_ptz_ros2.geometry import Pose, Transform  # noqa: E402
 from axis_ptz_ros2.nodes.common import STREAM_QOS, pose_msg, transform_from_msg, transform_msg  # noqa: E402
 from axis_ptz_ros2.nodes.ptz_node import PtzNode  # noqa: E402
 from axis_ptz_ros2.nodes.tf_publish import TF_QOS, TF_STATIC_QOS  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.transforms import Pose, Transform  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 

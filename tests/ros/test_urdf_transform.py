@@ -22,11 +22,11 @@ from sensor_msgs.msg import JointState
 from axis_ptz_interfaces.msg import PtzCommand
 from axis_ptz_interfaces.srv import MovePtz
 from axis_ptz_ros2.config import MountConfig, save_mount
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import STREAM_QOS, transform_from_msg
 from axis_ptz_ros2.nodes.ptz_node import PtzNode
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import Transform
 from tests.support.urdf_fk import forward_kinematics, parse_urdf
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]

@@ -14,9 +14,9 @@ from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import MountConfig, save_mount
-from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, transform_msg
 from axis_ptz_ros2.nodes.visualizer import Visualizer
+from axis_ptz_ros2.transforms import Transform, rot_z
 from tests.support.panorama_expect import H_TILT, PANO, PTZ_BASE, H, W, expected_pixel  # noqa: E402
 
 pytestmark = pytest.mark.ros

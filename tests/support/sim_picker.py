@@ -17,9 +17,9 @@ import numpy as np
 from axis_ptz_ros2.calibration.capture import CapturedView
 from axis_ptz_ros2.calibration.picking import Feature, PickedPoint, PickMode, pick_view
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.sim.scene import Scene
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import Transform
 
 
 def scene_dot_features(scene: Scene, *, kinds: Sequence[str] = ("calib",)) -> list[Feature]:

@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from axis_ptz_ros2.config import MountConfig, save_mount
-from axis_ptz_ros2.geometry import FloatArray, Transform, rpy_to_matrix
+from axis_ptz_ros2.transforms import FloatArray, Transform, rpy_to_matrix
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -37,12 +37,12 @@ from axis_ptz_ros2.calibration.picking import (
 )
 from axis_ptz_ros2.calibration.synthetic import default_camera_model
 from axis_ptz_ros2.config import load_mount
-from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.pointcloud import CloudField, decode_cloud
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import Transform, rot_z
 from tests.support.sim_picker import scene_dot_features
 
 pytestmark = pytest.mark.unit

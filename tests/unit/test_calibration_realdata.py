@@ -23,7 +23,7 @@ from axis_ptz_ros2.calibration.correspondences import (
 from axis_ptz_ros2.calibration.solver import CalibrationRefused, calibrate, rotation_error_deg
 from axis_ptz_ros2.camera_info import save_camera_info
 from axis_ptz_ros2.config import CameraModel, default_config_path, load_camera_model, load_mount
-from axis_ptz_ros2.geometry import Transform, quaternion_to_matrix
+from axis_ptz_ros2.transforms import Transform, quaternion_to_matrix
 
 pytestmark = pytest.mark.unit
 

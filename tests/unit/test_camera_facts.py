@@ -20,7 +20,8 @@ from axis_ptz_ros2.config import (
     default_config_path,
     load_camera_model,
 )
-from axis_ptz_ros2.geometry import AXIS_214_ZOOM, PtzKinematics, ZoomModel
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.optics import AXIS_214_ZOOM, ZoomModel
 from axis_ptz_ros2.sim.persona import AXIS_Q6075
 from axis_ptz_ros2.sim.world import load_world
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2 import geometry as g
+from axis_ptz_ros2 import optics, transforms
 
 pytestmark = pytest.mark.unit
 
@@ -37,7 +38,7 @@ def test_ceiling_mount_mirrors_both_axes():
 
 
 def test_zoom_model_matches_axis_214_lens_calculator():
-    z = g.AXIS_214_ZOOM
+    z = optics.AXIS_214_ZOOM
     assert z.intrinsics(1, 704, 576).fx == pytest.approx(791, abs=1.0)
     assert z.intrinsics(9999, 704, 576).fx == pytest.approx(14937, rel=2e-3)
     assert math.degrees(z.hfov(9999)) == pytest.approx(2.70, abs=0.01)
@@ -52,12 +53,12 @@ def test_zoom_model_matches_axis_214_lens_calculator():
 
 
 def test_zoom_table_interpolates_monotonically_in_log_magnification():
-    m = g.ZoomModel(47.98, 18.88, table=((1, 1.0), (3868, 2.0), (7736, 3.0), (9999, 3.584961)))
+    m = optics.ZoomModel(47.98, 18.88, table=((1, 1.0), (3868, 2.0), (7736, 3.0), (9999, 3.584961)))
     assert m.magnification(3868) == pytest.approx(2.0)
     assert m.magnification(2000) == pytest.approx(math.exp(math.log(2.0) * 1999 / 3867))
     assert m.zoom_for_magnification(3.0) == pytest.approx(7736)
     with pytest.raises(ValueError, match="monotone"):
-        g.ZoomModel(47.98, 18.88, table=((1, 2.0), (10, 1.0)))
+        optics.ZoomModel(47.98, 18.88, table=((1, 2.0), (10, 1.0)))
 
 
 def test_kinematics_optical_axis_and_frames():
@@ -86,7 +87,7 @@ def test_look_at_puts_point_on_optical_axis(d_opt):
 
 @pytest.mark.parametrize("tilt_deg", [-40.0, 0.0, 40.0, 80.0])
 def test_center_on_pixel_is_exact_at_any_tilt(tilt_deg):
-    intr = g.AXIS_214_ZOOM.intrinsics(1, 704, 576)
+    intr = optics.AXIS_214_ZOOM.intrinsics(1, 704, 576)
     kin = g.PtzKinematics(h_tilt=0.0, d_opt=(0.0, 0.0, 0.0))
     pan, tilt = math.radians(20.0), math.radians(tilt_deg)
     u, v = 600.0, 100.0
@@ -115,21 +116,21 @@ def test_equirect_round_trip_and_anchor_pixels():
 
 
 def test_transform_algebra_and_quaternions():
-    T = g.Transform.from_xyz_rpy(-0.214, -0.044, 0.455, 0.1, -0.2, 0.3)
+    T = transforms.Transform.from_xyz_rpy(-0.214, -0.044, 0.455, 0.1, -0.2, 0.3)
     assert (T @ T.inverse()).matrix() == pytest.approx(np.eye(4), abs=1e-12)
     assert T.xyz_rpy() == pytest.approx((-0.214, -0.044, 0.455, 0.1, -0.2, 0.3))
-    q = g.matrix_to_quaternion(T.R)
-    assert g.quaternion_to_matrix(*q) == pytest.approx(T.R, abs=1e-12)
-    assert g.matrix_to_quaternion(g.rot_z(math.pi)) == pytest.approx((0, 0, 1, 0), abs=1e-12)
+    q = transforms.matrix_to_quaternion(T.R)
+    assert transforms.quaternion_to_matrix(*q) == pytest.approx(T.R, abs=1e-12)
+    assert transforms.matrix_to_quaternion(transforms.rot_z(math.pi)) == pytest.approx((0, 0, 1, 0), abs=1e-12)
 
 
-def _same_pose(p: g.Pose, T: g.Transform) -> None:
+def _same_pose(p: transforms.Pose, T: transforms.Transform) -> None:
     assert p.q[3] >= 0.0
     assert math.isclose(sum(v * v for v in p.q), 1.0, abs_tol=1e-12)
     np.testing.assert_allclose(p.t, T.t, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(g.quaternion_to_matrix(*p.q), T.R, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(transforms.quaternion_to_matrix(*p.q), T.R, rtol=0, atol=1e-12)
     if T.R.trace() > -0.99:  # away from w = 0 the quaternion itself is unique (w >= 0)
-        np.testing.assert_allclose(p.q, g.matrix_to_quaternion(T.R), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(p.q, transforms.matrix_to_quaternion(T.R), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("d_opt", [(0.0, 0.0, 0.0), (0.05, 0.0, 0.0), (0.031, -0.012, 0.027)])
@@ -145,12 +146,14 @@ def test_optical_pose_in_floats_equals_the_numpy_transform(d_opt):
 def test_pose_composition_equals_the_numpy_transform():
     rng = np.random.default_rng(11)
     for _ in range(200):
-        a = g.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
-        b = g.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
-        pa, pb = g.Pose.from_transform(a), g.Pose.from_transform(b)
+        a = transforms.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
+        b = transforms.Transform.from_xyz_rpy(*rng.uniform(-2, 2, 3), *rng.uniform(-math.pi, math.pi, 3))
+        pa, pb = transforms.Pose.from_transform(a), transforms.Pose.from_transform(b)
         _same_pose(pa, a)
         _same_pose(pa @ pb, a @ b)
         np.testing.assert_allclose(pa.transform().matrix(), a.matrix(), rtol=0, atol=1e-12)
     v = (0.3, -1.2, 2.5)
-    q = g.Pose.from_transform(g.Transform(g.rot_z(0.7) @ g.rot_x(-0.4))).q
-    np.testing.assert_allclose(g.quaternion_rotate(q, v), g.rot_z(0.7) @ g.rot_x(-0.4) @ np.array(v), atol=1e-12)
+    q = transforms.Pose.from_transform(transforms.Transform(transforms.rot_z(0.7) @ transforms.rot_x(-0.4))).q
+    np.testing.assert_allclose(
+        transforms.quaternion_rotate(q, v), transforms.rot_z(0.7) @ transforms.rot_x(-0.4) @ np.array(v), atol=1e-12
+    )

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2.config import MountConfig, load_camera_model, load_mount, load_robot
-from axis_ptz_ros2.geometry import Transform, rot_z
 from axis_ptz_ros2.panorama_overlay import (
     OverlaySettings,
     PanoramaOverlay,
     footprint_polylines,
     intrinsics_from_state,
 )
+from axis_ptz_ros2.transforms import Transform, rot_z
 from tests.support.panorama_expect import PANO, H, W, expected_pixel  # noqa: E402
 
 pytestmark = pytest.mark.unit

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2.config import CameraModel, load_camera_model
-from axis_ptz_ros2.geometry import AXIS_214_ZOOM, Mount, PanDirection, PtzKinematics, Transform, VapixConvention
+from axis_ptz_ros2.geometry import Mount, PanDirection, PtzKinematics, VapixConvention
+from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.ptz.axis_backend import AxisBackend, speed_to_vapix
 from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
@@ -34,6 +35,7 @@ from axis_ptz_ros2.ptz.control import (
 )
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.state import StatePoller
+from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.vapix import CameraConfig, VapixClient
 from tests.support.waiting import wait_until
 from tests.unit.fixtures_vapix import LIMITS_RESPONSE, POSITION_RESPONSE

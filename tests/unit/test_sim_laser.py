@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.sim.laser import StaticScan, scan_directions, trace_scan
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import Transform
 
 pytestmark = pytest.mark.unit
 

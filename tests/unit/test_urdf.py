@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2.config import MountConfig, load_camera_model, load_mount, save_mount
-from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.transforms import Transform
 from tests.support.urdf_fk import forward_kinematics, parse_urdf, write_unusual_configuration
 
 pytestmark = pytest.mark.unit

@@ -16,7 +16,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from axis_ptz_ros2.config import load_camera_model, load_mount
-from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.transforms import Transform
 from tests.support.urdf_fk import write_unusual_configuration
 
 yourdfpy = pytest.importorskip("yourdfpy", reason="scripts/bootstrap installs yourdfpy")

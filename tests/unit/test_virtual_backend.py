@@ -5,7 +5,7 @@ import threading
 
 import pytest
 
-from axis_ptz_ros2.geometry import ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.virtual.backend import VirtualDynamics, VirtualPtzBackend, virtual_limits
 

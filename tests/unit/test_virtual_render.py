@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2 import geometry as g
+from axis_ptz_ros2 import transforms
 from axis_ptz_ros2.virtual.render import (
     ViewSpec,
     VirtualCameraRenderer,
@@ -17,8 +18,8 @@ from axis_ptz_ros2.virtual.render import (
 pytestmark = pytest.mark.unit
 
 PW, PH = 3600, 1800  # panorama size for the marker tests (0.1° per pixel)
-R_YAW = g.rot_z(math.radians(54.0))  # TRADR: panorama yawed against the robot
-R_TILTED = g.rpy_to_matrix(0.04, -0.07, 0.9)  # a panorama frame not level with base_link (no fast path)
+R_YAW = transforms.rot_z(math.radians(54.0))  # TRADR: panorama yawed against the robot
+R_TILTED = transforms.rpy_to_matrix(0.04, -0.07, 0.9)  # a panorama frame not level with base_link (no fast path)
 
 
 def _spherical_blob(d_pano: np.ndarray, sigma: float) -> np.ndarray:
@@ -45,7 +46,7 @@ def _centroid(img: np.ndarray, u: float, v: float, half: int) -> tuple[float, fl
 
 def _expected_pixel(view: ViewSpec, d_base: np.ndarray) -> np.ndarray:
     """K·R⁻¹·d with R = Rz(pan)·Ry(−tilt)·R_body_opt, written out from geometry primitives."""
-    R = g.rot_z(view.pan) @ g.rot_y(-view.tilt) @ g.R_BODY_OPT
+    R = transforms.rot_z(view.pan) @ transforms.rot_y(-view.tilt) @ transforms.R_BODY_OPT
     p = view.intrinsics.K @ (R.T @ d_base)
     return p[:2] / p[2]
 

@@ -69,7 +69,7 @@ from axis_ptz_ros2.calibration.picking import (
     picking_noise,
 )
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.transforms import Transform
 
 FloatArray = npt.NDArray[np.float64]
 

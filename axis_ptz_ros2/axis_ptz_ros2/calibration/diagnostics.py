@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from axis_ptz_ros2.calibration.problem import Fit, Problem, chi2, jacobian, skew, solve, whitened
-from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.transforms import Transform
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

@@ -33,7 +33,8 @@ import numpy.typing as npt
 
 from axis_ptz_ros2.calibration.correspondences import Correspondence
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Intrinsics, Transform
+from axis_ptz_ros2.optics import Intrinsics
+from axis_ptz_ros2.transforms import Transform
 
 FloatArray = npt.NDArray[np.float64]
 U8Array = npt.NDArray[np.uint8]

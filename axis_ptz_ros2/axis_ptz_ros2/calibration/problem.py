@@ -21,7 +21,9 @@ from scipy.optimize import least_squares
 from axis_ptz_ros2.calibration.correspondences import View
 from axis_ptz_ros2.camera_info import CameraInfoData, distort_normalized, undistort_pixels
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import Intrinsics, PtzKinematics, Transform
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.optics import Intrinsics
+from axis_ptz_ros2.transforms import Transform
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

@@ -72,7 +72,7 @@ from axis_ptz_ros2.calibration.problem import (
     whitened,
 )
 from axis_ptz_ros2.config import CameraModel, MountConfig
-from axis_ptz_ros2.geometry import Transform
+from axis_ptz_ros2.transforms import Transform
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

@@ -22,7 +22,8 @@ import numpy.typing as npt
 from axis_ptz_ros2.calibration.correspondences import Correspondence, View
 from axis_ptz_ros2.camera_info import CameraInfoData, project, undistort_pixels
 from axis_ptz_ros2.config import CameraModel, load_camera_model
-from axis_ptz_ros2.geometry import PtzKinematics, Transform, rot_z
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.transforms import Transform, rot_z
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

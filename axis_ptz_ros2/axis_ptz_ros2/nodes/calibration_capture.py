@@ -35,9 +35,9 @@ from axis_ptz_ros2.calibration.capture import (
     cloud_in_base,
     still_view,
 )
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
+from axis_ptz_ros2.transforms import Transform
 
 
 @dataclass(frozen=True, slots=True)

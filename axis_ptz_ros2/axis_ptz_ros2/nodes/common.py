@@ -27,8 +27,9 @@ from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverriding
 from rclpy.time import Time as RosTime
 from sensor_msgs.msg import CameraInfo, CompressedImage
 
-from axis_ptz_ros2.geometry import Intrinsics, Pose, Transform, quaternion_to_matrix
+from axis_ptz_ros2.optics import Intrinsics
 from axis_ptz_ros2.streaming.jpeg import jpeg_components
+from axis_ptz_ros2.transforms import Pose, Transform, quaternion_to_matrix
 from axis_ptz_ros2.vapix import CameraConfig
 from axis_ptz_ros2.vapix.credentials import load_credentials
 

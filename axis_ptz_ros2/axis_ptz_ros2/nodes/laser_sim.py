@@ -21,13 +21,13 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, PointField
 
-from axis_ptz_ros2.geometry import FloatArray
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import publish_fixed_transform
 from axis_ptz_ros2.sim.laser import StaticScan, scan_directions
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.transforms import FloatArray
 
 PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("rate", 1.0, "scan rate", "Hz", read_only=True, float_range=(0.05, 20.0)),

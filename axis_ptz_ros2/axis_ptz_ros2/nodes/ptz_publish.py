@@ -19,13 +19,13 @@ from sensor_msgs.msg import JointState
 
 from axis_ptz_interfaces.msg import PtzState
 from axis_ptz_ros2.config import CameraModel, MountConfig
-from axis_ptz_ros2.geometry import Pose
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, pose_msg, publisher, stamp_from_ns, transform_msg
 from axis_ptz_ros2.nodes.tf_publish import make_tf_broadcasters
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
 from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import JointOffsets
 from axis_ptz_ros2.ptz.state import StateSample
+from axis_ptz_ros2.transforms import Pose
 
 
 @dataclass(frozen=True, slots=True)

@@ -22,8 +22,8 @@ from rclpy.publisher import Publisher
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, publisher, transform_msg
+from axis_ptz_ros2.transforms import Transform
 
 #: tf2_ros.TransformBroadcaster's QoS.
 TF_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)

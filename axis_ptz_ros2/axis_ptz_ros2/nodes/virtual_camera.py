@@ -48,7 +48,6 @@ from axis_ptz_ros2.config import (
     default_config_path,
     load_robot,
 )
-from axis_ptz_ros2.geometry import Transform
 from axis_ptz_ros2.nodes.common import (
     STREAM_QOS,
     ParamSpec,
@@ -61,6 +60,7 @@ from axis_ptz_ros2.nodes.common import (
 )
 from axis_ptz_ros2.nodes.ptz_node import FRAME_PARAMS, PtzNode
 from axis_ptz_ros2.nodes.runner import run_nodes
+from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.virtual.backend import VirtualPtzBackend, dynamics_from_model, limits_from_model
 from axis_ptz_ros2.virtual.camera import RenderGate, view_model_dict
 from axis_ptz_ros2.virtual.decode import U8, decode_compressed, decode_raw

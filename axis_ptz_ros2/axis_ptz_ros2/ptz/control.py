@@ -11,8 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel, center_on_pixel, wrap_angle
+from axis_ptz_ros2.geometry import PtzKinematics, center_on_pixel, wrap_angle
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos, PtzReading
+from axis_ptz_ros2.transforms import Transform
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,10 +13,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
-from axis_ptz_ros2.geometry import PtzKinematics, Transform, ZoomModel
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
 from axis_ptz_ros2.ptz.commander import Commander, Order, axis_value
 from axis_ptz_ros2.ptz.control import area_zoom_command, look_at_target, pixel_center_target, zoom_target
+from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
 

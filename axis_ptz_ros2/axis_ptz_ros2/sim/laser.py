@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from axis_ptz_ros2.geometry import FloatArray, Transform
 from axis_ptz_ros2.sim.scene import Scene
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 #: BGR weights of the luminance a return's intensity is (ITU-R BT.601, as OpenCV's grey conversion).
 _LUMA_BGR = np.array([0.114, 0.587, 0.299])

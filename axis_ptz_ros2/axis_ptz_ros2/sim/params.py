@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Literal, Protocol
 
-from axis_ptz_ros2.geometry import ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim.world import PtzLimits
 
 #: The parameter trees there are, by tag: a persona names its own (``Persona.tree``).

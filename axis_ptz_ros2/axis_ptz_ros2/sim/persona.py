@@ -20,7 +20,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from axis_ptz_ros2.geometry import PtzKinematics, ZoomCurve, ZoomModel
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.optics import ZoomCurve, ZoomModel
 from axis_ptz_ros2.sim.camera_model import CameraModel
 from axis_ptz_ros2.sim.params import TREE_BUILDERS, TreeTag, parameter_tree
 from axis_ptz_ros2.sim.ptz import Speeds

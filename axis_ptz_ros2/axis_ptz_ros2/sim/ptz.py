@@ -19,7 +19,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from axis_ptz_ros2.geometry import ZoomModel, center_on_pixel
+from axis_ptz_ros2.geometry import center_on_pixel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim.ptz_args import MOVES, HeadFacts, Plan, parse_ptz, parse_ptzconfig
 from axis_ptz_ros2.sim.ptz_replies import attributes_reply, format_number, info_reply, limits_reply
 from axis_ptz_ros2.sim.world import PtzLimits

@@ -11,7 +11,7 @@ import json
 import math
 from typing import Any
 
-from axis_ptz_ros2.geometry import ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim.world import PtzLimits
 
 

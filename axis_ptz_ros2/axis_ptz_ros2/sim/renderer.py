@@ -1,6 +1,6 @@
 """Renders what the simulated Axis 214 sees at a VAPIX pose and zoom (ROS-free, numpy + OpenCV).
 
-Optics: :data:`axis_ptz_ros2.geometry.AXIS_214_ZOOM` (or the world's zoom model) gives the pinhole intrinsics
+Optics: :data:`axis_ptz_ros2.optics.AXIS_214_ZOOM` (or the world's zoom model) gives the pinhole intrinsics
 of the requested stream size (PAL 704×576: ``fy = fx·12/11``). Pose: the world's *true* mount
 ``T_base_ptz`` ∘ :meth:`PtzKinematics.optical_in_ptz_base`. Fast path (geometry-and-calibration.md §5):
 
@@ -25,11 +25,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import FloatArray, Intrinsics, Transform
+from axis_ptz_ros2.optics import Intrinsics
 from axis_ptz_ros2.sim.camera_model import CameraModel, encode
 from axis_ptz_ros2.sim.ptz import vapix_to_ros
 from axis_ptz_ros2.sim.scene import Scene, Target, shared_scene
 from axis_ptz_ros2.sim.world import SimWorld
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 U8Array = npt.NDArray[np.uint8]
 _GRID = 8  # map sub-sampling step (px)

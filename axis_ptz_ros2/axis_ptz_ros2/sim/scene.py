@@ -21,12 +21,13 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import FloatArray, Transform, equirect_to_direction
+from axis_ptz_ros2.geometry import equirect_to_direction
 from axis_ptz_ros2.sim import textures
 from axis_ptz_ros2.sim.world import PtzLimits as PtzLimits  # re-exported: persona.py imports it from here
 from axis_ptz_ros2.sim.world import SimWorld as SimWorld  # re-exported: camera.py, frames.py
 from axis_ptz_ros2.sim.world import TargetSpec, target_frame
 from axis_ptz_ros2.sim.world import load_world as load_world  # re-exported: camera.py
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 U8Array = npt.NDArray[np.uint8]
 IntArray = npt.NDArray[np.int64]

@@ -24,9 +24,11 @@ from typing import Any
 import numpy as np
 
 from axis_ptz_ros2.config import default_config_path
-from axis_ptz_ros2.geometry import AXIS_214_ZOOM, FloatArray, PtzKinematics, Transform, ZoomModel
+from axis_ptz_ros2.geometry import PtzKinematics
+from axis_ptz_ros2.optics import AXIS_214_ZOOM, ZoomModel
 from axis_ptz_ros2.sim import textures
 from axis_ptz_ros2.strict_yaml import load_strict
+from axis_ptz_ros2.transforms import FloatArray, Transform
 
 #: Target kinds: the procedural textures of ``sim/textures.py`` and ``image`` (a PNG/JPEG file).
 TARGET_KINDS = ("plate", "hazard", "person", "marker", "calib", "checker", "facade", "image")

@@ -4,7 +4,7 @@
 Serves the same PTZ node as the real camera, so the virtual camera (a perspective view cut from the panorama,
 :mod:`axis_ptz_ros2.virtual.render`) is driven by exactly the same topics and services. Everything is in ROS
 units: REP-103 radians for pan/tilt, zoom units (1…9999) mapped to a field of view by a
-:class:`~axis_ptz_ros2.geometry.ZoomModel` (digital zoom).
+:class:`~axis_ptz_ros2.optics.ZoomModel` (digital zoom).
 
 Dynamics: absolute moves slew at a finite rate (default 180°/s, so ``moving`` and ``wait=true`` behave like
 on the real head) or jump (``instant``); velocity commands integrate until the next command (the PTZ node's
@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from axis_ptz_ros2.config import CameraModel
-from axis_ptz_ros2.geometry import ZoomModel, wrap_angle
+from axis_ptz_ros2.geometry import wrap_angle
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PresetInfo, PtzBackendError, PtzLimitsRos, PtzReading
 
 PRESET_NAME = re.compile(r'^[^"<>~:]{1,31}$')  #: the Axis rule for server preset names (vapix.md §4)

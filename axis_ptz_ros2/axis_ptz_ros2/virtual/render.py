@@ -26,7 +26,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from axis_ptz_ros2.geometry import R_BODY_OPT, Intrinsics, rot_y, rot_z
+from axis_ptz_ros2.optics import Intrinsics
+from axis_ptz_ros2.transforms import R_BODY_OPT, rot_y, rot_z
 
 FloatArray = npt.NDArray[np.float64]
 F32 = npt.NDArray[np.float32]

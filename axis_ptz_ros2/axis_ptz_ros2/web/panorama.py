@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 
 from axis_ptz_ros2.config import RobotConfig
-from axis_ptz_ros2.geometry import FloatArray
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
 from axis_ptz_ros2.pointing import panorama_ray, point_along_ray
+from axis_ptz_ros2.transforms import FloatArray
 from axis_ptz_ros2.web.api import PixelClick
 
 
