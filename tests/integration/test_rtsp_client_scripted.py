@@ -441,3 +441,22 @@ def test_rtsp_control_gives_the_same_basic_only_hint(video: H264Stream) -> None:
             ctl.close()
     assert "set auth: basic" in str(info.value)
     _no_secret(info.value)
+
+
+def test_a_nonce_gone_stale_mid_session_is_renewed_by_the_keep_alive(video: H264Stream) -> None:
+    play, sender = streaming(video, loop=True)
+    script = _script(
+        video, play=play, session_timeout=3, nonce_uses=3, rtp_info=lambda _c: f"seq={sender.first_seq}"
+    )  # DESCRIBE, SETUP, PLAY use up the first nonce: the first keep-alive finds it stale
+    with ScriptedRtspServer(script) as server:
+        with _client(server) as c:
+            c.read()
+            wait_until(lambda: server.methods().count("GET_PARAMETER") >= 2, 5, what="a keep-alive, stale, retried")
+            wait_until(lambda: server.stale_answers >= 1, 5)
+            keepalives = [r for r in server.requests if r.method == "GET_PARAMETER"]
+            assert keepalives[0].header("authorization") != keepalives[1].header("authorization")
+            for _ in range(30):  # the session goes on
+                c.read()
+            assert c.renew_stream().status == 200
+            assert c.background_errors == 0, c.last_background_error
+        assert server.problems == []

@@ -186,6 +186,7 @@ class Script:
     transport: Callable[[str], str] | None = None  # the SETUP request's Transport → the reply's (None: echo TCP)
     rtp_info: Callable[[Conn], str] | None = None  # the PLAY reply's RTP-Info (None: none)
     session_timeout: int = 60
+    nonce_uses: int = 0  #: > 0: a Digest nonce serves this many requests, then is stale (a new challenge)
     play: Callable[[Conn], None] | None = None
     content_base: bool = True
     #: per method, a function that may replace the whole reply (raw bytes; b"": say nothing; CLOSE: close the
@@ -203,6 +204,9 @@ class ScriptedRtspServer:
         self.conns: list[Conn] = []
         self._nonce = secrets.token_hex(16)
         self._nc_seen: dict[str, int] = {}
+        self._nonce_used = 0
+        self._stale: set[str] = set()
+        self.stale_answers = 0  #: 401 stale=true sent
         self._authed = False  # the client has authenticated once: from then on every request must be signed
         self._listener = socket.create_server(("127.0.0.1", 0))
         self.port = self._listener.getsockname()[1]
@@ -299,7 +303,10 @@ class ScriptedRtspServer:
                 return
         verdict = self._check_auth(req)
         if verdict:
-            conn.send(self._reply(401, cseq, [("WWW-Authenticate", c) for c in self._challenges()]))
+            stale = verdict == "stale nonce"
+            self.stale_answers += stale
+            challenges = [("WWW-Authenticate", c) for c in self._challenges(stale=stale)]
+            conn.send(self._reply(401, cseq, challenges))
             return
         if req.method == "OPTIONS":
             conn.send(self._reply(200, cseq, [("Public", "DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER")]))
@@ -347,24 +354,32 @@ class ScriptedRtspServer:
         return ("\r\n".join(lines) + "\r\n\r\n").encode() + body
 
     # ---- authentication -------------------------------------------------------------------------------------
-    def _challenges(self) -> list[str]:
+    def _challenges(self, *, stale: bool = False) -> list[str]:
         mode = self.script.auth
         if mode == "basic":
             return ['Basic realm="AXIS"']
         qop = ', qop="auth"' if mode == "digest" else ""
-        return [f'Digest realm="{REALM}", nonce="{self._nonce}", algorithm=MD5{qop}']
+        return [
+            f'Digest realm="{REALM}", nonce="{self._nonce}", algorithm=MD5{qop}' + (", stale=true" if stale else "")
+        ]
 
     def _check_auth(self, req: Request) -> str:
         """ "" if the request may pass; else why not (recorded as a problem once the client had authenticated)."""
         s = self.script
         if s.auth == "none" or req.method == "OPTIONS":
             return ""
-        why = self._why_not(req)
-        if why and self._authed:
-            self.problems.append(f"{req.method}: {why}")
-        if not why:
-            self._authed = True
-        return why
+        with self._lock:
+            why = self._why_not(req)
+            if why and self._authed and why != "stale nonce":
+                self.problems.append(f"{req.method}: {why}")
+            if not why:
+                self._authed = True
+                if s.auth.startswith("digest") and s.nonce_uses:
+                    self._nonce_used += 1
+                    if self._nonce_used >= s.nonce_uses:  # the next request finds this nonce stale
+                        self._stale.add(self._nonce)
+                        self._nonce, self._nonce_used = secrets.token_hex(16), 0
+            return why
 
     def _why_not(self, req: Request) -> str:
         s = self.script
@@ -380,6 +395,8 @@ class ScriptedRtspServer:
         p = _digest_params(rest)
         if p.get("uri") != req.uri:
             return f"Digest uri {p.get('uri')!r} is not the request's URL"
+        if p.get("nonce") in self._stale:
+            return "stale nonce"
         if p.get("nonce") != self._nonce or p.get("username") != s.username:
             return "wrong nonce or user"
 

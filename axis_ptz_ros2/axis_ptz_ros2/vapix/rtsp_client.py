@@ -157,6 +157,9 @@ class RtspClient:
         self.idr_requests = 0  #: Renew-Stream sent after a lost IDR
         self.server_requests = 0  #: requests the server sent mid-stream (answered)
         self.garbage_bytes = 0  #: bytes skipped between messages
+        self.background_errors = 0  #: keep-alives and Renew-Streams of the reader's own that failed
+        self.last_background_error = ""
+        self._pending: set[str] = set()  # methods of the reader's own requests under way
 
     def __repr__(self) -> str:
         return f"RtspClient({self._host}:{self._port}, session={self.session_id!r})"
@@ -299,8 +302,8 @@ class RtspClient:
     def _send_signed(
         self, method: str, url: str, headers: dict[str, str], body: bytes, sock: socket.socket | None
     ) -> int:
-        """Send without waiting for the reply (TEARDOWN, keep-alive, Renew-Stream from the reader), signed as
-        the session's requests are (nothing to sign with before a challenge was taken)."""
+        """Send without waiting for the reply (TEARDOWN), signed as the session's requests are (nothing to sign
+        with before a challenge was taken)."""
         with self._sign_lock:
             self._auth.rtsp_uri = url
             value = self._auth.preemptive(httpx.Request(method, "http://rtsp.invalid/"))
@@ -329,6 +332,8 @@ class RtspClient:
                     while cseq not in self._replies:
                         if self._error is not None:
                             raise self._error
+                        if self._closing.is_set():
+                            raise CameraUnreachable(f"RTSP {method} {self._where()}: closed")
                         left = deadline - time.monotonic()
                         if left <= 0:
                             raise CameraTimeout(f"RTSP {method} {self._where()}: no reply in time{self._stray}")
@@ -523,7 +528,29 @@ class RtspClient:
         self._idr_asked = now
         self.idr_requests += 1
         headers = {"Session": self.session_id, "Content-Type": "text/parameters"}
-        self._send_signed("SET_PARAMETER", self._session_url, headers, b"Renew-Stream: yes\r\n", self._sock)
+        self._background("SET_PARAMETER", headers, b"Renew-Stream: yes\r\n")
+
+    def _background(self, method: str, headers: dict[str, str], body: bytes = b"") -> None:
+        """A request of the reader's own (keep-alive, Renew-Stream) in a thread of its own, with the whole Digest
+        negotiation (a nonce gone stale mid-session is renewed), never two of a method at once; it cannot end the
+        stream: its failure is counted (:attr:`background_errors`, :attr:`last_background_error`)."""
+        with self._cond:
+            if method in self._pending:
+                return
+            self._pending.add(method)
+
+        def run() -> None:
+            try:
+                self._call(method, self._session_url, headers, body, deadline=time.monotonic() + self._read_timeout_s)
+            except Exception as err:  # noqa: BLE001 - a background request must never raise out of its thread
+                if not self._closing.is_set():
+                    self.background_errors += 1
+                    self.last_background_error = str(err) if isinstance(err, AxisPtzError) else type(err).__name__
+            finally:
+                with self._cond:
+                    self._pending.discard(method)
+
+        threading.Thread(target=run, name=f"rtsp-client-{method.lower()}", daemon=True).start()
 
     def _read_loop(self) -> None:
         keepalive = time.monotonic() + self.session_timeout_s / 3
@@ -531,7 +558,7 @@ class RtspClient:
             while not self._closing.is_set():
                 self._pump(time.monotonic() + self._read_timeout_s, "read")
                 if time.monotonic() >= keepalive and self.session_id is not None:
-                    self._send_signed("GET_PARAMETER", self._session_url, {"Session": self.session_id}, b"", self._sock)
+                    self._background("GET_PARAMETER", {"Session": self.session_id})
                     keepalive = time.monotonic() + self.session_timeout_s / 3
         except AxisPtzError as err:
             self._fail(err)
