@@ -10,7 +10,8 @@ import urllib.parse
 import pytest
 
 from axis_ptz_ros2.vapix.errors import InvalidArgument, ResponseParseError
-from axis_ptz_ros2.vapix.rtsp import AccessUnitMerger, MediaStreamRequest, RtspReader, parse_rtsp_response
+from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, parse_rtsp_response
+from tests.support.pyav_rtsp import AccessUnitMerger, RtspReader
 
 pytestmark = pytest.mark.unit
 
