@@ -24,7 +24,7 @@ from axis_ptz_ros2.vapix import (
     VapixClient,
     VideoParams,
 )
-from axis_ptz_ros2.vapix.client import build_path, parse_error_body
+from axis_ptz_ros2.vapix.replies import build_path, parse_error_body
 from tests.unit import fixtures_vapix as fx
 
 pytestmark = pytest.mark.unit

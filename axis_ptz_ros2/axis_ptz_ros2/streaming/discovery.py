@@ -20,7 +20,8 @@ from axis_ptz_ros2.config import default_config_path
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import FrameSource
 from axis_ptz_ros2.streaming.worker import Worker
-from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
+from axis_ptz_ros2.vapix.camera_config import CameraConfig
+from axis_ptz_ros2.vapix.client import VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraUnreachable, InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 

@@ -44,7 +44,8 @@ from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.streaming.worker import Worker
-from axis_ptz_ros2.vapix.client import CameraConfig, VapixClient
+from axis_ptz_ros2.vapix.camera_config import CameraConfig
+from axis_ptz_ros2.vapix.client import VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
