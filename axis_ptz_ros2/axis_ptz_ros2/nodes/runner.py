@@ -20,6 +20,7 @@ Two rclpy Jazzy defects are worked around here, each with the measurement that s
 from __future__ import annotations
 
 import faulthandler
+import inspect
 import signal
 import sys
 import threading
@@ -174,7 +175,10 @@ def new_executor(context: Context | None = None) -> PoolExecutor:
 
 def callbacks_serialised(node: Node) -> bool:
     """True if every callback of ``node`` is in its default, mutually exclusive callback group (checked over the
-    entities it has now): a multi-threaded executor then runs them one at a time anyway."""
+    entities it has now): a multi-threaded executor then runs them one at a time anyway. A coroutine callback
+    (``async def``) in a group of its own does not count against it: it never holds a thread while it awaits
+    (the stream node's ``still/capture`` answers once a worker thread has fetched the still), and a
+    single-threaded executor resumes it as well as a pool would."""
     group = node.default_callback_group
     if not isinstance(group, MutuallyExclusiveCallbackGroup):
         return False
@@ -186,7 +190,10 @@ def callbacks_serialised(node: Node) -> bool:
         *node.guards,
         *node.waitables,
     ]
-    return all(getattr(e, "callback_group", group) is group for e in entities)
+    return all(
+        getattr(e, "callback_group", group) is group or inspect.iscoroutinefunction(getattr(e, "callback", None))
+        for e in entities
+    )
 
 
 def executor_for(node: Node, context: Context | None = None) -> Executor:

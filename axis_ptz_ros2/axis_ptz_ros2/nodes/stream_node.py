@@ -62,6 +62,7 @@ from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.stream_camera_info import CameraInfoOutput
 from axis_ptz_ros2.nodes.stream_h264 import H264Output
 from axis_ptz_ros2.nodes.stream_params import PARAMS, SPECS
+from axis_ptz_ros2.nodes.stream_still import StillOutput
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
 from axis_ptz_ros2.streaming.controller import VideoController, requested_changes
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery, camera_model_path
@@ -132,6 +133,8 @@ class StreamNode(Node):
             on_supported=self._update_activity,
         )
         self._stage, self._rtsp = self._h264.stage, self._h264.rtsp  # (statistics for tests and diagnostics)
+        # still/capture -> still/compressed: the camera's best JPEG on demand, counted against the budget
+        self._still = StillOutput(self, self._client, self._video, self._frame_id, self.get_logger().warning)
 
         self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)
         self.create_service(SetVideoParams, "video/set_params", self._on_set_video_params)
@@ -361,6 +364,9 @@ class StreamNode(Node):
         h264 = getattr(self, "_h264", None)
         if h264 is not None:
             h264.stop(1.5)
+        still = getattr(self, "_still", None)
+        if still is not None:
+            still.close(1.5)
         reader = getattr(self, "_reader", None)
         if reader is not None:
             reader.stop(1.5)

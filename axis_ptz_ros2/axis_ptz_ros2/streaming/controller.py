@@ -44,6 +44,7 @@ from axis_ptz_ros2.streaming.h264_policy import (
     h264_vbv_kbit,
 )
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
+from axis_ptz_ros2.streaming.still import ExtraBytes
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
@@ -96,6 +97,7 @@ class VideoController:
             raise ValueError(reason)
         self._settings = settings
         self._h264_meter = BitrateMeter(meter.window_s)  # the H.264 bytes sent, in h264 mode
+        self._extra = ExtraBytes(meter.window_s)  # stills sent on the same link (streaming/still.py)
         self._link = LinkAdapter(_adapter_config(settings))
         self._budget = BandwidthController(
             self._request(settings),
@@ -243,7 +245,8 @@ class VideoController:
                 return None
             rate = self._meter.rate(now)
             before = budget.level
-            choice = budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames)
+            kbps = rate.kbps + self._extra.kbps(now)  # a still sent meanwhile counts against the budget too
+            choice = budget.update(now, kbps, rate.fps, rate.bytes_per_frame, rate.frames)
             if choice is None:
                 return None
             step = BudgetStep(before, budget.level, choice, budget.budget_kbps, rate)
@@ -252,6 +255,13 @@ class VideoController:
             self._source = "bandwidth_budget"
         self._announce()
         return step
+
+    def on_still(self, now: float, nbytes: int) -> None:
+        """A still of ``nbytes`` went out on the link (``still/compressed``): for one meter window its bytes are
+        added to the live stream's measured rate when the budget is judged (MJPEG; the next judgement, within
+        :data:`BUDGET_PERIOD_S`, steps the live stream down if the two together exceed the budget, and it climbs
+        back once the still has left the window). Its size never enters the frame-size learning."""
+        self._extra.add(now, nbytes)
 
     def on_h264_frame(self, now: float, nbytes: int) -> None:
         """An H.264 access unit of ``nbytes`` was sent (h264 mode: what consumers' reports are judged against)."""

@@ -1,0 +1,216 @@
+"""A full-quality still on demand (ROS-free): the camera's best JPEG, one at a time, fetched off the caller's thread.
+
+The best JPEG is ``jpg/image.cgi`` at compression 0 and the camera's full resolution: the largest size of its own
+list (``Properties.Image.Resolution``, as the stream's discovery learned it, else asked for here). The fetch runs on
+a worker thread of its own (:meth:`StillTaker.start`), never on the caller's (the stream node's executor); a second
+request while one is in flight is refused at once, never queued. ``on_done`` is called on the worker with a
+:class:`Still` or the reason it failed; the taker is busy until ``on_done`` has returned (the node publishes the
+still in it, so "in flight" lasts until the still is out).
+
+Failures are worded for the operator (the camera's errors are already redacted by :mod:`axis_ptz_ros2.vapix`, and
+the password is taken out again here): a camera that is not there fails within the client's connect timeout.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from axis_ptz_ros2.streaming.jpeg import jpeg_sof
+from axis_ptz_ros2.vapix.errors import AxisPtzError, redact
+from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+
+#: the answer to a request while a still is in flight
+BUSY = "a still is already being taken"
+#: the JPEG compression of a still: the camera's best (VAPIX 0..100, 0 = least compressed)
+STILL_COMPRESSION = 0
+
+
+class StillCamera(Protocol):
+    """What the taker needs of a camera client (:class:`~axis_ptz_ros2.vapix.VapixClient`)."""
+
+    def snapshot(self, params: VideoParams) -> bytes:
+        """One JPEG from ``jpg/image.cgi``."""
+        ...
+
+    def supported_resolutions(self) -> tuple[Resolution, ...]:
+        """The camera's own resolution list."""
+        ...
+
+    def close(self) -> None:
+        """Release its connection (a fetch in flight on another thread then fails)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class Still:
+    """One still: the camera's JPEG as it sent it, the size asked for, when it arrived."""
+
+    jpeg: bytes
+    resolution: Resolution  # asked for, and what the JPEG's SOF header says (checked)
+    arrival_ns: int  # wall clock (``time.time_ns``) when the last byte had arrived: the message's stamp
+    fetch_s: float  # request to last byte (monotonic)
+    components: int  # 3 = colour, 1 = greyscale (the JPEG's SOF)
+
+
+@dataclass(frozen=True, slots=True)
+class StillOutcome:
+    """What a request came to: ``still`` or the ``error`` worded for the operator."""
+
+    still: Still | None
+    error: str = ""
+
+
+def largest(resolutions: Sequence[Resolution]) -> Resolution:
+    """The camera's full resolution: the most pixels (then the widest) of its list."""
+    if not resolutions:
+        raise ValueError("the camera lists no resolution")
+    return max(resolutions, key=lambda r: (r.width * r.height, r.width))
+
+
+def still_request(resolutions: Sequence[Resolution], camera: int = 1) -> VideoParams:
+    """The ``image.cgi`` request of the best still: compression 0 at the largest of ``resolutions`` (``fps`` is
+    not sent for a snapshot; 1 only satisfies :class:`VideoParams`)."""
+    return VideoParams(largest(resolutions), 1, STILL_COMPRESSION, camera=camera)
+
+
+class StillTaker:
+    """One still at a time from ``camera`` (see the module docstring); thread-safe."""
+
+    def __init__(
+        self,
+        connect: Callable[[], StillCamera],
+        known_resolutions: Callable[[], Sequence[Resolution] | None],
+        *,
+        camera_index: int = 1,
+        secrets: Sequence[str | None] = (),
+        wall_ns: Callable[[], int] = time.time_ns,
+    ) -> None:
+        """``connect()``: a new client for each still (closed after it: no kept-alive connection to a camera that
+        may have gone, so a camera that is not there fails within the connect timeout, never a read timeout);
+        ``known_resolutions()``: the camera's list as learned elsewhere (None/empty: ask the camera);
+        ``secrets``: taken out of every message (the password)."""
+        self._connect = connect
+        self._camera: StillCamera | None = None  # the client of the still in flight
+        self._closed = False
+        self._known = known_resolutions
+        self._index = camera_index
+        self._secrets = tuple(secrets)
+        self._wall_ns = wall_ns
+        self._busy = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self.taken = 0  # stills delivered (for diagnostics and tests)
+        self.failed = 0
+
+    @property
+    def busy(self) -> bool:
+        """Whether a still is in flight."""
+        return self._busy.locked()
+
+    def start(self, on_done: Callable[[StillOutcome], None]) -> str | None:
+        """Take a still on a worker thread and hand it to ``on_done`` there; returns at once. None if started,
+        else the refusal (:data:`BUSY`)."""
+        if not self._busy.acquire(blocking=False):
+            return BUSY
+        try:
+            thread = threading.Thread(target=self._run, args=(on_done,), name="still", daemon=True)
+            self._thread = thread
+            thread.start()
+        except BaseException:
+            self._busy.release()
+            raise
+        return None
+
+    def close(self, timeout: float) -> bool:
+        """No still from here on: the one in flight is cut (its client closed) and joined (at most ``timeout`` s);
+        True if none is left."""
+        self._closed = True
+        camera = self._camera
+        if camera is not None:
+            camera.close()
+        thread = self._thread
+        if thread is not None and thread.ident is not None:
+            thread.join(timeout)
+            return not thread.is_alive()
+        return True
+
+    def _run(self, on_done: Callable[[StillOutcome], None]) -> None:
+        try:
+            outcome = self.take()
+            if outcome.still is None:
+                self.failed += 1
+            else:
+                self.taken += 1
+            on_done(outcome)
+        finally:
+            self._busy.release()
+
+    def take(self) -> StillOutcome:
+        """Fetch the still on this thread (what :meth:`start`'s worker runs); never raises for a camera failure."""
+        if self._closed:
+            return StillOutcome(None, "still failed: the node is shutting down")
+        try:
+            camera = self._camera = self._connect()
+            try:
+                listed = tuple(self._known() or ())
+                if not listed:
+                    listed = camera.supported_resolutions()
+                params = still_request(listed, self._index)
+                t0 = time.monotonic()
+                jpeg = camera.snapshot(params)
+                arrival = self._wall_ns()
+                fetch_s = time.monotonic() - t0
+            finally:
+                self._camera = None
+                camera.close()
+        except (AxisPtzError, ValueError) as err:
+            return StillOutcome(None, self._word(err))
+        except Exception as err:  # noqa: BLE001 - any failure is an answer, never a dead worker
+            return StillOutcome(None, self._word(err, unexpected=True))
+        sof = jpeg_sof(jpeg)
+        want = params.resolution
+        if sof is None or (sof[0], sof[1]) != (want.width, want.height):
+            got = "no SOF header" if sof is None else f"{sof[0]}x{sof[1]}"
+            return StillOutcome(None, f"the camera sent {got} for a {want} still ({len(jpeg)} bytes)")
+        return StillOutcome(Still(jpeg, want, arrival, fetch_s, sof[2]))
+
+    def _word(self, err: BaseException, unexpected: bool = False) -> str:
+        kind = f"{type(err).__name__}: " if unexpected else ""
+        return redact(f"still failed: {kind}{err}", self._secrets)
+
+
+def still_summary(still: Still) -> str:
+    """The Trigger answer's message: size and resolution (and how long the camera took)."""
+    return (
+        f"still {still.resolution} px, compression {STILL_COMPRESSION}, {len(still.jpeg)} bytes, "
+        f"fetched in {still.fetch_s * 1000:.0f} ms"
+    )
+
+
+class ExtraBytes:
+    """Bytes sent on the link outside the live frames (stills), as a rate over a sliding window (thread-safe): the
+    video controller adds it to the live stream's measured rate when it judges the budget."""
+
+    def __init__(self, window_s: float) -> None:
+        """``window_s`` > 0: how long a still's bytes count (the live meter's window)."""
+        if window_s <= 0:
+            raise ValueError("window must be positive")
+        self.window_s = window_s
+        self._samples: list[tuple[float, int]] = []
+        self._lock = threading.Lock()
+
+    def add(self, t: float, nbytes: int) -> None:
+        """``nbytes`` went out at monotonic time ``t``."""
+        with self._lock:
+            self._samples.append((t, int(nbytes)))
+
+    def kbps(self, now: float) -> float:
+        """kbit/s of what went out in ``(now - window_s, now]``, spread over the whole window."""
+        cutoff = now - self.window_s
+        with self._lock:
+            self._samples = [s for s in self._samples if s[0] > cutoff]
+            total = sum(b for t, b in self._samples if t <= now)
+        return total * 8.0 / 1000.0 / self.window_s

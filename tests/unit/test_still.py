@@ -1,0 +1,147 @@
+"""The still on demand, ROS-free (streaming/still.py) and its bytes in the video controller's budget."""
+
+from __future__ import annotations
+
+import threading
+
+import cv2
+import numpy as np
+import pytest
+
+from axis_ptz_ros2.streaming import BitrateMeter
+from axis_ptz_ros2.streaming.controller import VideoController
+from axis_ptz_ros2.streaming.still import BUSY, ExtraBytes, StillOutcome, StillTaker, largest, still_request
+from axis_ptz_ros2.streaming.video_types import VideoSettings
+from axis_ptz_ros2.vapix.errors import CameraUnreachable
+from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+
+pytestmark = pytest.mark.unit
+
+PAL = (Resolution(176, 144), Resolution(704, 576), Resolution(352, 288), Resolution(704, 288))
+
+
+def jpeg(width: int, height: int) -> bytes:
+    ok, buf = cv2.imencode(".jpg", np.full((height, width, 3), 128, np.uint8))
+    assert ok
+    return buf.tobytes()
+
+
+class FakeCamera:
+    """A camera client double: records requests, answers with a JPEG of the size asked (or ``size``), can block."""
+
+    def __init__(self, size: tuple[int, int] | None = None, fail: Exception | None = None) -> None:
+        self.requests: list[VideoParams] = []
+        self.listed = 0
+        self.closed = 0
+        self.size = size
+        self.fail = fail
+        self.gate = threading.Event()
+        self.gate.set()
+
+    def snapshot(self, params: VideoParams) -> bytes:
+        self.requests.append(params)
+        self.gate.wait(5)
+        if self.fail is not None:
+            raise self.fail
+        w, h = self.size or (params.resolution.width, params.resolution.height)
+        return jpeg(w, h)
+
+    def supported_resolutions(self) -> tuple[Resolution, ...]:
+        self.listed += 1
+        return PAL
+
+    def close(self) -> None:
+        self.closed += 1
+
+
+def test_the_request_is_compression_0_at_the_largest_listed_size():
+    assert largest(PAL) == Resolution(704, 576)
+    req = still_request(PAL, camera=2)
+    assert req.query(include_fps=False) == {"resolution": "704x576", "compression": "0", "camera": "2"}
+    with pytest.raises(ValueError, match="lists no resolution"):
+        largest(())
+
+
+def test_take_uses_the_known_list_else_asks_the_camera_and_closes_its_client():
+    cam = FakeCamera()
+    out = StillTaker(lambda: cam, lambda: (Resolution(352, 288), Resolution(176, 144))).take()
+    assert out.still is not None
+    assert out.still.resolution == Resolution(352, 288)
+    assert cam.listed == 0
+    assert cam.closed == 1
+    out = StillTaker(lambda: cam, lambda: None).take()
+    assert out.still is not None
+    assert out.still.resolution == Resolution(704, 576)
+    assert cam.listed == 1
+    assert [r.compression for r in cam.requests] == [0, 0]
+
+
+def test_a_jpeg_of_another_size_is_an_error_not_a_still():
+    out = StillTaker(lambda: FakeCamera(size=(352, 288)), lambda: PAL).take()
+    assert out.still is None
+    assert "352x288 for a 704x576 still" in out.error
+
+
+def test_a_failure_is_worded_without_the_password():
+    cam = FakeCamera(fail=CameraUnreachable("GET /x (camera h:80): camera unreachable (s3cret-pw)"))
+    out = StillTaker(lambda: cam, lambda: PAL, secrets=("s3cret-pw",)).take()
+    assert out.still is None
+    assert out.error.startswith("still failed: ")
+    assert "unreachable" in out.error
+    assert "s3cret-pw" not in out.error
+    assert cam.closed == 1
+
+
+def test_a_second_start_while_one_is_in_flight_is_refused_not_queued():
+    cam = FakeCamera()
+    cam.gate.clear()
+    taker = StillTaker(lambda: cam, lambda: PAL)
+    outcomes: list[StillOutcome] = []
+    done = threading.Event()
+    assert taker.start(lambda o: (outcomes.append(o), done.set())) is None
+    assert taker.busy
+    assert taker.start(outcomes.append) == BUSY
+    cam.gate.set()
+    assert done.wait(5)
+    assert taker.close(5)
+    assert not taker.busy
+    assert len(outcomes) == 1
+    assert len(cam.requests) == 1
+
+
+def test_extra_bytes_count_for_one_window():
+    extra = ExtraBytes(2.0)
+    extra.add(10.0, 250_000)
+    assert extra.kbps(10.5) == pytest.approx(1000.0)
+    assert extra.kbps(12.1) == 0.0
+
+
+def live(ctl: VideoController, meter: BitrateMeter, t0: float, seconds: float, still_at: float | None = None) -> list:
+    """10 fps of 6 kB live frames (480 kbit/s) through the frame path, a 150 kB still at ``still_at``."""
+    steps = []
+    for i in range(int(round(seconds * 10))):
+        t = t0 + i * 0.1
+        meter.add(t, 6000)
+        if still_at is not None and still_at <= t < still_at + 0.1:
+            ctl.on_still(t, 150_000)  # 1200 kbit over the 2 s window: +600 kbit/s
+        step = ctl.on_frame(t)
+        if step is not None:
+            steps.append((t, step))
+    return steps
+
+
+def test_a_still_counts_against_the_budget_and_the_live_stream_steps_down():
+    meter = BitrateMeter(2.0)
+    settings = VideoSettings(fps=10, resolution="704x576", compression=0, max_bitrate_kbps=1000, adapt_to_link=False)
+    ctl = VideoController(settings, meter)
+    assert live(ctl, meter, 100.0, 5.0) == [], "480 kbit/s alone is under the budget"
+    steps = live(ctl, meter, 105.0, 1.0, still_at=105.0)
+    assert steps, "the still's bytes did not count"
+    t, step = steps[0]
+    assert t - 105.0 <= 0.3  # the next judgement (every 0.25 s)
+    assert step.after > step.before
+    assert step.rate.bytes_per_frame == pytest.approx(6000), "the still entered the frame-size learning"
+    # without a budget a still changes nothing
+    meter2 = BitrateMeter(2.0)
+    ctl2 = VideoController(VideoSettings(fps=10, resolution="704x576", compression=0, adapt_to_link=False), meter2)
+    assert live(ctl2, meter2, 100.0, 5.0, still_at=102.0) == []
