@@ -23,7 +23,7 @@ from axis_ptz_ros2.streaming.rtsp_source import (
 from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
+from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, NoH264VideoError
 
 
 def test_media_request_follows_the_params_and_caps_the_gop_at_one_second() -> None:
@@ -235,3 +235,38 @@ def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_i
             assert playing.adjusted == []
             assert src.stats.adjustments == 0
         assert len(out) >= 15
+
+
+def test_a_camera_whose_rtsp_offers_no_h264_is_transcoded_not_asked_again() -> None:
+    """It says it streams H.264, but its SDP has none (an event stream, RTP/JPEG): said once, then MJPEG is
+    transcoded (``on_supported(False)``) instead of reconnecting forever with the same answer."""
+    connects: list[object] = []
+    told: list[bool] = []
+    events: list[str] = []
+    stage = H264Stage(lambda: H264Settings(), lambda _f: None)
+
+    def connect(req: MediaStreamRequest, _timeout: float) -> Session:
+        connects.append(req)
+        raise NoH264VideoError("RTSP 127.0.0.1:554/axis-media/media.amp offers no H.264 video: m=video JPEG/90000")
+
+    src = RtspH264Source(
+        connect,
+        lambda: MediaStreamRequest(),
+        stage,
+        supports_h264=lambda: True,
+        on_supported=told.append,
+        on_event=events.append,
+        config=_timing(read_timeout_s=0.5, stall_timeout_s=0.1),
+    )
+    src.start()
+    try:
+        src.set_active(True)
+        deadline = time.monotonic() + 5
+        while told != [True, False] and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        src.stop()
+    assert told == [True, False]
+    assert src.supported is False
+    assert len(connects) == 1
+    assert any("JPEG/90000" in e and "transcoding" in e for e in events), events

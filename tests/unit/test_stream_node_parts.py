@@ -33,6 +33,9 @@ def test_h264_diagnostic_values_name_the_source():
     assert values["h264 source"] == "?"
     assert (values["h264 access units"], values["h264 IDRs"], values["h264 dropped inputs"]) == (7, 2, 3)
     assert (values["rtsp access units"], values["rtsp Renew-Stream"]) == (5, 4)
+    assert values["rtsp camera clock offset [s]"] == ""  # no sender report yet
+    rtsp.camera_clock_offset_s = 30.0123456
+    assert h264_diagnostic_values(True, 800, stage, rtsp, None)["rtsp camera clock offset [s]"] == 30.012
     assert values["h264 bitrate target [kbit/s]"] == 800
     limits = h264_diagnostic_values(True, 800, stage, rtsp, None, start_kbps=1000, ceiling_kbps=1500)
     assert (limits["h264 bitrate start [kbit/s]"], limits["h264 bitrate ceiling [kbit/s]"]) == (1000, 1500)

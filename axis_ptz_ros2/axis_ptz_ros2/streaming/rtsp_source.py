@@ -49,7 +49,7 @@ from axis_ptz_ros2.vapix.client import VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient
+from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient, RtspUnsupportedError
 
 #: a bitrate change smaller than this fraction of the one playing does not reconnect
 BITRATE_SLACK: Final = 0.2
@@ -284,6 +284,11 @@ class RtspH264Source:
                 self.stats.reconnects += 1
                 self._event(f"RTSP H.264: cannot play: {_reason(err)}")
                 self._wake.wait(self._backoff.next_after(self._clock() - attempt))
+                continue
+            except RtspUnsupportedError as err:  # no H.264 in its SDP, or UDP only: asking again will not help
+                self.supported = False
+                self._event(f"RTSP H.264: {err}; transcoding the camera's MJPEG instead")
+                self._on_supported(False)
                 continue
             except (AxisPtzError, OSError) as err:  # (a refused or unanswered connect is a bare OSError)
                 self.stats.reconnects += 1

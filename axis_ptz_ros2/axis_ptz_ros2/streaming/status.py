@@ -153,4 +153,9 @@ def h264_diagnostic_values(
         "rtsp access units": rtsp.access_units,
         "rtsp reconnects": rtsp.reconnects,
         "rtsp Renew-Stream": rtsp.renews,
+        # the camera's wall clock behind (+) / ahead (-) of this host's, from RTCP sender reports ("" before one);
+        # stamps are on this host's clock either way (streaming/clock_sync.py)
+        "rtsp camera clock offset [s]": ""
+        if rtsp.camera_clock_offset_s is None
+        else round(rtsp.camera_clock_offset_s, 3),
     }
