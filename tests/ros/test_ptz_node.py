@@ -549,8 +549,8 @@ def test_settings_snapshots_are_built_from_dynamic_parameter_specs() -> None:
 
     from axis_ptz_ros2.nodes import ptz_node
     from axis_ptz_ros2.nodes.common import snapshot
-    from axis_ptz_ros2.ptz.commander import Tolerances
     from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig
+    from axis_ptz_ros2.ptz.orders import Tolerances
 
     defaults = {s.name: s.default for s in ptz_node.PARAMS}
     for cls in (Tolerances, DriveSafeConfig):

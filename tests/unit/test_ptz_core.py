@@ -22,7 +22,7 @@ from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.ptz.axis_backend import AxisBackend, speed_to_vapix
 from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
-from axis_ptz_ros2.ptz.commander import Commander, Order, Preemption, Tolerances, axis_value, rate_value
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import (
     JointOffsets,
     Target,
@@ -34,6 +34,8 @@ from axis_ptz_ros2.ptz.control import (
     zoom_target,
 )
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeConfig, DriveSafeZoom
+from axis_ptz_ros2.ptz.orders import Order, Tolerances, axis_value, rate_value
+from axis_ptz_ros2.ptz.preemption import Preemption
 from axis_ptz_ros2.ptz.state import StatePoller
 from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.vapix import CameraConfig, VapixClient

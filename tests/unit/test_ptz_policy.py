@@ -15,7 +15,7 @@ from axis_ptz_ros2.geometry import PtzKinematics
 from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.ptz.backend import PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, SlotStats
-from axis_ptz_ros2.ptz.commander import Commander, CommanderStats, Tolerances
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import JointOffsets, area_zoom_command, clamp_zoom, pixel_center_target
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus
@@ -29,6 +29,7 @@ from axis_ptz_ros2.ptz.health import (
     stale_after,
     state_age,
 )
+from axis_ptz_ros2.ptz.orders import CommanderStats, Tolerances
 from axis_ptz_ros2.ptz.requests import GoalKind, MoveGoal, Requests
 from axis_ptz_ros2.ptz.state import PollStats, StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import LIMITS_REFRESH_POLLS, StateLoop

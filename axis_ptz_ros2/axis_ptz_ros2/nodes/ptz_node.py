@@ -52,11 +52,12 @@ from axis_ptz_ros2.nodes.ptz_services import PtzServices, center_order, look_at_
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.ptz.backend import PtzBackend, PtzBackendError, PtzLimitsRos
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
-from axis_ptz_ros2.ptz.commander import Commander, Order, Tolerances
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import JointOffsets, Target
 from axis_ptz_ros2.ptz.drive_safe import DriveSafeCap, DriveSafeConfig, DriveSafeZoom
 from axis_ptz_ros2.ptz.goals import Follower
 from axis_ptz_ros2.ptz.health import Health, diagnostic_values, judge, stale_after, state_age
+from axis_ptz_ros2.ptz.orders import Order, Tolerances
 from axis_ptz_ros2.ptz.requests import Requests, stream_size
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import StateLoop

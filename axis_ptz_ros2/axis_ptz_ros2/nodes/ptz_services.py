@@ -25,8 +25,9 @@ from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzState
 from axis_ptz_interfaces.srv import AreaZoom, CenterOnPixel, ListPresets, LookAt, MovePtz, Preset, SetZoom
 from axis_ptz_ros2.ptz.backend import PtzBackend
 from axis_ptz_ros2.ptz.command_slot import CommandSlot
-from axis_ptz_ros2.ptz.commander import Commander, Order, Progress, wait_accepted
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.goals import Follower, GoalBook, GoalStatus, wait_timeout
+from axis_ptz_ros2.ptz.orders import Order, Progress, wait_accepted
 from axis_ptz_ros2.ptz.requests import MoveGoal, Requests
 from axis_ptz_ros2.ptz.state import StateSample
 

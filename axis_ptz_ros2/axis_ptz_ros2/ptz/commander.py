@@ -27,116 +27,13 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 
-from axis_ptz_ros2.geometry import wrap_angle
+from axis_ptz_ros2.ptz.arrival import track
 from axis_ptz_ros2.ptz.backend import OutOfLimits, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
-from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome, Ticket
+from axis_ptz_ros2.ptz.command_slot import CommandSlot, Ticket
 from axis_ptz_ros2.ptz.control import JointOffsets, Target, merge_target, normalize_target
+from axis_ptz_ros2.ptz.orders import CommanderStats, Order, Progress, Spec, Tolerances, const, rate_value, then
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
-
-SETTLE_POLLS = 5  #: consecutive still polls after which a head that is not at its target has stopped short
-SETTLE_S = 1.0  #: and at least this long after the camera accepted the command (a real head starts late)
-UNTRACKED_STILL_POLLS = 3  #: still polls that count as "arrived" for a move to an unknown pose
-
-#: How a new target follows from the accepted one and the measured pose (raises ValueError if it cannot).
-Spec = Callable[[Target | None, PtzReading | None], Target | None]
-
-
-def _then(first: Spec, second: Spec) -> Spec:
-    return lambda base, r: second(first(base, r), r)
-
-
-def _const(target: Target | None) -> Spec:
-    return lambda _base, _r: target
-
-
-def axis_value(value: float, name: str) -> float | None:
-    """A command field where NaN means "keep this axis". ±inf is refused (ValueError), never read as "keep"."""
-    v = float(value)
-    if math.isnan(v):
-        return None
-    if math.isinf(v):
-        raise ValueError(f"{name} is {'+' if v > 0 else '-'}inf: give a finite value, or NaN to keep the axis")
-    return v
-
-
-def rate_value(value: float, name: str) -> float:
-    """A velocity field: must be finite (NaN and ±inf are refused, never read as a stop)."""
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} is {v}: a velocity must be finite (0 = no motion on that axis)")
-    return v
-
-
-@dataclass(eq=False)
-class Order:
-    """One submitted command. ``target`` is the provisional target until the camera accepts the order, then
-    the target that was sent (None for a move whose end pose is unknown)."""
-
-    label: str
-    gen: int = 0
-    ticket: Ticket | None = None
-    reason: str = ""  # why it was refused (then ticket is None)
-    target: Target | None = None
-    preset: str = ""  # for a preset goto: its name (its pose is learned on arrival)
-    accepted_mono: float = 0.0  # when the camera accepted it (monotonic s)
-    zooming: bool = False  # a velocity order with a zoom rate
-
-    @property
-    def refused(self) -> bool:
-        """Refused before it reached the camera."""
-        return self.ticket is None
-
-
-@dataclass(frozen=True, slots=True)
-class Progress:
-    """One step of :meth:`Commander.track`: the newest sample, the remaining error and, once ``done``, the
-    outcome."""
-
-    sample: StateSample | None
-    target: Target | None
-    done: bool = False
-    success: bool = False
-    message: str = ""
-    error: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # pan rad, tilt rad, zoom units
-
-
-def remaining_error(target: Target | None, r: PtzReading | None) -> tuple[float, float, float]:
-    """Target minus reading per axis (NaN where the axis is not commanded or nothing is known)."""
-    if target is None or r is None:
-        return (math.nan, math.nan, math.nan)
-    return (
-        wrap_angle(target.pan - r.pan) if target.pan is not None else math.nan,
-        target.tilt - r.tilt if target.tilt is not None else math.nan,
-        target.zoom - r.zoom if target.zoom is not None else math.nan,
-    )
-
-
-def describe(r: PtzReading) -> str:
-    """A pose for messages (degrees for people, zoom units)."""
-    return f"pan {math.degrees(r.pan):.3f} deg, tilt {math.degrees(r.tilt):.3f} deg, zoom {r.zoom:g}"
-
-
-@dataclass(frozen=True, slots=True)
-class Tolerances:
-    """Arrival tolerances and the velocity timeout: a frozen snapshot of the node's dynamic parameters (replaced
-    as a whole when one changes). The defaults here are the parameters' defaults."""
-
-    pan_tilt_rad: float = 0.002
-    zoom_units: float = 2.0
-    velocity_timeout_s: float = 0.5
-
-
-@dataclass
-class CommanderStats:
-    """Counters for diagnostics."""
-
-    refused: int = 0
-    refused_at_send: int = 0
-    halted_after_failure: int = 0
-    last_refusal: str = ""
-    presets_known: list[str] = field(default_factory=list)
 
 
 class Commander:
@@ -304,7 +201,7 @@ class Commander:
         drive-safe cap) keep the operator's order generation and velocity mode."""
         with self._lock:
             base = self._inflight if self._inflight_busy else self._accepted
-            chain = spec if self._chain is None else _then(self._chain, spec)
+            chain = spec if self._chain is None else then(self._chain, spec)
             r = self.reading()
             try:
                 provisional = chain(base, r)
@@ -414,7 +311,7 @@ class Commander:
         """Go to a preset stored in the camera; tracked to its pose when this node knows it."""
         with self._lock:
             pose = self._presets.get(name)
-        order = self._submit("goto_preset", _const(pose), lambda _t: self._backend.goto_preset(name))
+        order = self._submit("goto_preset", const(pose), lambda _t: self._backend.goto_preset(name))
         order.preset = name
         return order
 
@@ -462,7 +359,7 @@ class Commander:
             self._backend.velocity(vals[0], vals[1], zr)
 
         with self._lock:
-            order = self._submit("velocity" if moving else "stop", _const(None), action, velocity=moving)
+            order = self._submit("velocity" if moving else "stop", const(None), action, velocity=moving)
             order.zooming = z != 0.0
             if not order.refused:
                 self._velocity_active = moving
@@ -519,79 +416,22 @@ class Commander:
         self, order: Order, timeout_s: float, cancelled: Callable[[], bool] = lambda: False
     ) -> Iterator[Progress]:
         """Follow ``order`` until it ends; the last item has ``done`` set. Stops yielding (without a final
-        item) as soon as ``cancelled()`` is true; the caller then decides what to do with the head."""
-        deadline = self._clock() + timeout_s
-        if order.ticket is None:
-            yield Progress(self._poller.latest, None, True, False, order.reason)
-            return
-        ticket = order.ticket
-        while not ticket.wait(0.05):
-            if cancelled():
-                return
-            if self._clock() >= deadline:
-                yield Progress(self._poller.latest, order.target, True, False, "timed out waiting for the camera")
-                return
-        ok, msg = wait_accepted(ticket, "", 0.0)
-        if not ok:
-            yield Progress(self._poller.latest, order.target, True, False, msg)
-            return
-        yield from self._arrival(order, deadline, cancelled)
+        item) as soon as ``cancelled()`` is true; the caller then decides what to do with the head
+        (:func:`axis_ptz_ros2.ptz.arrival.track`)."""
+        return track(self, self._poller, self._clock, order, timeout_s, cancelled)
 
-    def _arrival(self, order: Order, deadline: float, cancelled: Callable[[], bool]) -> Iterator[Progress]:
-        target = order.target
-        start = self._poller.latest
-        seq = start.seq if start is not None else 0
-        still, moved = 0, False
-        while True:
-            if cancelled():
-                return
-            left = deadline - self._clock()
-            s = self._poller.wait_for(lambda _s: True, min(max(left, 0.0), 0.1), after_seq=seq) if left > 0 else None
-            if s is None:
-                if self._clock() >= deadline:
-                    r = self.reading()
-                    where = f"; the head is at {describe(r)}" if r is not None else ""
-                    yield Progress(self._poller.latest, target, True, False, "timed out before arrival" + where)
-                    return
-                continue
-            seq = s.seq
-            r = self._offsets.from_head(s.reading)
-            with self._lock:
-                target = self._capped(order.target)
-            err = remaining_error(target, r)
-            with self._lock:
-                newer = self._gen != order.gen
-            if newer:
-                yield Progress(s, target, True, False, "superseded by a newer command before arrival", err)
-                return
-            still = 0 if s.head_moving else still + 1
-            moved = moved or s.head_moving
-            if target is not None:
-                if not s.head_moving and target.reached(r, self.tol.pan_tilt_rad, self.tol.zoom_units):
-                    yield Progress(s, target, True, True, f"arrived at {describe(r)}", err)
-                    return
-                if still >= SETTLE_POLLS and self._clock() - order.accepted_mono >= SETTLE_S:
-                    msg = (
-                        f"the head stopped at {describe(r)}, short of the target (remaining: pan "
-                        f"{math.degrees(err[0]) if math.isfinite(err[0]) else 0.0:.3f} deg, tilt "
-                        f"{math.degrees(err[1]) if math.isfinite(err[1]) else 0.0:.3f} deg, zoom "
-                        f"{err[2] if math.isfinite(err[2]) else 0.0:g})"
-                    )
-                    if order.preset:
-                        msg += "; the preset may have been changed by another client (its pose is re-learned)"
-                        self._learn(order, r)
-                    yield Progress(s, target, True, False, msg, err)
-                    return
-            elif still >= UNTRACKED_STILL_POLLS and (moved or self._clock() - order.accepted_mono >= SETTLE_S):
-                note = ""
-                if order.preset:
-                    note = f" (the pose of preset {order.preset!r} was not known; now learned)"
-                    self._learn(order, r)
-                yield Progress(s, None, True, True, f"settled at {describe(r)}{note}", err)
-                return
-            yield Progress(s, target, False, False, "moving", err)
+    def to_joints(self, head: PtzReading) -> PtzReading:
+        """A head reading in joint coordinates (the calibrated encoder offsets applied)."""
+        return self._offsets.from_head(head)
 
-    def _learn(self, order: Order, r: PtzReading) -> None:
+    def capped_target(self, order: Order) -> Target | None:
+        """The target of ``order`` as sent (the drive-safe zoom cap in force applied)."""
+        with self._lock:
+            return self._capped(order.target)
+
+    def learn(self, order: Order, r: PtzReading) -> None:
+        """A goto of ``order`` ended at ``r``: that is its preset's pose and the accepted target (unless a newer
+        order came)."""
         with self._lock:
             if self._gen == order.gen:
                 pose = Target(r.pan, r.tilt, r.zoom)
@@ -601,45 +441,3 @@ class Commander:
     def refuse(self, label: str, reason: str) -> Order:
         """Count and return a refusal decided outside the commander (e.g. a field that is ±inf)."""
         return self._refuse(label, reason)
-
-
-def wait_accepted(ticket: Ticket | None, reason: str, timeout_s: float) -> tuple[bool, str]:
-    """Whether the camera accepted a command (``reason``: why it was refused when ``ticket`` is None)."""
-    if ticket is None:
-        return False, reason
-    if not ticket.wait(max(0.0, timeout_s)):
-        return False, "timed out waiting for the camera to accept the command"
-    if ticket.outcome is Outcome.SENT:
-        return True, "sent"
-    if ticket.outcome is Outcome.SUPERSEDED:
-        return False, "superseded by a newer command before it was sent"
-    return False, f"camera error: {ticket.error}" if ticket.error else str(ticket.outcome)
-
-
-class Preemption:
-    """Latest-wins bookkeeping of long-running goals: starting a goal pre-empts the one running (ROS-free)."""
-
-    def __init__(self) -> None:
-        """No goal running."""
-        self._lock = threading.Lock()
-        self._current: bytes | None = None
-        self._preempted: set[bytes] = set()
-
-    def start(self, key: bytes) -> None:
-        """``key`` becomes the running goal; the previous one (if any) is pre-empted."""
-        with self._lock:
-            if self._current is not None and self._current != key:
-                self._preempted.add(self._current)
-            self._current = key
-
-    def preempted(self, key: bytes) -> bool:
-        """Whether a newer goal pre-empted ``key``."""
-        with self._lock:
-            return key in self._preempted
-
-    def finish(self, key: bytes) -> None:
-        """``key`` ended."""
-        with self._lock:
-            self._preempted.discard(key)
-            if self._current == key:
-                self._current = None

@@ -15,8 +15,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
-from axis_ptz_ros2.ptz.commander import Commander, Order, Preemption, Progress, describe, wait_accepted
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import JointOffsets
+from axis_ptz_ros2.ptz.orders import Order, Progress, describe, wait_accepted
+from axis_ptz_ros2.ptz.preemption import Preemption
 from axis_ptz_ros2.ptz.state import StatePoller, StateSample
 
 CANCEL_SETTLE_S = 2.0  #: how long a cancelled goal waits for the head to report standing still

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 
 from axis_ptz_ros2.ptz.command_slot import SlotStats
-from axis_ptz_ros2.ptz.commander import CommanderStats
+from axis_ptz_ros2.ptz.orders import CommanderStats
 from axis_ptz_ros2.ptz.state import PollStats, StateSample
 
 DIAG_OK, DIAG_WARN, DIAG_ERROR, DIAG_STALE = 0, 1, 2, 3

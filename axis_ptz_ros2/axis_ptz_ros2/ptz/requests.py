@@ -1,7 +1,7 @@
 """From request fields to orders (ROS-free): what the node's topics, services and goals ask, checked.
 
 The node hands over the fields of its messages as plain numbers; every method returns an
-:class:`~axis_ptz_ros2.ptz.commander.Order`, refused with the reason when the request is invalid. Conventions:
+:class:`~axis_ptz_ros2.ptz.orders.Order`, refused with the reason when the request is invalid. Conventions:
 NaN = keep that axis (or: not given), ±inf refused; an image size of 0 = the stream's size; a pixel must lie
 inside the image; zoom set-points derived from the pose are clamped to the head's range.
 """
@@ -16,8 +16,9 @@ from enum import IntEnum
 from axis_ptz_ros2.geometry import PtzKinematics
 from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.ptz.backend import PtzLimitsRos
-from axis_ptz_ros2.ptz.commander import Commander, Order, axis_value
+from axis_ptz_ros2.ptz.commander import Commander
 from axis_ptz_ros2.ptz.control import area_zoom_command, look_at_target, pixel_center_target, zoom_target
+from axis_ptz_ros2.ptz.orders import Order, axis_value
 from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.vapix.models import MAX_IMAGE_SIDE
 
