@@ -22,18 +22,17 @@ from types import FrameType
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Joy
 from std_srvs.srv import Trigger
 
 from axis_ptz_interfaces.msg import PtzVelocity
 from axis_ptz_interfaces.srv import Preset
-from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, declare_params, field_spec, publisher, snapshot
+from axis_ptz_ros2.nodes.common import COMMAND_QOS, ParamSpec, field_spec, publisher, snapshot
+from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.runner import close_own_loop
 from axis_ptz_ros2.teleop.joy import (
     MAX_PAN_TILT_SPEED,
@@ -88,7 +87,6 @@ PARAMS: tuple[ParamSpec, ...] = (
     # -- the node (read-only) --
     ParamSpec("rate", 10.0, "velocity repeat rate while moving", "Hz", float_range=(1.0, 100.0), read_only=True),
 )
-_SPECS = {s.name: s for s in PARAMS}
 
 
 def joy_map_from_params(p: Mapping[str, Any]) -> JoyMap:
@@ -107,17 +105,15 @@ class JoyTeleopNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_joy_teleop", **kwargs)
-        self._p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS, validate=self._check_params, on_change=self._apply_params)
         self._lock = threading.Lock()
-        self._teleop = JoyTeleop(joy_map_from_params(self._p))  # ValueError: refused at start-up with the reason
+        self._teleop = JoyTeleop(joy_map_from_params(self._live.params))  # ValueError: refused at start-up
         self._warned = 0
-        self.add_on_set_parameters_callback(self._check_params)
-        self.add_post_set_parameters_callback(self._apply_params)
         self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         self._home = self.create_client(Trigger, "ptz/home")
         self._preset = self.create_client(Preset, "ptz/preset")
         self.create_subscription(Joy, "joy", self._on_joy, 10)
-        self._timer = self.create_timer(1.0 / float(self._p["rate"]), self._on_tick)
+        self._timer = self.create_timer(1.0 / float(self._live.params["rate"]), self._on_tick)
         m = self._teleop.joy_map
         self.get_logger().info(
             f"joystick teleop up: axes pan {m.pan_axis} tilt {m.tilt_axis} zoom {m.zoom_axis}, "
@@ -126,23 +122,23 @@ class JoyTeleopNode(Node):
         )
 
     # ---- parameters -------------------------------------------------------------------------------
-    def _check_params(self, params: list[Parameter]) -> SetParametersResult:
-        merged = dict(self._p)
-        for prm in params:
-            if prm.name in _SPECS:
-                merged[prm.name] = prm.value
-        try:
-            joy_map_from_params(merged)
-        except ValueError as err:
-            return SetParametersResult(successful=False, reason=str(err))
-        return SetParametersResult(successful=True)
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters: ``.params`` is the snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live
 
-    def _apply_params(self, params: list[Parameter]) -> None:
-        for prm in params:
-            if prm.name in _SPECS:
-                self._p[prm.name] = prm.value
+    @staticmethod
+    def _check_params(candidate: Params, _names: frozenset[str]) -> str | None:
+        """on-set: the whole candidate map must be usable (e.g. as many preset names as buttons)."""
+        try:
+            joy_map_from_params(candidate)
+        except ValueError as err:
+            return str(err)
+        return None
+
+    def _apply_params(self, _names: frozenset[str]) -> None:
         with self._lock:
-            self._teleop.joy_map = joy_map_from_params(self._p)
+            self._teleop.joy_map = joy_map_from_params(self._live.params)
             self._teleop.warnings.clear()
             self._warned = 0
 

@@ -21,7 +21,8 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, PointField
 
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, ParamSpec, publisher
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import publish_fixed_transform
 from axis_ptz_ros2.sim.laser import StaticScan, scan_directions
@@ -85,7 +86,8 @@ class LaserSim(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_laser_sim", **kwargs)
-        p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS)  # range_noise: read from the snapshot at each scan
+        p = self._live.params
         if p["max_elevation"] < p["min_elevation"]:
             raise ValueError("max_elevation must not be below min_elevation")
         if p["max_range"] <= p["min_range"]:
@@ -106,7 +108,7 @@ class LaserSim(Node):
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)
 
     def _scan(self) -> None:
-        pts = self._returns.points(float(self.get_parameter("range_noise").value))
+        pts = self._returns.points(float(self._live.params["range_noise"]))
         self._pub.publish(cloud_msg(pts, self._returns.intensity, self._frame_id, self.get_clock().now().to_msg()))
 
 

@@ -34,10 +34,10 @@ from axis_ptz_ros2.nodes.common import (
     STREAM_QOS,
     VIDEO_QOS,
     ParamSpec,
-    declare_params,
     publisher,
     stamp_s,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.feedback import ReceiveMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver, PtsGaps
@@ -160,7 +160,7 @@ class LinkMonitorNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """``kwargs`` go to :class:`rclpy.node.Node`."""
         super().__init__("axis_link_monitor", **kwargs)
-        p = declare_params(self, PARAMS)
+        p = LiveParams(self, PARAMS).params  # all read-only: read once
         h264 = p["codec"] == "h264"
         topic = str(p["h264_topic"] if h264 else p["image_topic"])
         self.feedback = FeedbackPublisher(self, topic, str(p["feedback_topic"]), float(p["period"]), float(p["window"]))

@@ -21,7 +21,8 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage
 
-from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, declare_params, jpeg_image_msg, publisher, stamp_from_ns
+from axis_ptz_ros2.nodes.common import STREAM_QOS, ParamSpec, jpeg_image_msg, publisher, stamp_from_ns
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.tf_publish import publish_fixed_transform
 from axis_ptz_ros2.sim.scene import shared_scene
@@ -43,7 +44,8 @@ class PanoramaSim(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_panorama_sim", **kwargs)
-        p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS)  # overlay, jpeg_quality: read from the snapshot at each frame
+        p = self._live.params
         self._frame_id: str = p["frame_id"]
         world = load_world(p["world_file"] or None)
         self.T_base_pano = world.T_base_pano
@@ -64,7 +66,7 @@ class PanoramaSim(Node):
     def frame(self, stamp_ns: int) -> np.ndarray[Any, np.dtype[np.uint8]]:
         """The BGR frame for a publishing time (the static render plus the clock overlay)."""
         img = self._base.copy()
-        if self.get_parameter("overlay").value:
+        if self._live.params["overlay"]:
             h = img.shape[0]
             text = time.strftime("%H:%M:%S", time.gmtime(stamp_ns / 1e9)) + f".{stamp_ns // 1_000_000 % 1000:03d}"
             text += f" #{self._count}"
@@ -80,7 +82,7 @@ class PanoramaSim(Node):
         now = self.get_clock().now()
         ns = now.nanoseconds
         img = self.frame(ns)
-        q = int(self.get_parameter("jpeg_quality").value)
+        q = int(self._live.params["jpeg_quality"])
         ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, q])
         if not ok:  # pragma: no cover - cv2 fails only on invalid images
             self.get_logger().error("JPEG encoding failed")

@@ -29,7 +29,6 @@ from geometry_msgs.msg import PointStamped, Twist
 from nav_msgs.msg import Odometry
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from axis_ptz_interfaces.msg import PixelTarget, PtzCommand, PtzVelocity, VideoParams
 from axis_ptz_ros2.config import CameraModel, MountConfig, load_camera_model, load_mount
@@ -40,13 +39,11 @@ from axis_ptz_ros2.nodes.common import (
     RELATIVE_QOS,
     ParamSpec,
     camera_config_from_params,
-    check_params,
-    declare_params,
     diagnostic,
     field_spec,
     publisher,
-    snapshot,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.ptz_publish import PtzFrames, PtzStatePublisher
 from axis_ptz_ros2.nodes.ptz_services import PtzServices, center_order, look_at_order, move_order
 from axis_ptz_ros2.nodes.runner import run_nodes
@@ -87,9 +84,12 @@ PARAMS: tuple[ParamSpec, ...] = (
     field_spec(Tolerances, "zoom_units", "zoom distance counted as arrived", "zoom units", name="zoom_tolerance",
                float_range=(0.0, 1000.0)),
     ParamSpec("wait_timeout", 15.0, "default timeout of services with wait=true", "s", float_range=(0.1, 300.0)),
-    ParamSpec("image_width", 704, "stream width for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
-    ParamSpec("image_height", 576, "stream height for hfov/vfov and pixel commands", "px", int_range=(1, 10000)),
-    ParamSpec("follow_video_params", True, "take the stream size from video/params when published"),
+    ParamSpec("image_width", 704, "stream width for hfov/vfov and pixel commands until video/params tells "
+              "one (always, with follow_video_params false)", "px", int_range=(1, 10000)),
+    ParamSpec("image_height", 576, "stream height for hfov/vfov and pixel commands until video/params tells "
+              "one (always, with follow_video_params false)", "px", int_range=(1, 10000)),
+    ParamSpec("follow_video_params", True, "take the stream size from video/params when published (runtime "
+              "state: the image_width/image_height parameters are not rewritten)"),
     *FRAME_PARAMS,
     ParamSpec("publish_tf", True, "the mount on /tf_static, the pan/tilt head on /tf (tf2_msgs)", read_only=True),
     ParamSpec("drive_topic", "", "drive-safe zoom: the robot's odometry or cmd_vel topic ('' = off)",
@@ -105,11 +105,10 @@ PARAMS: tuple[ParamSpec, ...] = (
     field_spec(DriveSafeConfig, "hold_s", "drive-safe zoom: restore the operator's zoom after the robot has been "
                "below both thresholds this long", "s", name="drive_hold_time", float_range=(0.0, 600.0)),
 )  # fmt: skip
-_SPECS = {s.name: s for s in PARAMS}
-_DYNAMIC = frozenset(s.name for s in PARAMS if not s.read_only)  # copied into self._p when set at run time
+_DYNAMIC = frozenset(s.name for s in PARAMS if not s.read_only)  # live: the node follows a change at run time
 
 
-def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
+def build_axis_backend(p: Params, model: CameraModel) -> PtzBackend:
     """The default backend: VAPIX over HTTP, configured from the node's parameters."""
     from axis_ptz_ros2.ptz.axis_backend import AxisBackend
 
@@ -120,7 +119,7 @@ def build_axis_backend(p: dict[str, Any], model: CameraModel) -> PtzBackend:
 class PtzNode(Node):
     """Pan-tilt-zoom control and state (see the module docstring and the README tables)."""
 
-    def _learn_model(self, p: dict[str, Any]) -> CameraModel:
+    def _learn_model(self, p: Params) -> CameraModel:
         from axis_ptz_ros2.camera_models import learn_camera_model
 
         cfg = camera_config_from_params(p, timeout_s=float(p["timeout"]))
@@ -143,9 +142,9 @@ class PtzNode(Node):
         """``backend``: a ready head (e.g. a virtual camera); default: the Axis backend from parameters.
         ``model``/``mount``: given directly instead of read from the ``camera_model``/``mount_file`` files."""
         super().__init__(node_name, **kwargs)
-        self._p = p = declare_params(self, PARAMS)
-        self.add_on_set_parameters_callback(lambda params: check_params(_SPECS, params))
-        self.add_post_set_parameters_callback(self._post_set_params)  # applied only once every check passed
+        self._live = LiveParams(self, PARAMS, on_change=self._on_params)  # applied only once every check passed
+        p = self._live.params  # (the read-only ones are read once, here)
+        self._video_size: tuple[int, int] | None = None  # the stream's size from video/params (runtime state)
         if model is None and backend is None:
             model = self._learn_model(p)  # from the camera (camera_models.discover), logged in one line
         self._model = model if model is not None else load_camera_model(p["camera_model"] or None)
@@ -166,7 +165,7 @@ class PtzNode(Node):
         period = 1.0 / float(p["state_rate"])
         self._poller = StatePoller(self._backend.read_state, period, max_backoff_s=max(2.0, period))
         self._cmd = Commander(
-            self._backend, self._slot, self._poller, lambda: self.limits, snapshot(Tolerances, PARAMS, p), self._offsets
+            self._backend, self._slot, self._poller, lambda: self.limits, self._live.config(Tolerances), self._offsets
         )
         self._req = Requests(
             self._cmd,
@@ -175,12 +174,12 @@ class PtzNode(Node):
             (frames.ptz_base, frames.base),
             self._mount.transform,
             lambda: self.limits,
-            lambda: (int(p["image_width"]), int(p["image_height"])),
+            self.image_size,
         )
         self._follower = Follower(self._cmd, self._poller, self._offsets, float(p["timeout"]))
         self._drive: DriveSafeCap | None = None
         if p["drive_topic"]:
-            zoom = DriveSafeZoom(snapshot(DriveSafeConfig, PARAMS, p))
+            zoom = DriveSafeZoom(self._live.config(DriveSafeConfig))
             self._drive = DriveSafeCap(zoom, self._cmd, self.get_logger().info)
 
         # ptz/state, joint_states, ptz/transform, ptz/mount, /tf, /tf_static; /diagnostics
@@ -230,7 +229,14 @@ class PtzNode(Node):
                 self.create_subscription(Odometry, p["drive_topic"], self._on_odometry, 10, callback_group=g)
 
         self._ptz_services = PtzServices(
-            self, self._req, self._cmd, self._follower, self._slot, self._backend, self._out.state_msg, self._p
+            self,
+            self._req,
+            self._cmd,
+            self._follower,
+            self._slot,
+            self._backend,
+            self._out.state_msg,
+            lambda: self._live.params,
         )
         self.get_logger().info(
             f"PTZ node up: {self._backend!r}, state at {float(p['state_rate']):g} Hz, "
@@ -241,16 +247,30 @@ class PtzNode(Node):
             self.get_logger().error(f"this camera has no PTZ head: {fixed}; pan/tilt/zoom commands will not move it")
 
     # -- parameters -----------------------------------------------------------------------------------
-    def _post_set_params(self, params: list[Parameter]) -> None:
-        self._p.update((prm.name, prm.value) for prm in params if prm.name in _DYNAMIC)
-        self._cmd.tol = snapshot(Tolerances, PARAMS, self._p)
-        if self._drive is not None:
-            self._drive.reconfigure(snapshot(DriveSafeConfig, PARAMS, self._p))
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters: ``.params`` is the snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live
+
+    def _on_params(self, names: frozenset[str]) -> None:
+        """post-set (every check passed, the snapshot swapped): rebuild the settings the change touches."""
+        if names & {s.name for s in PARAMS if s.config is Tolerances}:
+            self._cmd.tol = self._live.config(Tolerances)
+        if self._drive is not None and names & {s.name for s in PARAMS if s.config is DriveSafeConfig}:
+            self._drive.reconfigure(self._live.config(DriveSafeConfig))
+
+    def image_size(self) -> tuple[int, int]:
+        """The stream size used for hfov/vfov and pixel commands: the one ``video/params`` told last (with
+        ``follow_video_params``), else the ``image_width``/``image_height`` parameters."""
+        p = self._live.params
+        if p["follow_video_params"] and self._video_size is not None:
+            return self._video_size
+        return int(p["image_width"]), int(p["image_height"])
 
     def _on_video_params(self, msg: VideoParams) -> None:
         size = stream_size(msg.width, msg.height)
-        if self._p["follow_video_params"] and size is not None:
-            self._p["image_width"], self._p["image_height"] = size
+        if size is not None:
+            self._video_size = size  # kept even while not followed: switching follow_video_params on uses it
 
     # -- state ----------------------------------------------------------------------------------------
     @property
@@ -299,7 +319,7 @@ class PtzNode(Node):
 
     def health(self) -> Health:
         """The state polling's diagnostic verdict (age, staleness, camera answering)."""
-        stale = stale_after(self._poller.period_s, float(self._p["state_timeout"]))
+        stale = stale_after(self._poller.period_s, float(self._live.params["state_timeout"]))
         return judge(self._poller.stats, state_age(self._poller.latest, time.time_ns()), stale)
 
     def _publish_diagnostics(self) -> None:
@@ -365,8 +385,8 @@ class PtzNode(Node):
             order = self._cmd.stop()
             if order.ticket is not None:
                 order.ticket.wait(1.0)
-        self._loop.stop(timeout_s=float(self._p["state_timeout"]) + 1.0)
-        self._slot.stop(timeout=float(self._p["timeout"]) + 1.0)
+        self._loop.stop(timeout_s=float(self._live.params["state_timeout"]) + 1.0)
+        self._slot.stop(timeout=float(self._live.params["timeout"]) + 1.0)
         self._backend.close()
         self._ptz_services.destroy()
         super().destroy_node()

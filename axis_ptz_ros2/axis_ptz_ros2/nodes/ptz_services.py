@@ -59,13 +59,14 @@ class PtzServices:
         slot: CommandSlot,
         backend: PtzBackend,
         state_msg: Callable[[StateSample], PtzState],
-        params: Mapping[str, Any],
+        params: Callable[[], Mapping[str, Any]],
     ) -> None:
-        """``params``: the node's parameter values, read at each call (``wait_timeout`` is live; ``timeout``)."""
+        """``params()``: the node's parameter snapshot in effect, taken at each call (``wait_timeout`` is live;
+        ``timeout``)."""
         self._req, self._cmd, self._follower = req, cmd, follower
         self._slot, self._backend = slot, backend
         self._state_msg = state_msg
-        self._p = params
+        self._params = params
         self._goals = GoalBook()
         s = MutuallyExclusiveCallbackGroup()
         node.create_service(MovePtz, "ptz/move_absolute", self._srv_absolute, callback_group=s)
@@ -94,7 +95,7 @@ class PtzServices:
 
     # -- services -------------------------------------------------------------------------------------
     def _timeout(self, timeout_s: float) -> float:
-        return wait_timeout(timeout_s, float(self._p["wait_timeout"]))
+        return wait_timeout(timeout_s, float(self._params()["wait_timeout"]))
 
     def _finish(self, order: Order, wait: bool, timeout_s: float, resp: Any) -> Any:
         """Fill ``resp`` (success, message, state) for a motion service."""
@@ -130,7 +131,9 @@ class PtzServices:
 
     def _srv_home(self, req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         """Answers when the head has arrived at the home pose (or why it did not), within wait_timeout."""
-        resp.success, resp.message, _ = self._follower.follow(self._cmd.home(), True, float(self._p["wait_timeout"]))
+        resp.success, resp.message, _ = self._follower.follow(
+            self._cmd.home(), True, float(self._params()["wait_timeout"])
+        )
         return resp
 
     def _srv_preset(self, req: Preset.Request, resp: Preset.Response) -> Preset.Response:
@@ -141,7 +144,7 @@ class PtzServices:
         out: list[Any] = []
         b = self._backend
         ticket = self._slot.submit("list_presets", lambda: out.extend(b.list_presets()), supersedable=False)
-        resp.success, resp.message = wait_accepted(ticket, "", float(self._p["timeout"]))
+        resp.success, resp.message = wait_accepted(ticket, "", float(self._params()["timeout"]))
         resp.numbers = [int(pr.number) for pr in out]
         resp.names = [str(pr.name) for pr in out]
         return resp

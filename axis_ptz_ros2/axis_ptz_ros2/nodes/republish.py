@@ -23,7 +23,8 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage, Image
 
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
-from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, declare_params, publisher
+from axis_ptz_ros2.nodes.common import STREAM_QOS, VIDEO_QOS, ParamSpec, publisher
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
@@ -45,9 +46,8 @@ class RepublishNode(Node):
     def __init__(self, name: str = "axis_republish", **kwargs: Any) -> None:
         """``kwargs`` go to :class:`rclpy.node.Node` (``context=``, ``parameter_overrides=``, ``namespace=``)."""
         super().__init__(name, **kwargs)
-        p = declare_params(self, PARAMS)
-        self._lazy = bool(p["lazy"])
-        self._h264 = p["input"] == "h264"
+        self._live = LiveParams(self, PARAMS, on_change=lambda _names: self._update())  # lazy: live
+        self._h264 = self._live.params["input"] == "h264"
         self._receiver: AccessUnitReceiver | None = None
         self._sub: Subscription | None = None
         self.decoded = 0
@@ -63,7 +63,7 @@ class RepublishNode(Node):
         return self._sub is not None
 
     def _update(self) -> None:
-        want = not self._lazy or self._pub.get_subscription_count() > 0
+        want = not self._live.params["lazy"] or self._pub.get_subscription_count() > 0
         if want and self._sub is None:
             if self._h264:
                 try:

@@ -9,9 +9,10 @@ every frame (size from the JPEG's SOF header, K from the camera model at the zoo
 the ``zoom`` parameter), built once per (size, zoom) and only restamped
 (:mod:`~axis_ptz_ros2.nodes.stream_camera_info`). The parameter table is :mod:`~axis_ptz_ros2.nodes.stream_params`.
 
-Video parameters (``fps``, ``resolution``, ``compression``, ``max_bitrate_kbps`` …) are live: validated in
-the on-set callback (never sent to the camera when invalid), applied in the post-set callback (the reader
-reconnects with the new request). ``video/set_params`` sets several atomically. ``video/params`` (latched)
+Video parameters (``fps``, ``resolution``, ``compression``, ``max_bitrate_kbps`` …) are live
+(:class:`~axis_ptz_ros2.nodes.live_params.LiveParams`): the candidate snapshot is validated as a whole in the
+on-set callback (never sent to the camera when invalid), applied after the set (the reader reconnects with the
+new request). ``video/set_params`` sets several atomically. ``video/params`` (latched)
 carries what is in effect after every change, including those of the bandwidth budget.
 
 Lazy by default: no HTTP request at all while nobody subscribes to ``image_raw/compressed``, ``camera_info``
@@ -34,7 +35,6 @@ from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -50,18 +50,16 @@ from axis_ptz_ros2.nodes.common import (
     LATCHED_QOS,
     STREAM_QOS,
     camera_config_from_params,
-    check_params,
-    declare_params,
     diagnostic,
     jpeg_format,
     publisher,
-    snapshot,
     stamp_from_ns,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.stream_camera_info import CameraInfoOutput
 from axis_ptz_ros2.nodes.stream_h264 import H264Output
-from axis_ptz_ros2.nodes.stream_params import PARAMS, SPECS
+from axis_ptz_ros2.nodes.stream_params import PARAMS
 from axis_ptz_ros2.nodes.stream_still import StillOutput
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
 from axis_ptz_ros2.streaming.controller import VideoController, requested_changes
@@ -81,14 +79,16 @@ class StreamNode(Node):
     def __init__(self, name: str = "axis_stream", **kwargs: Any) -> None:
         """``kwargs`` go to :class:`rclpy.node.Node` (``context=``, ``parameter_overrides=``, ``namespace=``)."""
         super().__init__(name, **kwargs)
-        p = declare_params(self, PARAMS)
+        # validated as a whole before a set, applied after it (the controller exists by then: no set during __init__)
+        self._live = LiveParams(self, PARAMS, validate=self._validate_params, on_change=self._apply_params)
+        p = self._live.params
         self._frame_id = str(p["frame_prefix"]) + str(p["frame_id"])
         model_file = camera_model_path(str(p["camera_model"])) or ""
         self._log_throttle = LogThrottle()
-        reader_config = snapshot(ReaderConfig, PARAMS, p)
+        reader_config = self._live.config(ReaderConfig)
         meter = BitrateMeter(reader_config.meter_window_s)
         self._video = VideoController(  # raises ValueError (start-up error) if the request is invalid
-            snapshot(VideoSettings, PARAMS, p), meter, camera=int(p["camera"]), on_change=self._publish_params
+            self._live.config(VideoSettings), meter, camera=int(p["camera"]), on_change=self._publish_params
         )
         self._pending_source = "parameter"
         self._client = VapixClient(
@@ -151,8 +151,6 @@ class StreamNode(Node):
             active=self._want_active(),
             meter=meter,
         )
-        self.add_on_set_parameters_callback(self._validate_params)
-        self.add_post_set_parameters_callback(self._apply_params)
         self._publish_params()
         self._reader.start()
         self._h264.start()
@@ -171,28 +169,26 @@ class StreamNode(Node):
         return self._camera_info.direct_zoom()
 
     # -- parameters ------------------------------------------------------------------------------------------
-    def _settings_with(self, params: list[Parameter]) -> VideoSettings:
-        values = {s.name: self.get_parameter(s.name).value for s in PARAMS if s.config is VideoSettings}
-        values.update({prm.name: prm.value for prm in params if prm.name in values})
-        return snapshot(VideoSettings, PARAMS, values)
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters: ``.params`` is the snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live
 
-    def _validate_params(self, params: list[Parameter]) -> SetParametersResult:
-        """on-set: check what rclpy's descriptors cannot (resolution against the camera's list)."""
-        result = check_params(SPECS, params)
-        if not result.successful:
-            return result
-        reason = self._video.check(self._settings_with(params), {prm.name for prm in params})
-        return SetParametersResult(successful=reason is None, reason=reason or "")
+    def _validate_params(self, candidate: Params, names: frozenset[str]) -> str | None:
+        """on-set, the candidate as a whole: what rclpy's descriptors cannot check (the H.264 settings together,
+        the resolution against the camera's list)."""
+        return self._video.check(self._live.config(VideoSettings, candidate), names)
 
-    def _apply_params(self, params: list[Parameter]) -> None:
-        """post-set: hand the new settings to the controller (the reader follows), take the node's own."""
-        names = {prm.name for prm in params}
+    def _apply_params(self, names: frozenset[str]) -> None:
+        """post-set (the snapshot swapped): hand the new settings to the controller (the reader follows), take the
+        node's own."""
+        p = self._live.params
         if "lazy" in names:
-            self._lazy = bool(self.get_parameter("lazy").value)
+            self._lazy = bool(p["lazy"])
             self._update_activity()
         if "zoom" in names:
-            self._camera_info.set_zoom_param(float(self.get_parameter("zoom").value))
-        self._video.apply(self._settings_with([]), names, self._pending_source)
+            self._camera_info.set_zoom_param(float(p["zoom"]))
+        self._video.apply(self._live.config(VideoSettings), names, self._pending_source)
         if "codec" in names:
             self._update_activity()
 

@@ -36,7 +36,6 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 import yaml
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -52,12 +51,11 @@ from axis_ptz_ros2.nodes.common import (
     STREAM_QOS,
     ParamSpec,
     camera_info_msg,
-    check_params,
-    declare_params,
     jpeg_image_msg,
     publisher,
     stamp_from_ns,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.ptz_node import FRAME_PARAMS, PtzNode
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.transforms import Transform
@@ -103,7 +101,6 @@ PARAMS: tuple[ParamSpec, ...] = (
     *_FRAME_PARAMS,
     ParamSpec("ptz_node_name", "axis_virtual_camera_ptz", "name of the PTZ node in this process", read_only=True),
 )
-_SPECS = {s.name: s for s in PARAMS}
 #: PtzNode parameters this process fixes (the view size is the render size; frames from the panorama pose).
 _FIXED_PTZ_PARAMS = ("image_width", "image_height", "follow_video_params")
 
@@ -133,8 +130,8 @@ class VirtualCameraNode(Node):
     def __init__(self, *, node_name: str = "axis_virtual_camera", **kwargs: Any) -> None:
         """Declare parameters, build the virtual head and its PTZ node, subscribe to the panorama."""
         super().__init__(node_name, **kwargs)
-        self._p = p = declare_params(self, PARAMS)
-        self.add_on_set_parameters_callback(self._on_set_params)
+        self._live = LiveParams(self, PARAMS)  # min_rate, jpeg_quality: read from the snapshot at each frame
+        p = self._live.params
         self.width, self.height = int(p["width"]), int(p["height"])
 
         model_path = Path(p["camera_model"]) if p["camera_model"] else default_config_path("virtual_camera.yaml")
@@ -189,7 +186,7 @@ class VirtualCameraNode(Node):
     def _make_ptz_node(self, raw: dict[str, Any], mount: MountConfig, kwargs: dict[str, Any]) -> PtzNode:
         """The PTZ node over the virtual head: its camera model (square-pixel zoom model, no head offsets) and
         mount (the panorama origin) are handed over directly; the rest through its ordinary parameters."""
-        p = self._p
+        p = self._live.params
         forced = {
             "image_width": self.width,
             "image_height": self.height,
@@ -207,26 +204,21 @@ class VirtualCameraNode(Node):
             node_name=str(p["ptz_node_name"]),
             **ptz_kwargs,
         )
-        ptz.add_on_set_parameters_callback(self._refuse_ptz_resize)
+        ptz.live_params.add_validator(self._refuse_ptz_resize)
         return ptz
 
     @staticmethod
-    def _refuse_ptz_resize(params: list[Parameter]) -> SetParametersResult:
-        for prm in params:
-            if prm.name in _FIXED_PTZ_PARAMS:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f"{prm.name} is fixed by the virtual camera (its width/height parameters)",
-                )
-        return SetParametersResult(successful=True)
+    def _refuse_ptz_resize(_candidate: Params, names: frozenset[str]) -> str | None:
+        """A rule of the PTZ node's parameters in this process: its view size is the render's."""
+        for name in _FIXED_PTZ_PARAMS:
+            if name in names:
+                return f"{name} is fixed by the virtual camera (its width/height parameters)"
+        return None
 
-    def _on_set_params(self, params: list[Parameter]) -> SetParametersResult:
-        result = check_params(_SPECS, params)
-        if result.successful:
-            for prm in params:
-                if prm.name in ("min_rate", "jpeg_quality"):
-                    self._p[prm.name] = prm.value
-        return result
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters: ``.params`` is the snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -279,7 +271,7 @@ class VirtualCameraNode(Node):
         view = self.view()
         key = (self._pano_seq, view)
         now = time.monotonic()
-        if not self._gate.due(key, now, float(self._p["min_rate"])):
+        if not self._gate.due(key, now, float(self._live.params["min_rate"])):
             return
         published = self._publish(self._pano, self._renderer, view, t_view_ns)
         self._gate.rendered(key, now if published else None)
@@ -292,7 +284,7 @@ class VirtualCameraNode(Node):
         t0 = time.perf_counter()
         img = renderer.render(pano, view, out=self._out)
         t1 = time.perf_counter()
-        ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(self._p["jpeg_quality"])])
+        ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(self._live.params["jpeg_quality"])])
         t2 = time.perf_counter()
         if not ok:  # pragma: no cover - cv2 fails only on invalid images
             self.get_logger().error("JPEG encoding failed", throttle_duration_sec=5.0)

@@ -31,13 +31,12 @@ from axis_ptz_ros2.nodes.common import (
     LATCHED_QOS,
     STREAM_QOS,
     ParamSpec,
-    declare_params,
     field_spec,
     jpeg_image_msg,
     publisher,
-    snapshot,
     transform_from_msg,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.panorama_overlay import OverlaySettings, PanoramaOverlay
 from axis_ptz_ros2.pointcloud import decode_cloud_msg
@@ -62,7 +61,6 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("mount_file", "", "mount YAML ('' = config/mount.yaml)", read_only=True),
     ParamSpec("robot_file", "", "robot frames YAML ('' = config/robot.yaml)", read_only=True),
 )  # fmt: skip
-_OVERLAY_PARAMS = tuple(s for s in PARAMS if s.config is OverlaySettings)
 
 
 class Visualizer(Node):
@@ -70,7 +68,9 @@ class Visualizer(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_visualizer", **kwargs)
-        p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS, on_change=self._on_params)
+        p = self._live.params
+        self._settings = self._live.config(OverlaySettings)
         self.overlay = PanoramaOverlay(
             load_camera_model(p["camera_model_file"] or None),
             load_mount(p["mount_file"] or None),
@@ -116,10 +116,18 @@ class Visualizer(Node):
             self.get_logger().warn(f"laser cloud unusable: {err}", throttle_duration_sec=10.0)
 
     # ---- output -----------------------------------------------------------------------------------------
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters: ``.params`` is the snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live
+
+    def _on_params(self, names: frozenset[str]) -> None:
+        """post-set: the overlay's settings rebuilt once per accepted set (not per tick)."""
+        self._settings = self._live.config(OverlaySettings)
+
     def settings(self) -> OverlaySettings:
         """The overlay's parameters in effect now."""
-        values = {s.name: self.get_parameter(s.name).value for s in _OVERLAY_PARAMS}
-        return snapshot(OverlaySettings, _OVERLAY_PARAMS, values)
+        return self._settings
 
     def _tick(self) -> None:
         if not self._dirty or self._pano_msg is None or self._pub.get_subscription_count() == 0:
@@ -135,7 +143,7 @@ class Visualizer(Node):
             pano = self._pano_img = np.asarray(decoded, dtype=np.uint8)
         self._dirty = False
         out = self.overlay.draw(pano, self.settings())
-        q = int(self.get_parameter("jpeg_quality").value)
+        q = int(self._live.params["jpeg_quality"])
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, q])
         if not ok:  # pragma: no cover
             return

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
 
@@ -53,16 +53,16 @@ class ConsoleCommands:
         node: Node,
         model: ConsoleModel,
         robot: RobotConfig,
-        params: dict[str, Any],
+        params: Callable[[], Mapping[str, Any]],
         feedback: FeedbackPublisher,
         cloud: Callable[[], PointCloud2 | None],
     ) -> None:
-        """``params``: the node's start-up parameter values (``stream_node``); live ones are read from the node;
+        """``params()``: the node's parameter snapshot in effect (``stream_node``; the live ones read at each use);
         ``cloud()``: the newest laser cloud (decoded only when a panorama click needs it)."""
         self._node = node
         self._model = model
         self._robot = robot
-        self._p = params
+        self._params = params
         self._feedback = feedback
         self._cloud = cloud
         g = ReentrantCallbackGroup()
@@ -83,7 +83,11 @@ class ConsoleCommands:
         }
 
     def _param(self, name: str) -> Any:  # noqa: ANN401 - a parameter's value
-        return self._node.get_parameter(name).value
+        return self._params()[name]
+
+    def add_command(self, name: str, run: Callable[[dict[str, Any]], CommandResult]) -> None:
+        """Another command of the page (the still: :mod:`~axis_ptz_ros2.nodes.web_still`)."""
+        self._commands[name] = run
 
     def services_ready(self) -> dict[str, bool]:
         """The page's ``services`` section: which services answer."""
@@ -168,6 +172,8 @@ class ConsoleCommands:
             return self._set_video_params(
                 c.fps, c.resolution, c.compression, c.h264_bitrate_kbps, c.h264_max_bitrate_kbps
             )
+        if isinstance(c, keymap.TakeStill):
+            return self.run("still", {}) if "still" in self._commands else CommandResult(False, "no still here", 404)
         if isinstance(c, keymap.Notice):
             return CommandResult(False, c.text, 409)
         return CommandResult(True, "help")  # ToggleHelp: the page shows its own help
@@ -195,7 +201,7 @@ class ConsoleCommands:
         return in_turn(steps)
 
     def _stream_node_name(self) -> str:
-        name = str(self._p["stream_node"])
+        name = str(self._param("stream_node"))
         if name:
             return name
         node = self._node

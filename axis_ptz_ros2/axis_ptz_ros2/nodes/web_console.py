@@ -9,7 +9,9 @@ PTZ video and the panorama, and turns the operator's mouse and keys into the PTZ
   default range (``pointing.point_along_ray``) → ``ptz/look_at`` the 3-D point in base_link at zoom 1;
 * the keyboard teleop's keys (``teleop/keymap.py``, one table for the terminal and the page);
 * video quality: ``video/set_params`` (fps, resolution, compression) and the stream node's
-  ``max_bitrate_kbps`` parameter (bandwidth budget).
+  ``max_bitrate_kbps`` parameter (bandwidth budget);
+* the Still button (and key P) → ``still/capture``; the still (``still/compressed``) is shown beside the live view
+  (:mod:`~axis_ptz_ros2.nodes.web_still`).
 
 Video is passed through (JPEG bytes of the CompressedImage, never re-encoded); each image topic is subscribed
 only while an HTTP client watches it. The PTZ video also goes out as H.264 (``h264_topic``, FFMPEGPacket access
@@ -35,9 +37,11 @@ from sensor_msgs.msg import PointCloud2
 
 from axis_ptz_interfaces.msg import PtzState, VideoParams
 from axis_ptz_ros2.config import RobotConfig, load_robot
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, ParamSpec, declare_params
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, ParamSpec
+from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.web_commands import ConsoleCommands
+from axis_ptz_ros2.nodes.web_still import ConsoleStill
 from axis_ptz_ros2.nodes.web_streams import ConsoleStreams
 from axis_ptz_ros2.web.auth import AuthThrottle, load_token
 from axis_ptz_ros2.web.backend import CommandResult
@@ -131,7 +135,7 @@ class WebConsole(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_web_console", **kwargs)
-        self.p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS)  # service_timeout, look_zoom, *_zoom_delta: read at each use
         self.robot: RobotConfig = load_robot(self.p["robot_config"] or None)
         self.model = ConsoleModel()
         self._cloud: PointCloud2 | None = None  # decoded only when a panorama click needs it
@@ -150,9 +154,22 @@ class WebConsole(Node):
             topics["overlay"] = self.p["overlay_topic"]
         self._streams = ConsoleStreams(self, topics, str(self.p["h264_topic"]), self.model, g)
         self._commands = ConsoleCommands(
-            self, self.model, self.robot, self.p, self._streams.feedback, lambda: self._cloud
+            self, self.model, self.robot, lambda: self._live.params, self._streams.feedback, lambda: self._cloud
         )
+        # the full-quality still: the page's Still button and key P (still/capture), shown from still/compressed
+        self._still = ConsoleStill(self, lambda: float(self.get_parameter("service_timeout").value), g)
+        self._commands.add_command("still", self._still.take)
         self.server = self._serve()
+
+    @property
+    def p(self) -> Params:
+        """The parameter snapshot in effect (what ``ros2 param get`` tells)."""
+        return self._live.params
+
+    @property
+    def live_params(self) -> LiveParams:
+        """The node's parameters (``.params``: the snapshot in effect)."""
+        return self._live
 
     # ------------------------------------------------------------------------------------------------
     # lifecycle
@@ -208,7 +225,7 @@ class WebConsole(Node):
 
     def slot(self, name: str) -> FrameSlot | None:
         """ConsoleBackend: the frame slot of a stream."""
-        return self._streams.slots.get(name)
+        return self._still.slot if name == "still" else self._streams.slots.get(name)
 
     def h264_slot(self, name: str) -> H264Slot | None:
         """ConsoleBackend: the H.264 relay (PTZ only, and only with an ``h264_topic``)."""
@@ -218,8 +235,9 @@ class WebConsole(Node):
         """ConsoleBackend: everything the page shows."""
         extra = {
             **self._streams.state(),
-            "mouse": {k: self.get_parameter(k).value for k in ("shift_zoom_delta", "ctrl_zoom_delta", "look_zoom")},
-            "services": self._commands.services_ready(),
+            "mouse": {k: self.p[k] for k in ("shift_zoom_delta", "ctrl_zoom_delta", "look_zoom")},
+            "services": {**self._commands.services_ready(), "still": self._still.ready()},
+            "still": self._still.state(),
             "http": self.server.counters(),
         }
         return self.model.state(self.subscribed("ptz") or self.subscribed("ptz.h264"), extra)
