@@ -42,9 +42,9 @@ from axis_ptz_ros2.nodes.common import (
     RELATIVE_QOS,
     STREAM_QOS,
     ParamSpec,
-    declare_params,
     publisher,
 )
+from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import close_own_loop
 from axis_ptz_ros2.teleop import keymap as km
 from axis_ptz_ros2.teleop import status
@@ -68,7 +68,8 @@ class KeyboardTeleop(Node):
 
     def __init__(self, out: TextIO, **kwargs: Any) -> None:
         super().__init__("axis_keyboard_teleop", **kwargs)
-        p = declare_params(self, PARAMS)
+        self._live = LiveParams(self, PARAMS)  # step, resolutions: the initial state; service_timeout: live
+        p = self._live.params
         self.out = out
         self.state = km.TeleopState(step=int(p["step"]), resolutions=km.sort_resolutions(p["resolutions"]))
         self.ptz: PtzState | None = None
@@ -145,7 +146,7 @@ class KeyboardTeleop(Node):
 
     def poll_services(self) -> None:
         """Report answers (and timeouts) of the service calls in flight."""
-        timeout = float(self.get_parameter("service_timeout").value)
+        timeout = float(self._live.params["service_timeout"])
         keep = []
         for t0, what, fut in self._pending:
             if fut.done():
