@@ -23,6 +23,7 @@ import pytest
 
 from axis_ptz_ros2.sim.world import load_world
 from scripts.demo import Demo, DemoConfig, DemoError
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -64,27 +65,36 @@ def sim_snapshot(demo: Demo) -> np.ndarray:
 
 def wait_still(demo: Demo, timeout: float = 15.0) -> dict[str, Any]:
     """Wait until the simulated head has stopped (and stays stopped for 0.5 s)."""
-    deadline = time.monotonic() + timeout
-    still_since = None
-    while time.monotonic() < deadline:
+    still_since: list[float] = []
+
+    def at_rest() -> dict[str, Any] | None:
         s = sim_state(demo)
         if s["moving"]:
-            still_since = None
-        elif still_since is None:
-            still_since = time.monotonic()
-        elif time.monotonic() - still_since > 0.5:
+            still_since.clear()
+        elif not still_since:
+            still_since.append(time.monotonic())
+        elif time.monotonic() - still_since[0] > 0.5:
             return s
-        time.sleep(0.1)
-    raise AssertionError("the simulated head did not come to rest")
+        return None
+
+    if (s := wait_until(at_rest, timeout, 0.1, scaled=False, raises=False)) is None:
+        raise AssertionError("the simulated head did not come to rest")
+    return s
+
+
+def wait_moved(demo: Demo, before: dict[str, Any], page: Any) -> None:
+    """Wait until the simulated head has left the pose ``before`` (a sim_state): the command took effect."""
+
+    def moved() -> bool:
+        s = sim_state(demo)
+        return bool(s["moving"]) or any(abs(s[k] - before[k]) > 1e-6 for k in ("pan", "tilt", "zoom"))
+
+    wait_for(moved, 10.0, "the head to move", page)
 
 
 def wait_for(pred: Any, timeout: float, what: str, page: Any = None) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        v = pred()
-        if v:
-            return v
-        time.sleep(0.1)
+    if v := wait_until(pred, timeout, 0.1, scaled=False, raises=False):
+        return v
     note = f" (message line: {page.locator('#message').text_content()!r})" if page is not None else ""
     raise AssertionError(f"timed out after {timeout:g} s: {what}{note}")
 
@@ -183,7 +193,7 @@ def goto_pose(demo: Demo, page: Any, pan: float, tilt: float, zoom: float) -> No
             return False
 
     wait_for(shown, 10.0, f"the page to show pan {want:g}°")
-    time.sleep(0.6)  # a few frames from the new pose
+    time.sleep(0.6)  # let a few frames from the new pose reach the <img> (an MJPEG image tells the page nothing)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -222,9 +232,10 @@ def test_click_centres_the_clicked_target(demo: Demo, page: Any) -> None:
     u, v, _ = before
     assert abs(u - (W - 1) / 2) > 40, "the marker must start off-centre for this test to mean anything"
     x, y = client_point(page, "#ptz", u, v)
+    pose = sim_state(demo)
     page.mouse.click(x, y)
     wait_for(lambda: "centring" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
-    time.sleep(0.3)
+    wait_moved(demo, pose, page)
     wait_still(demo)
     after = green_blob(sim_snapshot(demo))
     assert after is not None
@@ -235,19 +246,21 @@ def test_click_centres_the_clicked_target(demo: Demo, page: Any) -> None:
 
 def test_shift_click_zooms_in_and_ctrl_click_zooms_out(demo: Demo, page: Any) -> None:
     goto_pose(demo, page, -88.0, 0.0, 1000.0)
-    z0 = sim_state(demo)["zoom"]
+    pose = sim_state(demo)
+    z0 = pose["zoom"]
     cx, cy = client_point(page, "#ptz", (W - 1) / 2, (H - 1) / 2)
     page.keyboard.down("Shift")
     page.mouse.click(cx, cy)
     page.keyboard.up("Shift")
-    time.sleep(0.3)
-    z1 = wait_still(demo)["zoom"]
+    wait_moved(demo, pose, page)
+    pose = wait_still(demo)
+    z1 = pose["zoom"]
     assert z1 == pytest.approx(z0 + 2000, abs=2), (z0, z1)
     shot(page, "zoomed_in")
     page.keyboard.down("Control")
     page.mouse.click(cx, cy)
     page.keyboard.up("Control")
-    time.sleep(0.3)
+    wait_moved(demo, pose, page)
     z2 = wait_still(demo)["zoom"]
     assert z2 == pytest.approx(max(1.0, z1 - 5000), abs=2), (z1, z2)
 
@@ -258,10 +271,11 @@ def test_double_click_on_the_panorama_turns_the_camera_there(demo: Demo, page: A
     blob = green_blob(pano)
     assert blob is not None, "the green marker is not in the panorama"
     x, y = client_point(page, "#pano", blob[0], blob[1])
+    pose = sim_state(demo)
     page.mouse.dblclick(x, y)
     wait_for(lambda: "looking at" in (page.locator("#message").text_content() or ""), 10.0, "a confirmation", page)
     assert "laser" in (page.locator("#message").text_content() or "")
-    time.sleep(0.3)
+    wait_moved(demo, pose, page)
     s = wait_still(demo)
     # the pan that looks at the marker from the simulated head (true mount); and the panorama's azimuth of it
     d = WORLD.T_base_ptz.inverse().apply(GREEN_MARKER[None, :])[0]
@@ -281,9 +295,10 @@ def test_double_click_on_the_panorama_turns_the_camera_there(demo: Demo, page: A
 def test_keyboard_shortcut_moves_the_camera(demo: Demo, page: Any) -> None:
     goto_pose(demo, page, -10.0, 0.0, 1.0)
     page.locator("#ptz").focus()
+    pose = sim_state(demo)
     page.keyboard.press("d")  # turn right by x = 1 deg: VAPIX +1 on the clockwise 214
     wait_for(lambda: "D:" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
-    time.sleep(0.3)
+    wait_moved(demo, pose, page)
     assert wait_still(demo)["pan"] == pytest.approx(-9.0, abs=0.2)
 
 
@@ -371,7 +386,7 @@ def test_live_image_gets_most_of_one_screen(demo: Demo, browser: Any) -> None:
             pg.keyboard.press("?")
             assert pg.locator("#keys-details").get_attribute("open") is not None
             pg.keyboard.press("?")
-            time.sleep(1.0)  # a few live frames behind the readouts
+            time.sleep(1.0)  # let a few live frames reach the <img> behind the readouts (the screenshot shows them)
             pg.screenshot(path=str(shot_path(f"layout_{vw}x{vh}")))
             if os.environ.get("AXIS_WRITE_DOCS_IMAGES") == "1":
                 DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
@@ -387,7 +402,16 @@ def test_wide_stream_keeps_its_aspect_and_click_still_centres(demo: Demo, page: 
     wait_for(lambda: latest_video_params().height == 288, 10.0, "the stream at 704x288")
     wait_for(lambda: page.evaluate("document.getElementById('ptz').naturalHeight") == 288, 15.0, "288-line video")
     try:
-        time.sleep(1.0)  # the next state poll re-sizes the stage
+
+        def resized() -> bool:  # the next state poll re-sizes the stage
+            g = layout(page)
+            return (
+                g["natural"] == [704, 288]
+                and abs(g["ptz"]["w"] / g["ptz"]["h"] - 704 / 288) < 0.01 * 704 / 288
+                and abs(g["panel"]["w"] - 16 * 16) <= 2
+            )
+
+        wait_for(resized, 10.0, "the stage re-sized for 704x288", page)
         g = layout(page)
         p = g["ptz"]
         assert g["natural"] == [704, 288]
@@ -403,9 +427,10 @@ def test_wide_stream_keeps_its_aspect_and_click_still_centres(demo: Demo, page: 
         assert before is not None, "the marker is not in view"
         u, v, _ = before
         assert abs(u - 703 / 2) > 40
+        pose = sim_state(demo)
         page.mouse.click(*client_point(page, "#ptz", u, v))
         wait_for(lambda: "centring" in (page.locator("#message").text_content() or ""), 5.0, "a confirmation", page)
-        time.sleep(0.3)
+        wait_moved(demo, pose, page)
         wait_still(demo)
         snap = http_get(f"{demo.sim_url}/axis-cgi/jpg/image.cgi?resolution=704x288")
         after = green_blob(cv2.imdecode(np.frombuffer(snap, np.uint8), cv2.IMREAD_COLOR))
@@ -475,8 +500,7 @@ def latest_video_params() -> Any:
         deadline = time.monotonic() + 10.0
         while not got and time.monotonic() < deadline:
             ex.spin_once(timeout_sec=0.1)
-        time.sleep(0.2)
-        ex.spin_once(timeout_sec=0.1)
+        ex.spin_once(timeout_sec=0.3)  # a newer message right behind the first, if there is one
         assert got, "no video/params"
         ex.shutdown()
         node.destroy_node()

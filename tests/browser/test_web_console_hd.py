@@ -75,7 +75,7 @@ def _snapshot(cam: SimulatedCamera, w: int = W, h: int = H) -> np.ndarray:
 
 def _wait_still(cam: SimulatedCamera) -> None:
     wait_for(lambda: not cam.state.moving(), 20.0, "the simulated head to stop")
-    time.sleep(0.5)  # frames from the final pose reach the page
+    time.sleep(0.5)  # let frames from the final pose reach the <img> (an MJPEG image tells the page nothing)
 
 
 def test_hd_camera_layout_and_click_centre(hd_console: tuple[SimulatedCamera, WebConsole], browser: Any) -> None:
@@ -114,10 +114,11 @@ def test_hd_camera_layout_and_click_centre(hd_console: tuple[SimulatedCamera, We
             u, v, _ = green_blob(_snapshot(cam, nw, nh)) or (math.nan, math.nan, 0)
             assert not math.isnan(u)
             box = page.locator("#ptz").bounding_box()
+            pose = cam.position()
             page.mouse.click(box["x"] + (u + 0.5) * box["width"] / nw, box["y"] + (v + 0.5) * box["height"] / nh)
             message = page.locator("#message")
             wait_for(lambda m=message: "centring" in (m.text_content() or ""), 10.0, "a confirmation")
-            time.sleep(0.3)
+            wait_for(lambda p=pose: cam.state.moving() or cam.position() != p, 10.0, "the head to move")
             _wait_still(cam)
             after = green_blob(_snapshot(cam, nw, nh))
             assert after is not None
