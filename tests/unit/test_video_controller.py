@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import queue
 import threading
-import time
 from dataclasses import replace
 
 import pytest
@@ -22,6 +21,7 @@ from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport, LinkAdapt
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.unit
 
@@ -347,9 +347,7 @@ def test_the_reader_streams_what_the_controller_says_without_a_copy():
         ctl.apply(replace(ctl.settings, fps=5), {"fps"})
         assert reader.params.fps == 5
         assert opened.get(timeout=2).fps == 5, "reconnected with the controller's value"
-        deadline = time.monotonic() + 2
-        while reader.stats().state.value != "streaming" and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: reader.stats().state.value == "streaming", 2.0, scaled=False, raises=False)
         assert reader.stats().params.fps == 5
         with pytest.raises(TypeError):
             reader.set_params(VideoParams(Resolution(176, 144), 1, 0))
