@@ -31,12 +31,8 @@ import numpy as np
 from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2.calibration import synthetic as syn
-from axis_ptz_ros2.calibration.solver import (
-    CalibrationRefused,
-    CalibrationResult,
-    calibrate,
-    rotation_error_deg,
-)
+from axis_ptz_ros2.calibration.result import CalibrationRefused, CalibrationResult
+from axis_ptz_ros2.calibration.solver import calibrate, rotation_error_deg
 
 
 @dataclass

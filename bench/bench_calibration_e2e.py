@@ -53,7 +53,8 @@ from axis_ptz_ros2.calibration.capture import (  # noqa: E402
 )
 from axis_ptz_ros2.calibration.cli import format_result  # noqa: E402
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
-from axis_ptz_ros2.calibration.solver import calibrate, rotation_angle  # noqa: E402
+from axis_ptz_ros2.calibration.problem import rotation_angle  # noqa: E402
+from axis_ptz_ros2.calibration.solver import calibrate  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_camera_model, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import CaptureSession  # noqa: E402
 from axis_ptz_ros2.nodes.laser_sim import LaserSim  # noqa: E402

@@ -37,7 +37,7 @@ from axis_ptz_ros2.calibration.capture import (  # noqa: E402
 )
 from axis_ptz_ros2.calibration.correspondences import load_correspondences  # noqa: E402
 from axis_ptz_ros2.calibration.picking import picking_noise  # noqa: E402
-from axis_ptz_ros2.calibration.solver import rotation_angle  # noqa: E402
+from axis_ptz_ros2.calibration.problem import rotation_angle  # noqa: E402
 from axis_ptz_ros2.config import default_config_path, load_mount, load_robot  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import CaptureSession, _laser_qos  # noqa: E402
 from axis_ptz_ros2.nodes.calibration_capture import main as cli_main  # noqa: E402

@@ -20,7 +20,8 @@ from axis_ptz_ros2.calibration.correspondences import (
     load_correspondences,
     save_correspondences,
 )
-from axis_ptz_ros2.calibration.solver import CalibrationRefused, calibrate, rotation_error_deg
+from axis_ptz_ros2.calibration.result import CalibrationRefused
+from axis_ptz_ros2.calibration.solver import calibrate, rotation_error_deg
 from axis_ptz_ros2.camera_info import save_camera_info
 from axis_ptz_ros2.config import CameraModel, default_config_path, load_camera_model, load_mount
 from axis_ptz_ros2.transforms import Transform, quaternion_to_matrix

@@ -9,13 +9,9 @@ import pytest
 from axis_ptz_ros2.calibration import synthetic as syn
 from axis_ptz_ros2.calibration.cli import main as cli_main
 from axis_ptz_ros2.calibration.correspondences import CorrespondenceSet, View, save_correspondences
-from axis_ptz_ros2.calibration.solver import (
-    CalibrationRefused,
-    calibrate,
-    exp_so3,
-    log_so3,
-    rotation_error_deg,
-)
+from axis_ptz_ros2.calibration.problem import exp_so3, log_so3
+from axis_ptz_ros2.calibration.result import CalibrationRefused
+from axis_ptz_ros2.calibration.solver import calibrate, rotation_error_deg
 from axis_ptz_ros2.config import load_mount, save_mount
 
 pytestmark = pytest.mark.unit

@@ -51,7 +51,8 @@ from axis_ptz_ros2.calibration.correspondences import (
     save_correspondences,
 )
 from axis_ptz_ros2.calibration.report import report_dict, write_report
-from axis_ptz_ros2.calibration.solver import CalibrationInputError, CalibrationResult, calibrate
+from axis_ptz_ros2.calibration.result import CalibrationInputError, CalibrationResult
+from axis_ptz_ros2.calibration.solver import calibrate
 from axis_ptz_ros2.calibration.synthetic import make_fixed_scene, make_scene, real_like_camera_info
 from axis_ptz_ros2.camera_info import CameraInfoError, load_camera_info, save_camera_info
 from axis_ptz_ros2.config import load_camera_model, load_mount, load_robot, save_mount

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from axis_ptz_ros2.calibration.solver import CalibrationResult
+from axis_ptz_ros2.calibration.result import CalibrationResult
 from axis_ptz_ros2.transforms import Transform, matrix_to_quaternion
 
 REPORT_FORMAT = "axis_ptz_ros2/calibration_report/v1"
