@@ -312,3 +312,23 @@ def test_quality_keys_step_the_h264_bitrates_when_the_stream_is_h264(ros, cam):
         assert termios.tcgetattr(pty.slave) == pty.attrs_before
     finally:
         pty.close()
+
+
+def test_p_takes_a_full_quality_still_and_prints_the_answer(ros, stack):
+    from sensor_msgs.msg import CompressedImage  # noqa: PLC0415 - only this test
+
+    stills: list[CompressedImage] = []
+    stack["probe"].create_subscription(CompressedImage, "still/compressed", stills.append, LATCHED_QOS)
+    pty = Pty()
+    try:
+        pty.wait_output("video: 704x576")  # the teleop has discovered the stream node
+        m = pty.type("?")
+        pty.wait_output("take a full-quality still", since=m)  # the help names the key
+        m = pty.type("p")
+        pty.wait_output("still 704x576 px, compression 0, ", since=m)  # the node's answer, printed
+        ros.wait_for(lambda: len(stills) == 1, timeout=5)
+        assert f"{len(stills[0].data)} bytes" in pty.output[m:]
+        pty.type("\x03")
+        assert pty.proc.wait(10) == 0
+    finally:
+        pty.close()

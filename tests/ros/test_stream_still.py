@@ -79,6 +79,12 @@ def make_node(ros: RosHarness, camera: SimulatedCamera, **params) -> StreamNode:
     return ros.add(node)
 
 
+def decoded(jpeg: bytes) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None, "does not decode"
+    return img
+
+
 def dqt(jpeg: bytes) -> bytes:
     """The JPEG's quantisation tables (every DQT segment, concatenated): what the compression chose."""
     out, i = [], 2
@@ -141,16 +147,13 @@ def test_still_is_the_full_resolution_at_compression_0_and_published_before_the_
 
     # the camera was asked for its best JPEG: the largest listed size, compression 0, nothing else
     assert image_requests(camera) == [{"resolution": f"{FULL[0]}x{FULL[1]}", "compression": "0"}]
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-    assert img is not None
+    img = decoded(data)
     assert (img.shape[1], img.shape[0]) == FULL
     # compression 0's quantisation tables (the simulator's own snapshot), not those of the live stream's 50
     best, live_like = dqt(sim_jpeg(camera, 0)), dqt(sim_jpeg(camera, 50))
     assert best != live_like
     assert dqt(data) == best
-    live_sizes = {
-        cv2.imdecode(np.frombuffer(bytes(m.data), np.uint8), cv2.IMREAD_COLOR).shape[:2] for _, m in live.msgs
-    }
+    live_sizes = {decoded(bytes(m.data)).shape[:2] for _, m in live.msgs}
     assert live_sizes == {(288, 352)}, "the live stream kept its own size"
 
     # the answer says what was sent, and came after the still had been published
@@ -295,3 +298,55 @@ def test_still_on_the_nodes_own_single_threaded_executor(tmp_path, camera):
             node.destroy_node()
     finally:
         ros.close()
+
+
+def test_console_still_button_and_key_show_the_stream_nodes_still(ros, camera):
+    """The console's API as the page uses it (Still button: ``POST /api/still``, key P: ``POST /api/key``) against
+    the real stream node and the simulator: the still it then serves is the stream node's, byte for byte."""
+    import http.client  # noqa: PLC0415 - only this test
+    import json  # noqa: PLC0415
+
+    from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: PLC0415
+
+    make_node(ros, camera, lazy=True)
+    console = ros.add(
+        WebConsole(context=ros.context, parameter_overrides=[Parameter("port", value=0)])  # (loopback, no token)
+    )
+    probe = ros.probe()
+    still = Inbox()
+    probe.create_subscription(CompressedImage, "still/compressed", still.on, LATCHED_QOS)
+
+    def call(method: str, path: str, body: object = None) -> tuple[int, bytes]:
+        conn = http.client.HTTPConnection("127.0.0.1", console.server.port, timeout=60)
+        try:
+            data = json.dumps(body).encode() if body is not None else None
+            conn.request(method, path, body=data, headers={"Content-Type": "application/json"} if data else {})
+            r = conn.getresponse()
+            return r.status, r.read()
+        finally:
+            conn.close()
+
+    assert call("GET", "/video/still.jpg")[0] == 404  # none taken yet
+    ros.wait_for(lambda: json.loads(call("GET", "/api/state")[1])["services"]["still"], timeout=10)
+    status, data = call("POST", "/api/still", {})
+    ans = json.loads(data)
+    assert status == 200, ans
+    assert ans["ok"], ans
+    assert "704x576 px, compression 0" in ans["message"]
+    ros.wait_for(lambda: still.count() == 1, timeout=5)
+    published = bytes(still.msgs[0][1].data)
+    status, jpeg_bytes = call("GET", "/video/still.jpg")
+    assert status == 200
+    assert jpeg_bytes == published  # passed through as the stream node published it
+    assert decoded(jpeg_bytes).shape[:2] == (FULL[1], FULL[0])
+    st = json.loads(call("GET", "/api/state")[1])["still"]
+    assert (st["seq"], st["width"], st["height"], st["bytes"]) == (ans["seq"], *FULL, len(published))
+
+    # key P does the same (the keyboard teleop's key map, as the page sends it)
+    status, data = call("POST", "/api/key", {"key": "p"})
+    ans2 = json.loads(data)
+    assert status == 200, ans2
+    assert "704x576 px" in ans2["message"]
+    ros.wait_for(lambda: json.loads(call("GET", "/api/state")[1])["still"]["seq"] == ans["seq"] + 1, timeout=5)
+    ros.wait_for(lambda: still.count() == 2, timeout=5)
+    assert len(image_requests(camera)) == 2

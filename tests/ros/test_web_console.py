@@ -142,6 +142,8 @@ class FakePtz:
         n.create_service(MovePtz, "ptz/move_relative", self._rec("move_relative"), callback_group=g)
         n.create_service(Trigger, "ptz/home", self._rec("home"), callback_group=g)
         n.create_service(SetVideoParams, "video/set_params", self._video, callback_group=g)
+        n.create_service(Trigger, "still/capture", self._still, callback_group=g)
+        self.still_pub = n.create_publisher(CompressedImage, "still/compressed", LATCHED_QOS)
         self.params_pub = n.create_publisher(VideoParams, "video/params", LATCHED_QOS)
         self.video = VideoParams(fps=10, resolution="704x576", width=704, height=576, compression=30)
         self.params_pub.publish(self.video)
@@ -157,6 +159,14 @@ class FakePtz:
             return resp
 
         return cb
+
+    def _still(self, req: Any, resp: Any) -> Any:
+        """As the stream node: publish the still (latched), then answer with its size."""
+        self.requests.setdefault("still", []).append(req)
+        data = jpeg(len(self.requests["still"]), 64, 48)
+        self.still_pub.publish(CompressedImage(format="jpeg", data=data))
+        resp.success, resp.message = True, f"still 64x48 px, compression 0, {len(data)} bytes"
+        return resp
 
     def _video(self, req: Any, resp: Any) -> Any:
         self.requests.setdefault("video", []).append(req)

@@ -5,7 +5,9 @@ with the pure :mod:`axis_ptz_ros2.teleop.keymap`, and talks only through ROS int
 
 * publishes ``ptz/cmd/relative`` (PtzCommand: REP-103 radians, NaN = axis unchanged) and ``ptz/cmd/velocity``
   (PtzVelocity zeros = stop: on ``x``/ESC and on exit);
-* calls ``ptz/home`` (std_srvs/Trigger) and the stream node's ``video/set_params`` (SetVideoParams);
+* calls ``ptz/home`` (std_srvs/Trigger) and the stream node's ``video/set_params`` (SetVideoParams) and, on P,
+  its ``still/capture`` (std_srvs/Trigger: a full-quality still on ``still/compressed``; the answer's size and
+  resolution are printed);
 * subscribes ``ptz/state`` and ``video/params`` (latched) for the live status line; its ``codec`` decides what
   the quality keys Y/H act on: the JPEG compression (MJPEG) or the H.264 bitrates (``h264_bitrate_kbps`` and
   ``h264_max_bitrate_kbps``, set together through ``video/set_params``).
@@ -61,6 +63,8 @@ PARAMS: tuple[ParamSpec, ...] = (
 )
 
 CSI_CLEAR_LINE = "\r\x1b[K"
+#: s: the longest wait for ``still/capture`` (a full-resolution JPEG over a weak link takes a while)
+STILL_WAIT_S = 30.0
 
 
 class KeyboardTeleop(Node):
@@ -83,6 +87,7 @@ class KeyboardTeleop(Node):
         self._vel_pub = publisher(self, PtzVelocity, "ptz/cmd/velocity", COMMAND_QOS)
         self._home = self.create_client(Trigger, "ptz/home")
         self._video_srv = self.create_client(SetVideoParams, "video/set_params")
+        self._still_srv = self.create_client(Trigger, "still/capture")
         self.create_subscription(PtzState, "ptz/state", self._on_state, STREAM_QOS)
         self.create_subscription(VideoParams, "video/params", self._on_video, LATCHED_QOS)
 
@@ -128,6 +133,12 @@ class KeyboardTeleop(Node):
                 h264_max_bitrate_kbps=c.h264_max_bitrate_kbps,
             )
             self._track("video", self._video_srv.call_async(req))
+        elif isinstance(c, km.TakeStill):
+            if not self._still_srv.service_is_ready():
+                self.say("still/capture is not available (is the stream node running?)")
+                return
+            self.say("taking a still ...")
+            self._track("still", self._still_srv.call_async(Trigger.Request()))
         elif isinstance(c, km.ToggleHelp):
             self.show_help = not self.show_help
             if self.show_help:
@@ -158,11 +169,14 @@ class KeyboardTeleop(Node):
                         self._on_video(res.params)
                     else:
                         self.say(f"video parameters refused: {res.message}")
+                elif what == "still":
+                    ok = res.success or res.message.startswith("still failed")  # (the node's own words)
+                    self.say(res.message if ok else f"still failed: {res.message}")
                 elif not res.success:
                     self.say(f"home failed: {res.message}")
-            elif time.monotonic() - t0 > timeout:
+            elif time.monotonic() - t0 > (wait := max(timeout, STILL_WAIT_S) if what == "still" else timeout):
                 fut.cancel()
-                self.say(f"{what}: no answer within {timeout:g} s")
+                self.say(f"{what}: no answer within {wait:g} s")
             else:
                 keep.append((t0, what, fut))
         self._pending = keep

@@ -64,6 +64,7 @@ class Kind(StrEnum):
     RESOLUTION = "resolution"
     COMPRESSION = "compression"
     STOP = "stop"
+    STILL = "still"
     HELP = "help"
     QUIT = "quit"
 
@@ -114,6 +115,9 @@ def _km() -> dict[str, Action]:
     m["<right>"] = replace(m["d"], description="turn right by x deg")
     m["<up>"] = replace(m["w"], description="tilt up by x deg")
     m["<down>"] = replace(m["s"], description="tilt down by x deg")
+    # P(icture): a full-quality still (the stream node's still/capture: compression 0 at the camera's full size)
+    m["p"] = Action(Kind.STILL, description="take a full-quality still (still/capture -> still/compressed)")
+    m["P"] = m["p"]
     m["x"] = Action(Kind.STOP, description="stop any motion")
     m["X"] = m["x"]
     m[ESC] = m["x"]
@@ -163,6 +167,11 @@ class SetVideo:
 
 
 @dataclass(frozen=True, slots=True)
+class TakeStill:
+    """Take a full-quality still (the stream node's ``still/capture``; it arrives on ``still/compressed``)."""
+
+
+@dataclass(frozen=True, slots=True)
 class ToggleHelp:
     """Show or hide the help screen."""
 
@@ -179,7 +188,7 @@ class Notice:
     text: str
 
 
-Command = RelativeMove | GoHome | StopMotion | SetVideo | ToggleHelp | Quit | Notice
+Command = RelativeMove | GoHome | StopMotion | SetVideo | TakeStill | ToggleHelp | Quit | Notice
 
 
 @dataclass(frozen=True, slots=True)
@@ -284,6 +293,8 @@ def apply(key: str, state: TeleopState) -> tuple[list[Command], TeleopState]:
         return [GoHome()], state
     if k is Kind.STOP:
         return [StopMotion()], state
+    if k is Kind.STILL:
+        return [TakeStill()], state
     if k is Kind.HELP:
         return [ToggleHelp()], state
     if k is Kind.QUIT:
@@ -389,7 +400,7 @@ def help_lines() -> list[str]:
     order = [
         "r", "f", "t", "g", "y", "h", *[str(d) for d in range(1, 10)],
         "a", "d", "w", "s", "q", "e", "A", "D", "W", "S", "Q", "E", " ",
-        "<left>", "<right>", "<up>", "<down>", "x", ESC, "?", CTRL_C, CTRL_Q,
+        "<left>", "<right>", "<up>", "<down>", "x", ESC, "p", "?", CTRL_C, CTRL_Q,
     ]  # fmt: skip
     lines = []
     for k in order:

@@ -72,11 +72,13 @@ ROUTES: tuple[Route, ...] = (
     *(Route("GET", f"/video/{s}.mjpg", "api", f"{s} video (MJPEG)") for s in STREAM_NAMES),
     *(Route("GET", f"/video/{s}.jpg", "api", f"{s} snapshot (?fresh = wait for a new frame)") for s in STREAM_NAMES),
     Route("GET", "/video/ptz.h264", "api", "PTZ video as H.264 access units for WebCodecs (web/h264relay.py)"),
+    Route("GET", "/video/still.jpg", "api", "the last full-quality still (404 until one has been taken)"),
     Route("POST", "/api/center", "api", "centre the PTZ view on a pixel"),
     Route("POST", "/api/look_panorama", "api", "look at a panorama pixel"),
     Route("POST", "/api/key", "api", "one keyboard teleop key"),
     Route("POST", "/api/video", "api", "video parameters and bandwidth budget"),
     Route("POST", "/api/home", "api", "go to the home position"),
+    Route("POST", "/api/still", "api", "take a full-quality still (the stream node's still/capture)"),
     Route("POST", "/api/decoder", "api", "what the page's video decoder did (WebCodecs: frames, errors, codec)"),
 )
 
@@ -100,6 +102,7 @@ COMMANDS: dict[str, tuple[Field, ...]] = {
         Field("max_bitrate_kbps", "int", *BUDGET_RANGE_KBPS, -1, keep=-1),
     ),
     "home": (),
+    "still": (),
     "decoder": (
         Field("mode", "str", 0, MAX_TEXT, ""),
         Field("decoded", "int", 0, MAX_COUNT, 0),

@@ -31,7 +31,8 @@ class ConsoleBackend(Protocol):
     """What the HTTP side needs from the ROS side."""
 
     def slot(self, name: str) -> FrameSlot | None:
-        """The frame slot of stream ``name`` (``ptz``, ``panorama``, ``overlay``), or None if not served."""
+        """The frame slot of stream ``name`` (``ptz``, ``panorama``, ``overlay``; ``still``: the last still), or None if
+        not served."""
 
     def h264_slot(self, name: str) -> H264Slot | None:
         """The H.264 relay of stream ``name`` (only ``ptz``), or None if not served."""

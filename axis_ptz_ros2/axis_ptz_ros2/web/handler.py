@@ -333,6 +333,8 @@ class ConsoleHandler(BaseHTTPRequestHandler):
             self._mjpeg(path[len("/video/") : -len(".mjpg")])
         elif path.startswith("/video/") and path.endswith(".h264"):
             self._h264(path[len("/video/") : -len(".h264")])
+        elif path == "/video/still.jpg":
+            self._still()
         elif path.startswith("/video/") and path.endswith(".jpg"):
             q = parse_qs(urlsplit(self.path).query)
             self._snapshot(path[len("/video/") : -len(".jpg")], fresh="fresh" in q)
@@ -375,6 +377,15 @@ class ConsoleHandler(BaseHTTPRequestHandler):
                     return
                 seq, jpeg = got
         self._send(HTTPStatus.OK, jpeg, "image/jpeg")
+
+    def _still(self) -> None:
+        """The last full-quality still as it came (404 until one has been taken: a still is not a stream)."""
+        slot = self.server.backend.slot("still")
+        seq, jpeg, _ = slot.latest() if slot is not None else (0, b"", 0.0)
+        if seq == 0:
+            self._error(HTTPStatus.NOT_FOUND, "no still has been taken yet")
+            return
+        self._send(HTTPStatus.OK, jpeg, "image/jpeg", {"X-Still-Seq": str(seq)})
 
     def _mjpeg(self, name: str) -> None:
         """multipart/x-mixed-replace stream of the newest frames until the client or the server goes."""

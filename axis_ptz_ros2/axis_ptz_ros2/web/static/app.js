@@ -8,6 +8,7 @@ const state = {
   keys: new Map(),
   formDirty: false,
   limits: null,
+  stillSeq: 0,
 };
 
 // ------------------------------------------------------------------------------------------------------
@@ -504,6 +505,7 @@ function render(s) {
   state.overlayAvailable = Boolean(s.panorama && s.panorama.overlay);
   $("overlay-note").textContent = state.overlayAvailable ? "" : "(visualizer not running)";
   updatePanoramaSource();
+  showStill(s.still);
   const ul = $("errors");
   const errs = (s.errors || []).slice(-5).reverse();
   const text = errs.map((e) => `${new Date(e.time * 1000).toLocaleTimeString()} ${e.message}`);
@@ -514,6 +516,35 @@ function render(s) {
       li.textContent = t;
       ul.appendChild(li);
     }
+  }
+}
+
+// ------------------------------------------------------------------------------------------------------
+// full-quality still: the Still button (and key P) ask the stream node for one (still/capture); every new still
+// (from this page or another) is shown beside the live view from /video/still.jpg
+// ------------------------------------------------------------------------------------------------------
+function showStill(info) {
+  if (!info || !info.seq || info.seq === state.stillSeq) return;
+  state.stillSeq = info.seq;
+  $("still").src = `/video/still.jpg?seq=${info.seq}`;
+  const size = info.width ? `${info.width}x${info.height}, ` : "";
+  const when = info.stamp ? new Date(info.stamp * 1000).toLocaleTimeString() : "";
+  $("still-info").textContent = `${size}${Math.round((info.bytes || 0) / 1024)} kB, ${when}`;
+  $("still-figure").hidden = false;
+}
+
+async function takeStill() {
+  const button = $("still-take");
+  button.disabled = true;
+  say("taking a still…", true);
+  try {
+    const answer = await post("/api/still", {});
+    if (answer && answer.ok && answer.seq) {
+      const res = await fetch("/api/state", { credentials: "same-origin", cache: "no-store" });
+      if (res.ok) showStill((await res.json()).still);
+    }
+  } finally {
+    button.disabled = false;
   }
 }
 
@@ -552,6 +583,7 @@ function main() {
   keepAlive(pano, panoramaUrl);
   $("overlay").addEventListener("change", updatePanoramaSource);
   $("home").addEventListener("click", () => post("/api/home", {}));
+  $("still-take").addEventListener("click", takeStill);
   const form = $("quality");
   form.addEventListener("submit", onQualitySubmit);
   form.addEventListener("input", () => {
