@@ -30,7 +30,7 @@ BoolArray = npt.NDArray[np.bool_]
 
 
 # --------------------------------------------------------------------------------------------------------
-# Rotation-vector helpers (geometry.py has matrices, rpy and quaternions but no so(3) exp/log)
+# Rotation-vector helpers (transforms.py has matrices, rpy and quaternions but no so(3) exp/log)
 # --------------------------------------------------------------------------------------------------------
 def exp_so3(w: npt.ArrayLike) -> FloatArray:
     """Rotation matrix of a rotation vector (Rodrigues)."""
