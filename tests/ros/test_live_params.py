@@ -314,3 +314,47 @@ def test_republish_lazy_is_live(ros: RosHarness) -> None:
     assert remote.get("lazy", "input") == {"lazy": False, "input": "jpeg"}
     assert remote.set(lazy=True).successful
     assert not node.subscribed
+
+
+def test_web_console_param_get_tells_what_it_uses(ros: RosHarness) -> None:
+    from axis_ptz_ros2.nodes.web_console import WebConsole
+
+    overrides = [Parameter("port", value=0), Parameter("bind", value="127.0.0.1")]
+    node = ros.add(WebConsole(context=ros.context, parameter_overrides=overrides))
+    remote = Remote(ros, ros.probe(), node)
+    mouse = node.state()["mouse"]
+    assert not remote.set(look_zoom=0.5, shift_zoom_delta=100.0).successful  # look_zoom out of range
+    assert node.state()["mouse"] == mouse
+    assert remote.set(look_zoom=3.0, shift_zoom_delta=100.0, service_timeout=7.0).successful
+    assert node.state()["mouse"] == {**mouse, "look_zoom": 3.0, "shift_zoom_delta": 100.0}
+    assert_get_tells_the_snapshot(remote, node.live_params, "look_zoom", "shift_zoom_delta", "service_timeout")
+
+
+def test_keyboard_teleop_and_sims_param_get_tells_what_they_use(ros: RosHarness) -> None:
+    import io
+
+    from axis_ptz_ros2.nodes.keyboard_teleop import KeyboardTeleop
+    from axis_ptz_ros2.nodes.laser_sim import LaserSim
+    from axis_ptz_ros2.nodes.panorama_sim import PanoramaSim
+
+    probe = ros.probe()
+    teleop = ros.add(KeyboardTeleop(io.StringIO(), context=ros.context))
+    pano = ros.add(PanoramaSim(context=ros.context, parameter_overrides=[Parameter("width", value=64)]))
+    laser = ros.add(LaserSim(context=ros.context))
+    cases = (  # node, a refused set, an accepted set
+        (teleop, {"service_timeout": 0.0}, {"service_timeout": 7.0}),
+        (pano, {"jpeg_quality": 0, "overlay": False}, {"jpeg_quality": 40, "overlay": False}),
+        (laser, {"range_noise": 2.0}, {"range_noise": 0.01}),
+    )
+    for node, refused, accepted in cases:
+        live = node._live  # noqa: SLF001 - the snapshot the node reads at each use
+        remote = Remote(ros, probe, node)
+        before = live.params
+        assert not remote.set(**refused).successful, refused
+        assert live.params is before
+        assert_get_tells_the_snapshot(remote, live, *accepted)
+        assert remote.set(**accepted).successful, accepted
+        assert remote.get(*accepted) == accepted
+        assert_get_tells_the_snapshot(remote, live, *accepted)
+    # the panorama without the overlay is the static render, as the snapshot says
+    assert (pano.frame(1_000_000_000) == pano._base).all()  # noqa: SLF001
