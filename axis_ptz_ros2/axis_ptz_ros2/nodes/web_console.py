@@ -157,7 +157,7 @@ class WebConsole(Node):
             self, self.model, self.robot, lambda: self._live.params, self._streams.feedback, lambda: self._cloud
         )
         # the full-quality still: the page's Still button and key P (still/capture), shown from still/compressed
-        self._still = ConsoleStill(self, lambda: float(self.get_parameter("service_timeout").value), g)
+        self._still = ConsoleStill(self, lambda: float(self.p["service_timeout"]), g)
         self._commands.add_command("still", self._still.take)
         self.server = self._serve()
 
