@@ -14,7 +14,9 @@ from hypothesis import strategies as st
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.sim.rtsp.rtp import H264Packetizer, interleave, sender_report
 from axis_ptz_ros2.vapix.errors import AxisPtzError
-from axis_ptz_ros2.vapix.rtsp_client import MAX_MESSAGE, NoH264VideoError, RtspClient, h264_media
+from axis_ptz_ros2.vapix.rtsp_client import RtspClient
+from axis_ptz_ros2.vapix.rtsp_connection import MAX_MESSAGE
+from axis_ptz_ros2.vapix.rtsp_sdp import NoH264VideoError, h264_media
 
 pytestmark = pytest.mark.fuzz
 

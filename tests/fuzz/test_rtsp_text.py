@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from axis_ptz_ros2.vapix.errors import AxisPtzError
 from axis_ptz_ros2.vapix.rtsp import parse_rtsp_response, sprop_parameter_sets
-from axis_ptz_ros2.vapix.rtsp_client import _control, _interleaved_channels, _rtp_info_seq
+from axis_ptz_ros2.vapix.rtsp_sdp import interleaved_channels, rtp_info_seq, sdp_control
 
 pytestmark = pytest.mark.fuzz
 
@@ -91,7 +91,7 @@ def test_sdp(lines: list[str]) -> None:
         assert sets.sps[0] & 0x1F == 7
         assert sets.pps[0] & 0x1F == 8
     for video in (True, False):
-        assert isinstance(_control(sdp, video=video), str)
+        assert isinstance(sdp_control(sdp, video=video), str)
 
 
 @given(
@@ -111,7 +111,7 @@ def test_sdp(lines: list[str]) -> None:
 )
 def test_transport_header(transport: str) -> None:
     try:
-        rtp, rtcp = _interleaved_channels(transport)
+        rtp, rtcp = interleaved_channels(transport)
     except AxisPtzError as err:
         rtp, rtcp, refusal = 0, 0, str(err)
     else:
@@ -136,5 +136,5 @@ def test_transport_header(transport: str) -> None:
     )
 )
 def test_rtp_info_header(rtp_info: str) -> None:
-    seq = _rtp_info_seq(rtp_info)
+    seq = rtp_info_seq(rtp_info)
     assert seq is None or 0 <= seq <= 0xFFFF

@@ -16,11 +16,8 @@ import pytest
 
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspControl
-from axis_ptz_ros2.vapix.rtsp_client import (
-    NoH264VideoError,
-    RtspClient,
-    UdpTransportError,
-)
+from axis_ptz_ros2.vapix.rtsp_client import RtspClient
+from axis_ptz_ros2.vapix.rtsp_sdp import NoH264VideoError, UdpTransportError
 from tests.support.rtsp_script import (
     CLOSE,
     Conn,

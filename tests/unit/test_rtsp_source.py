@@ -23,7 +23,8 @@ from axis_ptz_ros2.streaming.rtsp_source import (
 from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, NoH264VideoError
+from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
+from axis_ptz_ros2.vapix.rtsp_sdp import NoH264VideoError
 
 
 def test_media_request_follows_the_params_and_caps_the_gop_at_one_second() -> None:

@@ -49,7 +49,8 @@ from axis_ptz_ros2.vapix.client import VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient, RtspUnsupportedError
+from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient
+from axis_ptz_ros2.vapix.rtsp_sdp import RtspUnsupportedError
 
 #: a bitrate change smaller than this fraction of the one playing does not reconnect
 BITRATE_SLACK: Final = 0.2

@@ -19,13 +19,13 @@ stream, not an IDR in the one we play. This client plays and controls on one RTS
 - Every request of the session is signed once the scheme is known (TEARDOWN and the keep-alive too), the Digest
   ``nc`` counted in the order the requests go out; a camera that offers only Basic to ``auth: auto`` is refused
   with the HTTP side's hint (set ``auth: basic``).
-- What the camera cannot give us is said: an SDP without H.264 video (:class:`NoH264VideoError`, naming what it
-  offers), a SETUP answered with UDP transport (:class:`UdpTransportError`).
+- What the camera cannot give us is said: an SDP without H.264 video (:class:`~.rtsp_sdp.NoH264VideoError`, naming what
+  it offers), a SETUP answered with UDP transport (:class:`~.rtsp_sdp.UdpTransportError`).
 - A lost IDR (a sequence gap inside or before it): no P-frame is handed out until the next IDR, and one is asked
   for (``Renew-Stream``, at most once a second). Before the session's first IDR, no P-frame either.
 - A request from the server mid-stream (``OPTIONS``, ``GET_PARAMETER`` … as text between the ``$`` frames) is
   answered (``200 OK`` with its ``CSeq``; ``501`` for other methods); garbage between frames is skipped up to the
-  next frame or message (:attr:`RtspClient.garbage_bytes`), at most :data:`MAX_MESSAGE` bytes of it in a row.
+  next frame or message (:attr:`RtspClient.garbage_bytes`); both in :mod:`.rtsp_connection`.
 Credentials never reach a log line, a repr or an exception message.
 """
 
@@ -33,8 +33,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import re
-import select
 import socket
 import threading
 import time
@@ -55,38 +53,27 @@ from axis_ptz_ros2.vapix.errors import (
 )
 from axis_ptz_ros2.vapix.rtsp import (
     MEDIA_PATH,
-    USER_AGENT,
     MediaStreamRequest,
     RtspResponse,
     check_rtsp_status,
-    parse_rtsp_response,
     rtsp_auth_hint,
     sprop_parameter_sets,
 )
 from axis_ptz_ros2.vapix.rtsp_auth import RtspDigestAuth
+from axis_ptz_ros2.vapix.rtsp_connection import RtspConnection
 from axis_ptz_ros2.vapix.rtsp_rtp import H264Depacketizer, RtpPacketError, SenderReportClock, parse_sender_report
+from axis_ptz_ros2.vapix.rtsp_sdp import (
+    UDP_TRANSPORT,
+    UdpTransportError,
+    h264_media,
+    interleaved_channels,
+    rtp_info_seq,
+    sdp_control,
+    udp_transport,
+)
 
 MAX_QUEUE: Final = 8  #: access units held for a slow consumer (then the oldest is dropped)
-MAX_MESSAGE: Final = 1 << 20
 IDR_REQUEST_INTERVAL_S: Final = 1.0  #: Renew-Stream after a lost IDR at most this often
-UDP_TRANSPORT: Final = "camera answered SETUP with UDP transport; only RTP over the RTSP TCP connection is supported"
-_REQUEST_LINE: Final = re.compile(rb"([A-Z][A-Z_]{1,31}) (\S{1,2048}) RTSP/1\.0\r\n")
-_REQUEST_START: Final = re.compile(rb"[A-Z][A-Z_]{0,31}( \S*( R?T?S?P?/?1?\.?0?\r?)?)?")
-_RESYNC: Final = re.compile(rb"\$|RTSP/1\.0 |[A-Z][A-Z_]{1,31} \S{1,2048} RTSP/1\.0\r\n")
-_STATIC_PAYLOADS: Final = {0: "PCMU/8000", 8: "PCMA/8000", 14: "MPA/90000", 26: "JPEG/90000", 32: "MPV/90000"}
-
-
-class RtspUnsupportedError(ResponseParseError):
-    """The camera answered, but with something this client cannot play (retrying does not help)."""
-
-
-class NoH264VideoError(RtspUnsupportedError):
-    """The SDP holds no H.264 video media (``m=video`` with ``a=rtpmap:<pt> H264/90000``); the message names
-    what the camera offers."""
-
-
-class UdpTransportError(RtspUnsupportedError):
-    """The camera answered SETUP with UDP transport (no ``interleaved=``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,7 +90,7 @@ class ClientAccessUnit:
     report_arrival_ns: int | None = None  #: … and when it arrived (host clock)
 
 
-class RtspClient:
+class RtspClient(RtspConnection):
     """Play ``stream`` from ``host:port`` and own the session: :meth:`open`, :meth:`read`, :meth:`renew_stream`."""
 
     def __init__(
@@ -122,17 +109,10 @@ class RtspClient:
     ) -> None:
         netloc = f"[{host}]" if ":" in host else host
         query = urllib.parse.urlencode((stream or MediaStreamRequest()).query())
-        self.url = f"rtsp://{netloc}:{port}{path}" + (f"?{query}" if query else "")
-        self._host, self._port = host, port
+        super().__init__(host, port, f"rtsp://{netloc}:{port}{path}" + (f"?{query}" if query else ""))
         self._auth = RtspDigestAuth(username, password, auth)
         self._open_timeout_s, self._read_timeout_s = open_timeout_s, read_timeout_s
-        self._sock: socket.socket | None = None
-        self._buf = b""
-        self._cseq = 0
-        self._wlock = threading.Lock()
         self._sign_lock = threading.Lock()  # signing (Digest nc) and sending in one order
-        self._cond = threading.Condition()
-        self._replies: dict[int, RtspResponse] = {}
         self._queue: collections.deque[ClientAccessUnit] = collections.deque(maxlen=max_queue)
         self._error: AxisPtzError | None = None
         self._reader: threading.Thread | None = None
@@ -140,23 +120,16 @@ class RtspClient:
         self._depack = H264Depacketizer()
         self._clock = SenderReportClock()
         self._params: annexb.ParameterSetTracker | None = None
-        self._channels = (0, 1)
-        self._rx_ns = 0  # host time the last chunk arrived
         self._report: tuple[int, int] | None = None  # (RTP time, arrival) of the latest sender report
         self._await_idr = True  # no P-frame before the session's first IDR, nor after a lost one
         self._idr_asked = -1e9
-        self._stray = ""  # a reply nobody waits for (for the timeout message)
-        self._garbage_run = 0  # garbage bytes skipped since the last good message
         self._session_url = self.url  #: the aggregate control URL (PLAY, SET_PARAMETER, keep-alive, TEARDOWN)
-        self.session_id: str | None = None  #: the playing session's id (what SET_PARAMETER names)
         self.session_timeout_s = 60.0
         self.sdp = ""
         self.overflowed = 0  #: access units dropped because the consumer lagged
         self.refused = 0  #: access units refused (an IDR before any SPS/PPS is known, corrupt NAL units)
         self.held_back = 0  #: P-frames not handed out (before the first IDR, or after a lost one)
         self.idr_requests = 0  #: Renew-Stream sent after a lost IDR
-        self.server_requests = 0  #: requests the server sent mid-stream (answered)
-        self.garbage_bytes = 0  #: bytes skipped between messages
         self.background_errors = 0  #: keep-alives and Renew-Streams of the reader's own that failed
         self.last_background_error = ""
         self._pending: set[str] = set()  # methods of the reader's own requests under way
@@ -180,7 +153,7 @@ class RtspClient:
             control, payload_type = h264_media(self.sdp, f"RTSP DESCRIBE {self._where()}")
             self._params = annexb.ParameterSetTracker(sprop_parameter_sets(self.sdp))
             base = describe.headers.get("content-base", self.url)
-            aggregate = _control(self.sdp, video=False)
+            aggregate = sdp_control(self.sdp, video=False)
             if aggregate in ("", "*"):
                 self._session_url = base
             else:
@@ -194,9 +167,9 @@ class RtspClient:
                 raise ResponseParseError(f"RTSP SETUP {self._where()}: no Session header in the reply")
             self.session_id = sid.strip()
             transport = setup.headers.get("transport", "")
-            if _udp_transport(transport):
+            if udp_transport(transport):
                 raise UdpTransportError(f"RTSP SETUP {self._where()}: {UDP_TRANSPORT} (Transport: {transport[:80]})")
-            self._channels = _interleaved_channels(transport)
+            self._channels = interleaved_channels(transport)
             for item in rest.split(";"):
                 k, _, v = item.strip().partition("=")
                 if k.lower() == "timeout" and v.isdigit() and int(v) > 0:
@@ -204,7 +177,7 @@ class RtspClient:
             play = self._call(
                 "PLAY", self._session_url, {"Session": self.session_id, "Range": "npt=0.000-"}, deadline=deadline
             )
-            self._depack = H264Depacketizer(payload_type, _rtp_info_seq(play.headers.get("rtp-info", "")))
+            self._depack = H264Depacketizer(payload_type, rtp_info_seq(play.headers.get("rtp-info", "")))
         except BaseException:
             self.close()
             raise
@@ -309,21 +282,6 @@ class RtspClient:
             value = self._auth.preemptive(httpx.Request(method, "http://rtsp.invalid/"))
             return self._send(method, url, {**headers, **({"Authorization": value} if value else {})}, body, sock)
 
-    def _send(self, method: str, url: str, headers: dict[str, str], body: bytes, sock: socket.socket | None) -> int:
-        if sock is None:
-            raise CameraUnreachable(f"RTSP {method} {self._where()}: not connected")
-        with self._wlock:
-            self._cseq += 1
-            lines = [f"{method} {url} RTSP/1.0", f"CSeq: {self._cseq}", f"User-Agent: {USER_AGENT}"]
-            lines += [f"{k}: {v}" for k, v in headers.items()]
-            if body:
-                lines.append(f"Content-Length: {len(body)}")
-            try:
-                sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1") + body)
-            except OSError as err:
-                raise CameraUnreachable(f"RTSP {method} {self._where()}: {type(err).__name__}") from err
-            return self._cseq
-
     def _await(self, cseq: int, deadline: float, method: str) -> RtspResponse:
         """The reply to request ``cseq``: read here before PLAY, delivered by the reader thread after."""
         while True:
@@ -342,141 +300,6 @@ class RtspClient:
             if cseq in self._replies:
                 return self._replies.pop(cseq)
             self._pump(deadline, method)
-
-    def _pump(self, deadline: float, what: str) -> None:
-        """Read from the socket until one more message is handled (or raise)."""
-        sock = self._sock
-        if sock is None:
-            raise CameraUnreachable(f"RTSP {what} {self._where()}: closed")
-        while True:
-            if self._take_message():
-                return
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise CameraTimeout(f"RTSP {what} {self._where()}: no data in time{self._stray}")
-            try:
-                ready, _, _ = select.select([sock], [], [], min(left, 0.5))
-                chunk = sock.recv(65536) if ready else None
-            except (OSError, ValueError) as err:
-                raise CameraUnreachable(f"RTSP {what} {self._where()}: {type(err).__name__}") from err
-            if chunk == b"":
-                raise CameraUnreachable(f"RTSP {what} {self._where()}: the camera closed the connection")
-            if chunk:
-                self._rx_ns = time.time_ns()
-                self._buf += chunk
-                if len(self._buf) > 4 * MAX_MESSAGE:
-                    raise ResponseParseError(f"RTSP {self._where()}: unparsable data piling up")
-
-    def _take_message(self) -> bool:
-        """Handle one message at the head of the buffer (or skip garbage); False if more bytes are needed."""
-        buf = self._buf
-        if not buf:
-            return False
-        if buf[0:1] == b"$":
-            if not self._frame_start(buf, 0):
-                self._skip_garbage()
-                return True
-            if len(buf) < 4:
-                return False
-            n = 4 + int.from_bytes(buf[2:4], "big")
-            if len(buf) < n:
-                return False
-            self._buf = buf[n:]
-            self._interleaved(buf[1], buf[4:n])
-            return True
-        if buf.startswith(b"RTSP/"[: len(buf)]):
-            return self._take_reply(buf)
-        line = _REQUEST_LINE.match(buf)
-        if line is not None:
-            return self._take_request(buf, line.group(1).decode("ascii"))
-        if len(buf) < 64 and b"\n" not in buf and _REQUEST_START.fullmatch(buf):
-            return False  # the start of a request line
-        self._skip_garbage()
-        return True
-
-    def _frame_start(self, buf: bytes, pos: int) -> bool:
-        """Whether a ``$`` at ``pos`` can start a frame of ours: one of our channels, an RTP/RTCP version 2."""
-        if len(buf) > pos + 1 and buf[pos + 1] not in self._channels:
-            return False
-        return len(buf) <= pos + 4 or buf[pos + 4] >> 6 == 2
-
-    def _skip_garbage(self) -> None:
-        """Drop bytes up to the next thing that can start a frame or a message (at most MAX_MESSAGE in a row)."""
-        buf = self._buf
-        cut = max(1, len(buf) - 64)  # none: keep the tail (a start may be cut in two)
-        for m in _RESYNC.finditer(buf, 1):
-            if buf[m.start()] != 0x24 or self._frame_start(buf, m.start()):
-                cut = m.start()
-                break
-        self._buf = buf[cut:]
-        self._stray = f" (bytes that are no RTSP came instead, starting {buf[:12]!r})"
-        self.garbage_bytes += cut
-        self._garbage_run += cut
-        if self._garbage_run > MAX_MESSAGE:
-            raise ResponseParseError(f"RTSP {self._where()}: over {MAX_MESSAGE} bytes of garbage between messages")
-
-    def _take_reply(self, buf: bytes) -> bool:
-        end = buf.find(b"\r\n\r\n")
-        if end < 0:
-            if len(buf) > MAX_MESSAGE:
-                raise ResponseParseError(f"RTSP {self._where()}: reply headers over {MAX_MESSAGE} bytes")
-            return False
-        head = parse_rtsp_response(buf[: end + 4])
-        length = head.headers.get("content-length", "0")
-        if not length.isascii() or not length.isdigit() or int(length) > MAX_MESSAGE:
-            raise ResponseParseError(f"RTSP {self._where()}: Content-Length {length[:20]!r}")
-        if len(buf) < end + 4 + int(length):
-            return False
-        body = buf[end + 4 : end + 4 + int(length)]
-        self._buf = buf[end + 4 + int(length) :]
-        self._garbage_run = 0
-        cseq = head.headers.get("cseq", "")
-        with self._cond:
-            if cseq.isascii() and cseq.isdigit() and len(cseq) <= 9:
-                self._replies[int(cseq)] = RtspResponse(head.status, head.reason, head.headers, body)
-                while len(self._replies) > 16:
-                    self._replies.pop(next(iter(self._replies)))
-                if int(cseq) > self._cseq or int(cseq) <= 0:
-                    self._stray = f" (a reply with CSeq {cseq} came, for no request of ours)"
-            else:
-                self._stray = f" (a {head.status} reply without a CSeq came)"
-            self._cond.notify_all()
-        return True
-
-    def _take_request(self, buf: bytes, method: str) -> bool:
-        """A request from the server (OPTIONS, GET_PARAMETER … mid-stream): answered, the stream goes on."""
-        end = buf.find(b"\r\n\r\n")
-        if end < 0:
-            if len(buf) > MAX_MESSAGE:
-                raise ResponseParseError(f"RTSP {self._where()}: request headers over {MAX_MESSAGE} bytes")
-            return False
-        headers: dict[str, str] = {}
-        for raw in buf[:end].decode("latin-1").split("\r\n")[1:]:
-            name, _, value = raw.partition(":")
-            headers[name.strip().lower()] = value.strip()
-        length = headers.get("content-length", "0")
-        if not length.isascii() or not length.isdigit() or int(length) > MAX_MESSAGE:
-            raise ResponseParseError(f"RTSP {self._where()}: Content-Length {length[:20]!r} in a server request")
-        if len(buf) < end + 4 + int(length):
-            return False
-        self._buf = buf[end + 4 + int(length) :]
-        self._garbage_run = 0
-        self.server_requests += 1
-        cseq = headers.get("cseq", "")
-        status = "200 OK" if method in ("OPTIONS", "GET_PARAMETER") else "501 Not Implemented"
-        lines = [f"RTSP/1.0 {status}"]
-        if cseq.isascii() and cseq.isdigit() and len(cseq) <= 9:
-            lines.append(f"CSeq: {cseq}")
-        if self.session_id is not None:
-            lines.append(f"Session: {self.session_id}")
-        sock = self._sock
-        if sock is not None:
-            with self._wlock:
-                try:
-                    sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
-                except OSError as err:
-                    raise CameraUnreachable(f"RTSP {self._where()}: answering {method}: {type(err).__name__}") from err
-        return True
 
     def _interleaved(self, channel: int, packet: bytes) -> None:
         self._garbage_run = 0
@@ -571,84 +394,7 @@ class RtspClient:
                 self._error = err
                 self._cond.notify_all()
 
-    def _where(self) -> str:
-        return f"{self._host}:{self._port}{urllib.parse.urlsplit(self.url).path}"
-
 
 def _auth_header(req: httpx.Request) -> dict[str, str]:
     value = req.headers.get("Authorization")
     return {"Authorization": value} if value else {}
-
-
-def _rtp_info_seq(rtp_info: str) -> int | None:
-    """``seq=`` of the first stream in an ``RTP-Info`` header (None if absent)."""
-    for item in rtp_info.split(",")[0].split(";"):
-        k, _, v = item.strip().partition("=")
-        if k.lower() == "seq" and v.isascii() and v.isdigit() and len(v) <= 5 and int(v) <= 0xFFFF:
-            return int(v)  # a 16-bit sequence number; anything else is not one (and is not wrapped into one)
-    return None
-
-
-def _udp_transport(transport: str) -> bool:
-    """Whether a SETUP reply's ``Transport`` is UDP: no ``interleaved=``, and no ``/TCP`` profile (or ports)."""
-    t = transport.lower().replace(" ", "")
-    if not t or "interleaved=" in t:
-        return False
-    return not t.split(";")[0].endswith("/tcp") or "client_port=" in t or "server_port=" in t
-
-
-def _interleaved_channels(transport: str) -> tuple[int, int]:
-    """The RTP and RTCP channels the server chose (``interleaved=a-b``; default 0-1)."""
-    for item in transport.split(";"):
-        k, _, v = item.strip().partition("=")
-        a, _, b = v.partition("-")
-        if k.lower() == "interleaved":
-            rtp = int(a) if a.isascii() and a.isdigit() and len(a) <= 3 else -1
-            rtcp = (int(b) if b.isascii() and b.isdigit() and len(b) <= 3 else -1) if b else rtp + 1
-            if not (0 <= rtp <= 255 and 0 <= rtcp <= 255):  # one byte in the '$' framing (RFC 2326 §10.12)
-                raise ResponseParseError(f"Transport: interleaved={v[:20]!r} is not a channel pair in 0..255")
-            return rtp, rtcp
-    return 0, 1
-
-
-def h264_media(sdp: str, where: str) -> tuple[str, int]:
-    """``(a=control, payload type)`` of the first H.264 video media of an SDP (``m=video`` with
-    ``a=rtpmap:<pt> H264/90000``); :class:`NoH264VideoError` naming what the SDP offers instead."""
-    sections: list[tuple[str, list[str], dict[str, str], str]] = []  # (media, payload types, rtpmaps, control)
-    for line in sdp.splitlines():
-        line = line.strip()
-        if line.startswith("m="):
-            fields = line[2:].split()
-            sections.append((fields[0] if fields else "?", fields[3:], {}, ""))
-        elif sections and line.startswith("a=rtpmap:"):
-            pt, _, encoding = line[len("a=rtpmap:") :].partition(" ")
-            sections[-1][2][pt.strip()] = encoding.strip()
-        elif sections and line.startswith("a=control:"):
-            media, pts, maps, _ = sections[-1]
-            sections[-1] = (media, pts, maps, line[len("a=control:") :].strip())
-    offers = []
-    for media, pts, maps, control in sections:
-        for pt in pts:
-            encoding = maps.get(pt, "")
-            name, _, rate = encoding.partition("/")
-            if media == "video" and name.upper() == "H264" and rate.split("/")[0] == "90000" and pt.isdigit():
-                return control, int(pt) & 0x7F
-        kinds = [maps.get(pt) or (_STATIC_PAYLOADS.get(int(pt), "") if pt.isdigit() else "") for pt in pts]
-        what = " ".join(dict.fromkeys(k for k in kinds if k)) or ("payload " + ",".join(pts) if pts else "")
-        note = " (event stream)" if media == "application" else ""
-        offers.append(f"m={media}" + (f" {what}" if what else "") + note)
-    offered = "; ".join(offers)[:300] if offers else "no media at all (an empty or non-SDP DESCRIBE answer)"
-    raise NoH264VideoError(f"{where}: the camera offers no H.264 video: {offered}")
-
-
-def _control(sdp: str, *, video: bool) -> str:
-    """The ``a=control`` of the first video media section (``video``) or of the session ("" if none)."""
-    section = "session"
-    for line in sdp.splitlines():
-        if line.startswith("m="):
-            if section == "video" or not video:
-                break
-            section = "video" if line.startswith("m=video") else "other"
-        elif line.startswith("a=control:") and section == ("video" if video else "session"):
-            return line[len("a=control:") :].strip()
-    return ""
