@@ -527,10 +527,10 @@ def test_regression_clients_that_hang_up_are_counted_not_traced(env: Env, capfd:
         s = socket.create_connection(("127.0.0.1", env.port))
         s.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
         s.sendall(req)
-        time.sleep(0.01)
+        time.sleep(0.01)  # let the request reach the server (no per-request counter to wait on), then reset
         s.close()
     env.ros.wait_for(lambda: env.console.server.counters()["clients_gone"] >= gone + 10, 10.0)
-    time.sleep(0.3)
+    time.sleep(0.3)  # a window for a (wrong) late traceback of the last resets: the thing under test is none comes
     assert "Traceback" not in capfd.readouterr().err
     assert env.console.server.counters()["errors"] == 0
     check_still_works(env)

@@ -81,15 +81,16 @@ def test_ptz_node_digest_across_nonce_expiry_and_restart(ros: RosHarness, cred: 
         while time.monotonic() < t_end:
             command(i)
             i += 1
-            time.sleep(lifetime / 3.0)
+            time.sleep(lifetime / 3.0)  # spread over real time: nonces must age and expire between the commands
         ros.wait_for(lambda: cam.request_counts.status.get(401, 0) > 0, 5.0)
         stats = node.poller.stats
         assert stats.failed == 0, f"state polls failed: {stats.last_error}"
 
         _restart(cam)  # the camera forgets every nonce; the node's next signed request gets a plain 401
-        for j in range(4):
+        for j in range(4):  # each command carried out before the next (none superseded in the node)
             command(i + j)
-            time.sleep(0.2)
+            want_j = math.radians(-20.0 + 7.0 * ((i + j) % 6))
+            ros.wait_for(lambda w=want_j: abs(vapix_to_ros(*cam.position()[:2])[0] - w) < 1e-3, 5.0)
         ros.wait_for(lambda: int(_diag_values(diags, "PTZ").get("auth rechallenges", "0")) >= 3, 5.0)
         values = _diag_values(diags, "PTZ")
         assert values["commands_failed"] == "0"
@@ -137,7 +138,7 @@ def test_stream_node_digest_reconnects_after_expiry_and_restart(ros: RosHarness,
         ros.wait_for(lambda: frames_since(0.0) >= 5, 15.0)
         # Each drop forces a new video request with credentials; the nonces expire in between.
         for _ in range(3):
-            time.sleep(lifetime + 0.3)
+            time.sleep(lifetime + 0.3)  # let the nonce lifetime pass (the simulator's real clock): expiry is under test
             cam.set_faults(drop_after_frames=2)
             t = time.monotonic()
             ros.wait_for(lambda t=t: frames_since(t) >= 2, 10.0)

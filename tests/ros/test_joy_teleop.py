@@ -126,7 +126,9 @@ def rig(ros: Any, cam: SimulatedCamera) -> Iterator[dict[str, Any]]:
         ros.wait_for(lambda: probe.count_subscribers("/joy") > 0 or proc.poll() is not None, 60.0, 0.1)
         assert proc.poll() is None, proc.stdout.read().decode(errors="replace") if proc.stdout else ""
         ros.wait_for(lambda: ptz.count_publishers("/ptz/cmd/velocity") >= 1, 30.0, 0.1)
-        time.sleep(0.5)  # let the Joy publisher ↔ teleop subscription match (volatile topic)
+        # the Joy publisher has matched the teleop's subscription (the joystick repeats its state at 20 Hz, so a
+        # message the other side drops while it completes the match is sent again 50 ms later)
+        ros.wait_for(lambda: stick.pub.get_subscription_count() > 0, 30.0, 0.1)
         try:
             yield {"ptz": ptz, "probe": probe, "stick": stick, "velocities": velocities, "proc": proc}
         finally:
@@ -152,7 +154,7 @@ def test_stick_with_deadman_moves_the_head_and_releasing_the_deadman_stops_it(ro
     stick, velocities = rig["stick"], rig["velocities"]
     # without the dead-man: nothing moves and nothing is commanded
     stick.set(axes={0: 1.0})
-    time.sleep(1.0)
+    time.sleep(1.0)  # a window for a (wrong) move without the dead-man: the thing under test is that none comes
     assert sim_pose(cam)[:2] == pytest.approx((0.0, 0.0), abs=1e-3)
     assert not [v for v in velocities if v.pan_rate or v.tilt_rate or v.zoom_rate]
 
@@ -170,7 +172,7 @@ def test_stick_with_deadman_moves_the_head_and_releasing_the_deadman_stops_it(ro
     stick.set(axes={0: 1.0, 1: 0.6})
     ros.wait_for(lambda: any(v.pan_rate == 0.0 and v.tilt_rate == 0.0 for v in velocities[n:]), 5.0)
     pose = wait_still(ros, cam, 5.0)
-    time.sleep(1.0)
+    time.sleep(1.0)  # a window for a (wrong) restart while Joy keeps flowing: the thing under test is none comes
     assert sim_pose(cam) == pytest.approx(pose, abs=1e-3)
     assert rig["proc"].poll() is None
 
@@ -183,7 +185,7 @@ def test_joy_silence_stops_the_head(ros, cam, rig):
     stick.sending = False  # the joystick driver dies: no more Joy messages at all
     pose = wait_still(ros, cam, 6.0)  # well before the PTZ node's own 10 s velocity watchdog
     assert time.monotonic() - t0 < 8.0
-    time.sleep(1.0)
+    time.sleep(1.0)  # a window for a (wrong) restart without Joy: the thing under test is that none comes
     assert sim_pose(cam) == pytest.approx(pose, abs=1e-3)
     assert rig["proc"].poll() is None  # the teleop is alive and waiting
     # the joystick comes back: the held stick moves the head again
@@ -220,7 +222,7 @@ def test_zoom_home_and_preset_buttons(ros, cam, rig):
     r = ros.call(move, absolute(-30.0, 10.0, 1.0))
     assert r.success, r.message
     stick.set(buttons={PRESET_1: 1})  # without the dead-man: ignored
-    time.sleep(0.8)
+    time.sleep(0.8)  # a window for a (wrong) preset goto: the thing under test is that none comes
     assert sim_pose(cam)[0] == pytest.approx(-30.0, abs=0.05)
     stick.set(buttons={DEADMAN: 1})  # A released first: the preset fires on its rising edge
     ros.wait_for(lambda: stick.published(2), 5.0)

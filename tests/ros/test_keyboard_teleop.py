@@ -48,7 +48,7 @@ def cam() -> Iterator[SimulatedCamera]:
 def stays(value, seconds: float) -> bool:  # noqa: ANN001
     """True if ``value()`` does not change for ``seconds``."""
     v = value()
-    time.sleep(seconds)
+    time.sleep(seconds)  # a window in which ``value`` must not change: the thing under test is that it does not
     return value() == v
 
 

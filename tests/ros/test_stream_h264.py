@@ -203,10 +203,13 @@ def test_h264_frames_decode_at_full_size_and_quality(ros: RosHarness, camera: Si
         assert annexb.extract_capture_stamp(p.data) is not None  # the camera's own time in the SEI
     pts = [p.pts for p in packets]
     assert all(b > a for a, b in zip(pts, pts[1:], strict=False))
-    # periodic IDRs at most a second apart (15 frames at 15 fps)
-    keys = [p.pts for p in packets if p.key]
-    assert len(keys) >= 2
-    assert max(b - a for a, b in zip(keys, keys[1:], strict=False)) <= 15
+    # x264's periodic intra refresh in High profile (issue 39): IDRs only on demand (the new subscriber's two),
+    # none periodic; the refresh waves' recovery points (SPS/PPS, recovery-point SEI) are not flagged key
+    keys = [p for p in packets if p.key]
+    stats = node._stage.stats
+    assert 1 <= len(keys) <= stats.encoder_opens + stats.idr_requests, (len(keys), stats)
+    assert annexb.find_sps(keys[0].data).profile_idc == 100  # type: ignore[union-attr]
+    assert any(NalType.SPS in annexb.nal_types(p.data) and not p.key for p in packets)  # a wave began
     # the foxglove message carries the same bytes with the same stamp
     by_stamp = {p.stamp_ns: p.data for p in packets}
     with rec.lock:
@@ -251,7 +254,7 @@ def test_mjpeg_mode_never_encodes_and_switches_live(ros: RosHarness, camera: Sim
     probe = ros.probe()
     rec, _ = subscribe(probe)
     ros.wait_for(lambda: node._h264.subscribers == 1, timeout=5)
-    time.sleep(1.0)
+    time.sleep(1.0)  # a window for a (wrong) stream request or encoder: the thing under test is that none comes
     # codec mjpeg: an H.264 subscriber alone is nobody to stream for (lazy): no request, no encoder
     assert camera.request_counts.endpoints.get("video", 0) == 0
     assert rec.count() == 0
@@ -286,15 +289,15 @@ def test_bitrate_parameter_changes_the_message_sizes(ros: RosHarness, camera: Si
     make_node(ros, camera, **H264, h264_bitrate_kbps=3000, h264_max_bitrate_kbps=3000)
     probe = ros.probe()
     rec, _ = subscribe(probe)
-    ros.wait_for(lambda: sum(p.key for p in rec.since(0.0)) >= 3, timeout=10)
-    big = [len(p.data) for p in rec.since(0.0) if p.key]
+    ros.wait_for(lambda: rec.count() >= 30, timeout=10)
+    big = [len(p.data) for p in rec.since(0.0)[10:] if not p.key]
     (res,) = set_params(ros, probe, h264_bitrate_kbps=300)
     assert res.successful, res.reason
     t = time.monotonic()
-    ros.wait_for(lambda: sum(p.key for p in rec.since(t)) >= 4, timeout=10)
-    small = [len(p.data) for p in rec.since(t) if p.key][1:]  # the first may be encoded before the change
-    # x264's VBV buffer is bitrate/10: an IDR at 300 kbit/s fits in ~3.75 kB, at 3000 kbit/s in ~37.5 kB
-    assert statistics.median(small) < 0.5 * statistics.median(big), (big, small)
+    ros.wait_for(lambda: len(rec.since(t)) >= 30, timeout=10)
+    small = [len(p.data) for p in rec.since(t)[10:] if not p.key]  # the first may be encoded before the change
+    # the access units follow the bitrate: ~12.5 kB a picture at 3000 kbit/s and 15 fps, ~1.25 kB at 300
+    assert statistics.median(small) < 0.3 * statistics.median(big), (big, small)
 
 
 def test_resolution_change_mid_stream_starts_with_an_idr_of_the_new_size(
@@ -511,7 +514,7 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     t0 = time.monotonic()
     while time.monotonic() - t0 < 3.0:  # 3 s of a plain subscriber: no feedback, the start applies
         targets.append(node._video.h264_settings().bitrate_kbps)
-        time.sleep(0.1)
+        time.sleep(0.1)  # sampling a 3 s window: the thing under test is that the target holds all along
     assert set(targets) == {400}
     assert node._stage._applied_kbps == 400
     before = rec.since(t0)

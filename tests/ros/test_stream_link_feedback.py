@@ -71,7 +71,7 @@ def _run(ros: RosHarness, camera: SimulatedCamera, adapt: bool, seconds: float) 
         msg = LinkFeedback(consumer=probe.get_fully_qualified_name(), window_s=1.0, frames=5, fps=5.0, kbps=300.0)
         msg.delay_p95_s, msg.delay_min_s, msg.gap_s = 1.0, 0.1, 0.05
         pub.publish(msg)
-        time.sleep(0.25)
+        time.sleep(0.25)  # a consumer's report every 0.25 s for ``seconds``: the controller judges over time
     with lock:
         return list(params), dict(diag)
 

@@ -235,7 +235,7 @@ def _endless(chunk: bytes, ctype: str, delay: float = 0.0):
         for _ in itertools.count():
             pulled["n"] += 1
             if delay:
-                time.sleep(delay)
+                time.sleep(delay)  # the simulated camera: a body that trickles in, ``delay`` per chunk
             yield chunk
 
     def reply(request: httpx.Request) -> httpx.Response:
