@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2.streaming import BitrateMeter
+from axis_ptz_ros2.streaming.budget import compression_size_factor
 from axis_ptz_ros2.streaming.controller import VideoController
 from axis_ptz_ros2.streaming.still import BUSY, ExtraBytes, StillOutcome, StillTaker, largest, still_request
 from axis_ptz_ros2.streaming.video_types import VideoSettings
@@ -117,30 +118,44 @@ def test_extra_bytes_count_for_one_window():
 
 
 def live(ctl: VideoController, meter: BitrateMeter, t0: float, seconds: float, still_at: float | None = None) -> list:
-    """10 fps of 6 kB live frames (480 kbit/s) through the frame path, a 150 kB still at ``still_at``."""
+    """10 fps of live frames through the frame path (8 kB = 640 kbit/s at the request), a 150 kB still at
+    ``still_at``."""
     steps = []
     for i in range(int(round(seconds * 10))):
         t = t0 + i * 0.1
-        meter.add(t, 6000)
+        p = ctl.current  # a camera's frames shrink with the settings: pixels and the compression prior
+        pixels = p.resolution.width * p.resolution.height / (704 * 576)
+        meter.add(t, int(8000 * pixels * compression_size_factor(p.compression)))
         if still_at is not None and still_at <= t < still_at + 0.1:
-            ctl.on_still(t, 150_000)  # 1200 kbit over the 2 s window: +600 kbit/s
+            ctl.on_still(t, 150_000)  # 1200 kbit over the 2 s window: 600 kbit/s, capped at half the budget
         step = ctl.on_frame(t)
         if step is not None:
             steps.append((t, step))
+            meter.reset()  # the reader reconnects with the new settings: its meter starts again
     return steps
 
 
-def test_a_still_counts_against_the_budget_and_the_live_stream_steps_down():
+def test_a_still_takes_its_share_of_the_budget_the_live_stream_steps_down_once_and_climbs_back():
     meter = BitrateMeter(2.0)
     settings = VideoSettings(fps=10, resolution="704x576", compression=0, max_bitrate_kbps=1000, adapt_to_link=False)
     ctl = VideoController(settings, meter)
-    assert live(ctl, meter, 100.0, 5.0) == [], "480 kbit/s alone is under the budget"
-    steps = live(ctl, meter, 105.0, 1.0, still_at=105.0)
+    assert live(ctl, meter, 100.0, 5.0) == [], "640 kbit/s alone is under the budget"
+    steps = live(ctl, meter, 105.0, 2.0, still_at=105.0)
     assert steps, "the still's bytes did not count"
     t, step = steps[0]
     assert t - 105.0 <= 0.3  # the next judgement (every 0.25 s)
     assert step.after > step.before
-    assert step.rate.bytes_per_frame == pytest.approx(6000), "the still entered the frame-size learning"
+    assert step.rate.bytes_per_frame == pytest.approx(8000), "the still entered the frame-size learning"
+    # one step to calibrate the compression prior, then one jump to the level predicted under what is left: no
+    # cascade of steps while the still counts, and the frame rate and size are kept (compression does it)
+    assert len(steps) <= 2, f"a cascade of steps while the still counted: {[s.after for _, s in steps]}"
+    assert ctl.current.fps == 10
+    assert ctl.current.resolution == Resolution(704, 576)
+    assert ctl.current.compression > 0
+    # the still has left the window: the live stream climbs back to the request
+    back = live(ctl, meter, 107.0, 8.0)
+    assert back
+    assert back[-1][1].after == 0
     # without a budget a still changes nothing
     meter2 = BitrateMeter(2.0)
     ctl2 = VideoController(VideoSettings(fps=10, resolution="704x576", compression=0, adapt_to_link=False), meter2)

@@ -15,10 +15,11 @@ callback; a multi-threaded one works the same), and the answer comes once the st
   (camera unreachable within its connect timeout, an error from the camera) and "a still is already being taken"
   for a request while one is in flight (refused at once, never queued). No message carries credentials.
 
-Link budget: a still goes out on the same link as the live video. Its bytes count against the stream's bandwidth
-budget for one meter window (:meth:`~axis_ptz_ros2.streaming.controller.VideoController.on_still`): the live
-stream's next budget judgement (within 0.25 s) steps it down if live + still exceed the budget, and it climbs back
-once the still has left the window. The still itself is not paced: it is one DDS sample, which rclpy hands to the
+Link budget: a still goes out on the same link as the live video. For one meter window its rate is reserved out of
+the stream's MJPEG bandwidth budget, at most half of it
+(:meth:`~axis_ptz_ros2.streaming.controller.VideoController.on_still`): the live stream's next budget judgement
+(within 0.25 s) judges it against what is left and jumps once to the level predicted under it; it climbs back once
+the still has left the window. The still itself is not paced: it is one DDS sample, which rclpy hands to the
 middleware whole (its fragments go out as fast as the transport's flow control lets them).
 """
 

@@ -233,8 +233,14 @@ class BandwidthController:
         return self._bytes_per_frame(p, ref, ref_bpf) * fps * 8.0 / 1000.0
 
     # -- control -------------------------------------------------------------------------------------------
-    def update(self, now: float, kbps: float, fps: float, bytes_per_frame: float, frames: int) -> VideoParams | None:
-        """Feed one measurement of the current level; return new parameters when the level changes."""
+    def update(
+        self, now: float, kbps: float, fps: float, bytes_per_frame: float, frames: int, reserve_kbps: float = 0.0
+    ) -> VideoParams | None:
+        """Feed one measurement of the current level; return new parameters when the level changes.
+
+        ``reserve_kbps``: of the budget, what other traffic on the link takes for now (a still on demand): the live
+        stream is judged against what is left, so one judgement jumps to the level predicted under it (no cascade
+        of steps while the other traffic lasts), and the climb back follows once the reserve is gone."""
         cfg = self._config
         if self._budget <= 0:
             if self._level != 0:
@@ -251,9 +257,10 @@ class BandwidthController:
             self._fps_cap[cur.resolution] = fps
         elif self._fps_cap.get(cur.resolution, 0.0) < fps:
             self._fps_cap.pop(cur.resolution, None)
-        if kbps > self._budget:
+        budget = self._budget - max(0.0, min(reserve_kbps, self._budget))
+        if kbps > budget:
             self._up_since = None
-            target = cfg.down_fraction * self._budget
+            target = cfg.down_fraction * budget
             level = self._level + 1
             if level >= len(self._ladder):
                 return None  # already at the bottom
@@ -268,7 +275,7 @@ class BandwidthController:
         if self._level == 0:
             self._up_since = None
             return None
-        room = cfg.up_fraction * self._budget
+        room = cfg.up_fraction * budget
         if self.predict_kbps(self._level - 1, bytes_per_frame) < room:
             if self._up_since is None:
                 self._up_since = now

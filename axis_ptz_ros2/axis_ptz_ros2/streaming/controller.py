@@ -57,6 +57,8 @@ FEEDBACK_SETTLE_S = 0.5
 SWAMPED_AFTER_STEP_UP_S = 1.0
 #: s: the budget is re-judged at most this often on the frame path
 BUDGET_PERIOD_S = 0.25
+#: the largest share of the budget a still on demand may take from the live stream while it counts (on_still)
+STILL_SHARE = 0.5
 #: h264 mode: a change of the budget in force smaller than this fraction of the one last announced is not announced
 BUDGET_ANNOUNCE_SLACK = 0.1
 #: resolution "" while the camera cannot list its sizes (discovery retries)
@@ -245,8 +247,9 @@ class VideoController:
                 return None
             rate = self._meter.rate(now)
             before = budget.level
-            kbps = rate.kbps + self._extra.kbps(now)  # a still sent meanwhile counts against the budget too
-            choice = budget.update(now, kbps, rate.fps, rate.bytes_per_frame, rate.frames)
+            # a still sent meanwhile takes its share of the budget (at most STILL_SHARE of it) for one meter window
+            reserve = min(self._extra.kbps(now), STILL_SHARE * budget.budget_kbps)
+            choice = budget.update(now, rate.kbps, rate.fps, rate.bytes_per_frame, rate.frames, reserve)
             if choice is None:
                 return None
             step = BudgetStep(before, budget.level, choice, budget.budget_kbps, rate)
@@ -257,10 +260,11 @@ class VideoController:
         return step
 
     def on_still(self, now: float, nbytes: int) -> None:
-        """A still of ``nbytes`` went out on the link (``still/compressed``): for one meter window its bytes are
-        added to the live stream's measured rate when the budget is judged (MJPEG; the next judgement, within
-        :data:`BUDGET_PERIOD_S`, steps the live stream down if the two together exceed the budget, and it climbs
-        back once the still has left the window). Its size never enters the frame-size learning."""
+        """A still of ``nbytes`` went out on the link (``still/compressed``): for one meter window its rate (bytes
+        over the window, at most :data:`STILL_SHARE` of the budget) is reserved out of the MJPEG budget. The next
+        judgement (within :data:`BUDGET_PERIOD_S`) judges the live stream against what is left: over it, the ladder
+        jumps to the level predicted under it; once the still has left the window the live stream climbs back as
+        usual. Its size never enters the frame-size learning."""
         self._extra.add(now, nbytes)
 
     def on_h264_frame(self, now: float, nbytes: int) -> None:
