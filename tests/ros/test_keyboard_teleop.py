@@ -30,6 +30,7 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.ptz import Speeds, vapix_to_ros
 from axis_ptz_ros2.sim.world import load_world
+from tests.support.waiting import unchanged_for
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -43,13 +44,6 @@ def cam() -> Iterator[SimulatedCamera]:
         yield c
     finally:
         c.stop()
-
-
-def stays(value, seconds: float) -> bool:  # noqa: ANN001
-    """True if ``value()`` does not change for ``seconds``."""
-    v = value()
-    time.sleep(seconds)  # a window in which ``value`` must not change: the thing under test is that it does not
-    return value() == v
 
 
 class Pty:
@@ -238,7 +232,7 @@ def test_sigterm_restores_the_terminal_and_stops(ros, stack):
         # Seeing its publisher does not mean it has matched our subscription yet (discovery runs on both
         # sides): type the explicit stop key until one arrives, then let any still in flight land.
         ros.wait_for(lambda: (pty.type("x"), len(seen["velocity"]) > n)[1], timeout=10, period=0.5)
-        ros.wait_for(lambda: stays(lambda: len(seen["velocity"]), 1.0), timeout=10)
+        ros.wait_for(unchanged_for(lambda: len(seen["velocity"]), 1.0), timeout=10, period=0.05)
         m = len(seen["velocity"])
         pty.proc.send_signal(signal.SIGTERM)
         assert pty.proc.wait(10) == 128 + signal.SIGTERM

@@ -25,7 +25,7 @@ from std_msgs.msg import String  # noqa: E402
 from axis_ptz_ros2.nodes.runner import Spinner, new_executor, retrieve_task_errors, spin_once  # noqa: E402
 from tests.ros.processes import node_process  # noqa: E402
 from tests.support.harness import DEADLINE_SCALE  # noqa: E402
-from tests.support.waiting import wait_until
+from tests.support.waiting import unchanged_for, wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -118,7 +118,7 @@ def test_spinner_blocks_until_there_is_work_and_stops_at_once():
     executor._wait_for_ready_callbacks = counting  # type: ignore[method-assign] # noqa: SLF001
     spinner = Spinner(executor, "test-spinner").start()
     try:
-        time.sleep(0.3)  # settle (node added: one rebuild; how many is rclpy's business, not observable here)
+        assert _wait(unchanged_for(lambda: builds[0], 0.3))  # settled (node added: a rebuild or two, then none)
         before = builds[0]
         time.sleep(1.5)  # a measuring window: the thing under test is how many wait sets are built in it
         assert builds[0] - before <= 1, f"{builds[0] - before} wait-set generators in 1.5 s with nothing to do"

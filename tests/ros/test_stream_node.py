@@ -34,6 +34,7 @@ from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 from tests.support.stamps import sim_stamp  # noqa: E402
+from tests.support.waiting import unchanged_for
 
 pytestmark = pytest.mark.ros
 
@@ -212,13 +213,6 @@ def assert_no_new_request_but_reconnects(
     assert len(new) <= reconnects, f"{len(new)} new video requests but {reconnects} reconnects: a restart"
 
 
-def frames_stay(camera: SimulatedCamera, seconds: float) -> bool:
-    """True if the camera sent no frame for ``seconds``."""
-    sent = camera.frames_sent
-    time.sleep(seconds)  # a window in which no frame may be sent: the thing under test is that none is
-    return camera.frames_sent == sent
-
-
 def assert_never_repeated(frames: list[Frame]) -> None:
     """Each frame published once: send times strictly increasing, seq increasing within a connection."""
     ts = [f.t_sent for f in frames]
@@ -256,7 +250,7 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
     ros.wait_for(lambda: node._reader.stats().state.value == "idle-lazy", timeout=3)
     # the camera notices the closed socket on its next write or two: then it sends nothing more (at 15 fps a
     # streaming camera never goes 0.5 s without a frame)
-    ros.wait_for(lambda: frames_stay(camera, 0.5), timeout=5)
+    ros.wait_for(unchanged_for(lambda: camera.frames_sent, 0.5), timeout=5, period=0.05)
     assert 1 <= video_count(camera) <= 1 + node._reader.stats().stalls, "one stream for image and camera_info"
 
 

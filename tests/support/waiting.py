@@ -64,3 +64,18 @@ def succeeds(call: Callable[[], Any], *errors: type[BaseException]) -> Callable[
         return True
 
     return attempt
+
+
+def unchanged_for(value: Callable[[], Any], seconds: float) -> Callable[[], bool]:
+    """A predicate for :func:`wait_until`: True once ``value()`` has stayed the same for ``seconds`` (a quiet
+    period: nothing was sent, nothing was rebuilt), judged at each poll; any change starts the period again."""
+    state: dict[str, Any] = {"since": None, "value": None}
+
+    def quiet() -> bool:
+        v, now = value(), time.monotonic()
+        if state["since"] is None or v != state["value"]:
+            state["since"], state["value"] = now, v
+            return False
+        return now - state["since"] >= seconds
+
+    return quiet
