@@ -76,6 +76,6 @@ def unchanged_for(value: Callable[[], Any], seconds: float) -> Callable[[], bool
         if state["since"] is None or v != state["value"]:
             state["since"], state["value"] = now, v
             return False
-        return now - state["since"] >= seconds
+        return bool(now - state["since"] >= seconds)
 
     return quiet
