@@ -166,6 +166,67 @@ def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> Non
     assert [i for i, k in enumerate(keys) if k] == [0, 10, 13, 20, 24, 28]
 
 
+def test_intra_refresh_makes_idrs_only_on_demand_and_every_picture_decodes(jpegs: list[bytes]) -> None:
+    """x264's periodic intra refresh (the stream node's default): no IDR after the first but the ones asked for;
+    each wave's recovery point, which libx264 flags key (with SPS/PPS and a recovery-point SEI), is no IDR and is
+    not passed on as a key frame (no decoder can start there); a new wave length re-opens x264 with an IDR."""
+    images = [bgr(j) for j in jpegs[:40]]
+    enc = H264Encoder(EncoderConfig(704, 576, fps=25, keyframe_interval=8, refresh="intra", profile="high"))
+    dec = H264Decoder()
+    keys, recovery_points = [], []
+    for i, img in enumerate(images):
+        if i == 13:
+            enc.request_idr()
+        if i == 30:
+            enc.set_keyframe_interval(8)  # the same wave: nothing happens
+        if i == 33:
+            enc.set_keyframe_interval(5)
+        out = enc.encode_bgr(img)
+        types = annexb.nal_types(out.data)
+        assert out.keyframe == (NalType.IDR in types)
+        if out.keyframe:
+            assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
+        elif NalType.SPS in types:  # a recovery point: x264 repeats SPS/PPS there (harmless, no key frame)
+            recovery_points.append(i)
+        keys.append(out.keyframe)
+        assert dec.decode(out.data) is not None, i  # FFmpeg's decoder with err_detect=explode
+    assert [i for i, k in enumerate(keys) if k] == [0, 13, 33]
+    assert recovery_points, "no intra-refresh wave began (x264 not in intra-refresh mode?)"
+    assert enc.reopens == 1
+    assert dec.stats.decode_errors == 0
+    assert (enc.codec_string or "").startswith("avc1.64")  # High profile
+
+
+def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> None:
+    """A viewer that lost a P-picture and asked for nothing (FFmpeg's decoder with its default concealment, as
+    the ffmpeg image_transport plugin decodes): pictures equal to a loss-free decoder's again within about one
+    wave after the loss; with a GOP as long and no refresh they never do."""
+    import av  # noqa: PLC0415 - PyAV (the encoder needs it anyway)
+
+    images = [bgr(j) for j in jpegs[:40]]
+
+    def healed_after(refresh: str) -> int | None:
+        enc = H264Encoder(EncoderConfig(704, 576, fps=25, keyframe_interval=10 if refresh == "intra" else 600,
+                                        refresh=refresh))  # fmt: skip
+        lossy, twin = av.CodecContext.create("h264", "r"), av.CodecContext.create("h264", "r")
+        healed = None
+        for i, img in enumerate(images):
+            data = enc.encode_bgr(img).data
+            (ref,) = twin.decode(av.Packet(data))
+            if i == 12:
+                continue  # lost
+            got = lossy.decode(av.Packet(data))
+            same = bool(got) and np.array_equal(got[-1].to_ndarray(), ref.to_ndarray())
+            if i > 12:
+                healed = (healed if healed is not None else i) if same else None
+        return None if healed is None else healed - 12
+
+    intra = healed_after("intra")
+    assert intra is not None
+    assert intra <= 2 * 10 + 1  # within the wave under way and the next one
+    assert healed_after("idr") is None
+
+
 def test_codec_string_matches_the_sps_the_decoder_uses(jpegs: list[bytes]) -> None:
     tc = MjpegTranscoder()
     assert tc.codec_string is None
@@ -248,6 +309,8 @@ def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None
         ({"preset": "placebo"}, "preset must be one of"),
         ({"fps": 0}, "fps must be"),
         ({"threads": 0}, "threads must be"),
+        ({"profile": "main"}, "profile must be one of"),
+        ({"refresh": "gdr"}, "refresh must be one of"),
     ],
 )
 def test_bad_encoder_parameters_are_refused(kwargs: dict[str, object], reason: str) -> None:

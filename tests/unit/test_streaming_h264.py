@@ -120,11 +120,28 @@ def test_frames_pts_headers_and_stamps(jpegs: list[bytes]) -> None:
 
 
 def test_keyframe_interval_is_at_most_one_second(jpegs: list[bytes]) -> None:
-    h = Harness(H264Settings(keyframe_interval=600, fps=5))  # 600 frames asked, 5 fps: an IDR every 5 frames
+    h = Harness(H264Settings(keyframe_interval=600, fps=5, refresh="idr"))  # 600 asked, 5 fps: an IDR every 5
     h.stage.set_active(True)
     out = [f for f in h.feed(jpegs) if f is not None]
     idrs = [f.pts for f in out if f.keyframe]
     assert idrs[:4] == [0, 5, 10, 15]
+
+
+def test_intra_refresh_by_default_one_wave_a_second_and_idrs_only_on_demand(jpegs: list[bytes]) -> None:
+    """The node's default (issue 39): x264's intra refresh in High profile, its wave at most one second of frames
+    long; no IDR after the first but the ones asked for, each with SPS/PPS."""
+    assert (H264Settings().refresh, H264Settings().profile) == ("intra", "high")
+    h = Harness(H264Settings(keyframe_interval=600, fps=5))
+    h.stage.set_active(True)
+    out = [f for f in h.feed(jpegs[:12]) if f is not None]
+    assert (h.made[0].keyframe_interval, h.made[0].refresh, h.made[0].profile) == (5, "intra", "high")
+    assert [f.pts for f in out if f.keyframe] == [0]
+    assert h.stage.request_idr()
+    out = [f for f in h.feed(jpegs[12:16]) if f is not None]
+    assert [f.keyframe for f in out] == [True, False, False, False]
+    types = annexb.nal_types(out[0].data)
+    assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
+    assert annexb.find_sps(out[0].data).codec_string.startswith("avc1.64")  # type: ignore[union-attr]
 
 
 def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:
@@ -324,7 +341,7 @@ def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
 
 
 def test_receiver_waits_for_an_idr_after_a_loss(jpegs: list[bytes]) -> None:
-    h = Harness(H264Settings(keyframe_interval=8, fps=30))
+    h = Harness(H264Settings(keyframe_interval=8, fps=30, refresh="idr"))
     h.stage.set_active(True)
     out = [f for f in h.feed(jpegs[:20]) if f is not None]
     r = AccessUnitReceiver()
@@ -532,15 +549,36 @@ def test_vbv_buffer_follows_the_bitrate_and_at_most_a_slice_of_the_link_budget()
 
 
 def test_stage_hands_a_new_vbv_buffer_to_the_encoder_and_no_extra_idr(jpegs: list[bytes]) -> None:
-    h = Harness(H264Settings(bitrate_kbps=1000, keyframe_interval=10, fps=30, ceiling_kbps=1000, vbv_kbit=150))
+    kw = {"keyframe_interval": 10, "fps": 30, "ceiling_kbps": 1000, "refresh": "idr"}
+    h = Harness(H264Settings(bitrate_kbps=1000, vbv_kbit=150, **kw))  # type: ignore[arg-type]
     h.stage.set_active(True)
     h.feed(jpegs[:3])
     assert [m.vbv_bits for m in h.made] == [150_000]
-    h.settings = H264Settings(bitrate_kbps=800, keyframe_interval=10, fps=30, ceiling_kbps=1000, vbv_kbit=50)
+    h.settings = H264Settings(bitrate_kbps=800, vbv_kbit=50, **kw)  # type: ignore[arg-type]
     out = h.feed(jpegs[3:14])
     assert len(h.made) == 1  # the same transcoder ...
     assert h.transcoders[0].config.vbv_bits == 50_000  # ... told the new buffer
     assert [i + 3 for i, f in enumerate(out) if f is not None and f.keyframe] == [10]  # the periodic IDR only
+
+
+def test_with_intra_refresh_a_new_vbv_buffer_waits_for_the_next_idr_asked_for(jpegs: list[bytes]) -> None:
+    """No periodic IDR: the buffer (which bounds an IDR) is in force from the next IDR on demand, the picture it
+    matters for, and costs no IDR of its own."""
+    kw = {"keyframe_interval": 10, "fps": 30, "ceiling_kbps": 1000}
+    h = Harness(H264Settings(bitrate_kbps=1000, vbv_kbit=150, **kw))  # type: ignore[arg-type]
+    h.stage.set_active(True)
+    h.feed(jpegs[:3])
+    h.settings = H264Settings(bitrate_kbps=800, vbv_kbit=50, **kw)  # type: ignore[arg-type]
+    out = h.feed(jpegs[3:14])
+    assert not any(f is not None and f.keyframe for f in out)
+    encoder = h.transcoders[0]._encoder
+    assert encoder is not None
+    assert (encoder.reopens, encoder.opened_vbv_bits) == (0, 150_000)
+    assert h.stage.request_idr()
+    (idr,) = h.feed(jpegs[14:15])
+    assert idr is not None
+    assert idr.keyframe
+    assert (encoder.reopens, encoder.opened_vbv_bits) == (1, 50_000)
 
 
 def test_pts_gaps_count_missing_access_units_and_not_a_restart():

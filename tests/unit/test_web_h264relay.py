@@ -20,6 +20,7 @@ from axis_ptz_ros2.web.backend import CommandResult  # noqa: E402
 from axis_ptz_ros2.web.h264relay import (  # noqa: E402
     CONTENT_TYPE,
     MAX_CLIENT_QUEUE,
+    MAX_GOP_FRAMES,
     AccessUnit,
     H264Slot,
     decode_records,
@@ -33,8 +34,10 @@ pytestmark = pytest.mark.unit
 W, H = 160, 96
 
 
-def _frames(n: int, gop: int = 10) -> list[EncodedFrame]:
-    enc = H264Encoder(EncoderConfig(W, H, fps=30, bitrate_bps=300_000, keyframe_interval=gop, preset="ultrafast"))
+def _frames(n: int, gop: int = 10, refresh: str = "idr") -> list[EncodedFrame]:
+    enc = H264Encoder(
+        EncoderConfig(W, H, fps=30, bitrate_bps=300_000, keyframe_interval=gop, preset="ultrafast", refresh=refresh)
+    )
     out = []
     for i in range(n):
         img = np.zeros((H, W, 3), np.uint8)
@@ -144,6 +147,38 @@ def test_a_slow_client_is_cut_back_to_the_next_key_frame_and_an_idr_is_asked_for
             got.append(r[0].data)
         assert got == [f.data for f in frames[idr : idr + 3]]
         assert _decode(got) == 3
+
+
+def test_a_later_client_without_a_gop_kept_asks_for_an_idr() -> None:
+    """IDRs only on demand (intra refresh): past MAX_GOP_FRAMES no GOP is kept, so a page joining a stream that
+    others watch (no new subscription, no IDR of its own) asks for one and starts there."""
+    frames = _frames(MAX_GOP_FRAMES + 10, gop=30, refresh="intra")
+    assert [i for i, f in enumerate(frames) if f.keyframe] == [0]
+    asked = []
+    slot = H264Slot("ptz", on_need_idr=lambda: asked.append(1))
+    with slot.watch() as first:
+        for f in frames[: MAX_GOP_FRAMES + 2]:
+            slot.publish(f.data, f.keyframe, 0.0)
+            assert slot.next(first, 0.1) is not None
+        assert not asked
+        with slot.watch() as late:
+            assert asked == [1]
+            slot.publish(frames[MAX_GOP_FRAMES + 2].data, False, 0.0)
+            assert slot.next(late, 0.01) is None  # nothing from the middle of a chain
+            key = _frames(1)[0]
+            slot.publish(key.data, True, 0.0)
+            r = slot.next(late, 0.1)
+            assert r is not None
+            assert r[0].key
+    with slot.watch() as short:  # a GOP shorter than MAX_GOP_FRAMES is replayed, nothing asked
+        asked.clear()
+        slot.publish(frames[0].data, True, 0.0)
+        with slot.watch() as second:
+            assert not asked
+            r = slot.next(second, 0.1)
+            assert r is not None
+            assert r[0].key
+        assert slot.next(short, 0.1) is not None
 
 
 class _Backend:

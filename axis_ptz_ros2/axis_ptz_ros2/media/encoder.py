@@ -2,8 +2,9 @@
 
 What viewers and a weak link need, and how it is had (facts in docs/…/h264.md, checked with PyAV 18):
 
-- Constrained Baseline, no B-frames, ``tune=zerolatency``: the access unit for frame k comes out of the same
-  :meth:`H264Encoder.encode` call (one in, one out).
+- No B-frames, ``tune=zerolatency``: the access unit for frame k comes out of the same :meth:`H264Encoder.encode`
+  call (one in, one out). Profile :attr:`EncoderConfig.profile`: ``baseline`` (x264's Constrained Baseline) or
+  ``high`` (CABAC, 8x8 transform; without B-frames nothing is reordered either).
 - No global header: libx264 then repeats SPS/PPS in front of every IDR, which stock decoders need.
 - VBV at open (``maxrate`` = bitrate, ``bufsize`` = ``vbv_bits`` or bitrate × :data:`VBV_BUFFER_S`): the rate
   holds within a few frames (an IDR is at most about the VBV buffer: ~0.15 s of the bitrate, 19 kB at 1 Mbit/s,
@@ -14,8 +15,14 @@ What viewers and a weak link need, and how it is had (facts in docs/…/h264.md,
   requested), with the same ``maxrate``, so a buffer that follows the link costs no extra IDR. Until then the
   buffer opened with stays: x264 keeps it when only ``bit_rate`` is lowered (opened at 1000 kbit/s and lowered
   to 600, its IDRs stayed 86 kbit against 73 kbit for one opened at 600).
-- Keyframes: x264's own are off (``keyint=infinite``, ``scenecut=0``); this class forces an IDR every
-  ``keyframe_interval`` frames and on request (``forced-idr=1`` + ``PictureType.I``), so the interval is live too.
+- Keyframes: x264's own are off (``scenecut=0``); this class forces an IDR on request (``forced-idr=1`` +
+  ``PictureType.I``) and, with :attr:`EncoderConfig.refresh` ``idr``, every ``keyframe_interval`` frames (x264's
+  ``keyint=infinite``), so the interval is live too. With ``intra`` x264's periodic intra refresh
+  (``intra-refresh=1``, ``keyint`` = the interval) sweeps a column of intra blocks across the picture instead, one
+  wave per interval, and no IDR follows the first but the ones requested: no picture is an IDR squeezed into the
+  VBV buffer, so the picture does not blur once an interval (issue 39). libx264 flags each wave's recovery point
+  key (a P-picture with SPS/PPS and a recovery-point SEI); :attr:`EncodedFrame.keyframe` is True for IDRs only,
+  where a decoder can start. A new interval re-opens x264 then (it takes ``keyint`` only when it opens), with an IDR.
 - Adaptive quantisation off (``aq-mode=0``, what x264's ``tune=psnr`` does to AQ): x264's default AQ moves bits
   from detailed blocks (edges, text) to flat ones, for the look of flat areas; an operator reading labels needs
   the detail. On the simulated 214's noisy compression-0 pictures at 1000 kbit/s it measured +2.1 dB PSNR (median
@@ -48,6 +55,8 @@ from axis_ptz_ros2.media.limits import (
     MIN_BITRATE_BPS,
     MIN_VBV_BITS,
     PRESETS,
+    PROFILES,
+    REFRESH_MODES,
     VBV_BUFFER_S,
     VBV_REOPEN_SLACK,
 )
@@ -67,6 +76,8 @@ class EncoderConfig:
     preset: str = "veryfast"
     threads: int = 1  # 1: one slice per picture, lowest CPU; more: sliced threads (lower latency at 1080p)
     vbv_bits: int = 0  # the VBV buffer (bits; bounds the largest picture); 0 = bitrate × VBV_BUFFER_S
+    profile: str = "baseline"  # one of PROFILES
+    refresh: str = "idr"  # one of REFRESH_MODES: periodic IDRs, or x264's periodic intra refresh (IDRs on request)
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -82,6 +93,10 @@ class EncoderConfig:
         if not isinstance(self.threads, int) or not 1 <= self.threads <= 16:
             raise EncoderError(f"threads must be 1…16, got {self.threads!r}")
         check_vbv(self.vbv_bits)
+        if self.profile not in PROFILES:
+            raise EncoderError(f"profile must be one of {', '.join(PROFILES)}; got {self.profile!r}")
+        if self.refresh not in REFRESH_MODES:
+            raise EncoderError(f"refresh must be one of {', '.join(REFRESH_MODES)}; got {self.refresh!r}")
 
 
 def check_bitrate(bps: int) -> int:
@@ -163,8 +178,12 @@ class H264Encoder:
         self._reopen_at_idr = abs(want - self._bufsize) > VBV_REOPEN_SLACK * self._bufsize
 
     def set_keyframe_interval(self, frames: int) -> None:
-        """Periodic IDR every ``frames`` frames from now on."""
+        """Periodic IDR every ``frames`` frames from now on; with intra refresh, a refresh wave of ``frames``
+        frames (x264 takes it only when it opens: a new one re-opens the encoder, with an IDR)."""
+        old = self._config.keyframe_interval
         self._config = replace(self._config, keyframe_interval=check_keyframe_interval(frames))
+        if self._config.refresh == "intra" and frames != old:
+            self._reopen = True
 
     def request_idr(self) -> None:
         """Make the next encoded frame an IDR (with SPS/PPS)."""
@@ -191,7 +210,7 @@ class H264Encoder:
             self._reopen_at_idr = False
             self.reopens += 1
             self._idr_requested = True
-        key = self._idr_requested or self._since_idr >= c.keyframe_interval
+        key = self._idr_requested or (c.refresh == "idr" and self._since_idr >= c.keyframe_interval)
         if key and self._reopen_at_idr:  # an IDR anyway: the new VBV buffer costs none
             self._ctx = self._open(c, self._maxrate)
             self._reopen_at_idr = False
@@ -205,9 +224,10 @@ class H264Encoder:
             raise EncoderError(f"libx264 refused the frame: {err}") from err
         if len(packets) != 1:
             raise EncoderError(f"libx264 returned {len(packets)} packets for one frame (expected 1)")
-        packet = packets[0]
-        keyframe = bool(packet.is_keyframe)
-        data = bytes(packet)
+        data = bytes(packets[0])
+        # an IDR, not what libx264 flags key: with intra refresh it flags each wave's recovery point (a P-picture
+        # with SPS/PPS and a recovery-point SEI) key too, and no decoder can start there
+        keyframe = annexb.is_idr(data)
         out = EncodedFrame(data, keyframe, self._pts, c.width, c.height, capture_ns)
         self._pts += 1
         if keyframe:
@@ -240,14 +260,16 @@ class H264Encoder:
         ctx.bit_rate = c.bitrate_bps
         ctx.max_b_frames = 0
         ctx.thread_count = c.threads
+        # periodic IDRs are this class's (keyint infinite); intra refresh is x264's, one wave per keyframe interval
+        keyint = f"keyint={c.keyframe_interval}:intra-refresh=1" if c.refresh == "intra" else "keyint=infinite"
         ctx.options = {
             "preset": c.preset,
             "tune": "zerolatency",
-            "profile": "baseline",
+            "profile": c.profile,
             "forced-idr": "1",
             "maxrate": str(maxrate),
             "bufsize": str(bufsize),
-            "x264-params": "keyint=infinite:min-keyint=1:scenecut=0:bframes=0:aq-mode=0",
+            "x264-params": f"{keyint}:min-keyint=1:scenecut=0:bframes=0:aq-mode=0",
         }
         try:
             ctx.open()

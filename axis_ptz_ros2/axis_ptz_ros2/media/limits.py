@@ -6,6 +6,13 @@ from __future__ import annotations
 from typing import Final
 
 PRESETS: Final = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium")
+#: H.264 profiles the encoder makes: ``baseline`` (x264's Constrained Baseline: CAVLC, 4x4 transform) and ``high``
+#: (CABAC, 8x8 transform; still no B-frames, so no reordering)
+PROFILES: Final = ("baseline", "high")
+#: how a decoder gets a clean picture again without asking: ``idr``: an IDR every keyframe interval; ``intra``:
+#: x264's periodic intra refresh (a column of intra blocks sweeps the picture once per keyframe interval, no IDR
+#: after the first: IDRs only on request)
+REFRESH_MODES: Final = ("idr", "intra")
 MIN_BITRATE_BPS: Final = 50_000
 MAX_BITRATE_BPS: Final = 50_000_000
 MAX_KEYFRAME_INTERVAL: Final = 600

@@ -49,6 +49,8 @@ class TranscoderConfig:
     stamp_sei: bool = True  # put the capture time in each access unit (our user-data SEI)
     jpeg_decoder: JpegDecoder = "pyav"  # see the module docstring
     vbv_bits: int = 0  # the encoder's VBV buffer (bits); 0 = its default (see media.encoder)
+    profile: str = "baseline"  # H.264 profile (media.limits.PROFILES)
+    refresh: str = "idr"  # periodic IDRs or x264's intra refresh (media.limits.REFRESH_MODES)
 
     def __post_init__(self) -> None:
         if self.jpeg_decoder not in JPEG_DECODERS:
@@ -65,6 +67,8 @@ class TranscoderConfig:
             preset=self.preset,
             threads=self.threads,
             vbv_bits=self.vbv_bits,
+            profile=self.profile,
+            refresh=self.refresh,
         )
 
 

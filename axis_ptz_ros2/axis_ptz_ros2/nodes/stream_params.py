@@ -98,7 +98,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "h264_keyframe_interval",
-        "frames between periodic IDRs (at most fps, one second, applies)",
+        "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand), or between a camera's "
+        "own IDRs when passed through (at most fps, one second, applies)",
         "frames",
         int_range=KEYFRAME_RANGE,
     ),

@@ -25,9 +25,16 @@ Policy that lives here:
   the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb); a new VBV buffer
   (:attr:`H264Settings.vbv_kbit`, which follows the link's budget) takes effect at the encoder's next IDR, costing
   none of its own;
-* the periodic keyframe interval is at most one second of frames (``fps``), so a viewer that joined or lost
-  sync without asking gets a start point within a second;
-* an IDR on demand (:meth:`H264Stage.request_idr`: a new subscriber, a consumer that reports loss, a reconnect)
+* the keyframe interval is at most one second of frames (``fps``). The encoder's refresh
+  (:attr:`H264Settings.refresh`, by default ``intra``) says what it is: with x264's periodic intra refresh (issue
+  39) the period of the wave of intra blocks that sweeps the picture, so a decoder that lost an access unit without
+  asking shows a clean picture again within two waves, and no IDR is made after the first but on demand (an
+  IDR every second, squeezed into the small VBV buffer a weak link asks for, blurred the picture once a second:
+  PSNR 5th percentile 5 dB under the median; ``bench/encoder_tradeoff.py``, docs/weak-link.md); with ``idr`` the
+  period of IDRs, as before. The profile (:attr:`H264Settings.profile`) is High by default (CABAC, the 8x8
+  transform; still no B-frames): every decoder a viewer uses here decodes it (docs/nodes.md);
+* an IDR on demand (:meth:`H264Stage.request_idr`: a new subscriber, a consumer that reports loss, a reconnect;
+  with intra refresh the only start points a viewer gets)
   at most every :data:`IDR_MIN_INTERVAL_S` (a lossy link that reports loss on every frame must not be sent
   nothing but IDRs); a request inside that interval is kept for when it ends;
 * a new subscriber (:meth:`H264Stage.new_subscriber`) gets an IDR at once and another
@@ -97,6 +104,8 @@ class H264Settings:
     fps: int = 15
     ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
     vbv_kbit: int = 0  # the encoder's VBV buffer (bounds its largest picture, an IDR); 0 = its default
+    profile: str = "high"  # H.264 profile (media.limits.PROFILES; see the module docstring)
+    refresh: str = "intra"  # x264's periodic intra refresh, IDRs only on demand; or "idr" (media.limits.REFRESH_MODES)
 
     def transcoder_config(self) -> TranscoderConfig:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
@@ -111,6 +120,8 @@ class H264Settings:
             keyframe_interval=self.effective_keyframe_interval,
             preset=self.preset,
             vbv_bits=self.vbv_bits,
+            profile=self.profile,
+            refresh=self.refresh,
         )
 
     @property
@@ -120,7 +131,8 @@ class H264Settings:
 
     @property
     def effective_keyframe_interval(self) -> int:
-        """The periodic IDR interval in frames: the parameter, at most one second of frames."""
+        """The keyframe interval in frames (intra refresh: one wave; ``idr``: between periodic IDRs; a camera's
+        own H.264: its GOP): the parameter, at most one second of frames."""
         return max(1, min(int(self.keyframe_interval), max(1, int(self.fps))))
 
 
@@ -385,7 +397,8 @@ class H264Stage:
         if (
             t is None
             or have is None
-            or (have.preset, have.fps) != (want.preset, want.fps)
+            or (have.preset, have.fps, have.profile, have.refresh)
+            != (want.preset, want.fps, want.profile, want.refresh)
             or want.ceiling_kbps > self._opened_kbps  # (a target above the VBV maxrate: re-opened once, at the ceiling)
         ):
             for_fps = t is not None and have is not None and have.preset == want.preset and have.fps != want.fps
@@ -401,7 +414,7 @@ class H264Stage:
             self._last_idr_request = self._clock()
         else:
             if have.effective_keyframe_interval != want.effective_keyframe_interval:
-                t.set_keyframe_interval(want.effective_keyframe_interval)
+                t.set_keyframe_interval(want.effective_keyframe_interval)  # intra refresh: re-opened (an IDR)
         self._opened_with = want
         now = self._clock()
         self._idr_again_due()

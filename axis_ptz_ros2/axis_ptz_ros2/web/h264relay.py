@@ -15,10 +15,12 @@ side goes, one record per access unit (no HTTP chunk framing is needed: the resp
 Every client starts on a key frame. A client that joins mid-GOP gets the current GOP (its IDR and every frame
 since, flagged catch-up but the newest) so it shows the present picture at once instead of waiting up to a
 keyframe interval; the first watcher causes the console's subscription, and the stream node sends an IDR for a
-new H.264 subscriber. Each client has a bounded queue: a client that falls behind loses its queue, waits for the
-next key frame (nothing is ever drawn from a broken reference chain) and :attr:`H264Slot.on_need_idr` asks for
-one. Frames flagged key without an IDR, frames without a decodable start (no SPS known) and empty frames are
-refused and counted, never relayed.
+new H.264 subscriber. A later client when no GOP is kept (the stream node makes IDRs only on demand, so a GOP can
+last for minutes: one longer than :data:`MAX_GOP_FRAMES` is not kept) waits for the next key frame and
+:attr:`H264Slot.on_need_idr` asks for one. Each client has a bounded queue: a client that falls behind loses its
+queue, waits for the next key frame (nothing is ever drawn from a broken reference chain) and
+:attr:`H264Slot.on_need_idr` asks for one. Frames flagged key without an IDR, frames without a decodable start (no
+SPS known) and empty frames are refused and counted, never relayed.
 """
 
 from __future__ import annotations
@@ -36,10 +38,11 @@ CONTENT_TYPE = "application/x-axis-h264-au"
 FLAG_KEY = 0x01
 FLAG_CATCH_UP = 0x02
 _HEAD = struct.Struct(">IBBd")  # length, flags, codec length, stamp
-#: the longest GOP kept for late joiners (frames); a longer one is not cached (they wait for the next IDR)
-MAX_GOP_FRAMES = 300
 #: access units a client may lag behind before it is cut back to the next key frame
 MAX_CLIENT_QUEUE = 90
+#: the longest GOP kept for late joiners (frames; it must fit a client's queue); a longer one is not cached (they
+#: ask for an IDR and wait for it)
+MAX_GOP_FRAMES = 60
 
 
 @dataclass(frozen=True)
@@ -197,7 +200,9 @@ class H264Slot:
             self._clients.add(c)
             n = len(self._clients)
         if n == 1 and self.on_watchers:
-            self.on_watchers(self.name, n)
+            self.on_watchers(self.name, n)  # a new subscription: the stream node sends an IDR for it
+        if n > 1 and not c.synced and self.on_need_idr:
+            self.on_need_idr()  # subscribed already, and no GOP to start from
         try:
             yield c
         finally:
