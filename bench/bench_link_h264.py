@@ -46,6 +46,9 @@ robot side already running; for H.264 without feedback the viewer is started ``-
     .venv/bin/python bench/bench_link_h264.py [--seconds 40] [--plot bench/results/link_h264.png]
         [--sessions mjpeg,h264,h264-nofb,mjpeg-nofb] [--starts 5]
 
+``bench/bench_acuity_link.py`` runs these sessions with the camera aimed at an acuity chart (its acuity mode: the
+``Session`` fields ``aim``, ``acuity_every``, ``rate_kbit``, ``diagnostics``, ``on_saved``).
+
 Needs root (network namespaces); installs nftables if missing.
 """
 
@@ -87,6 +90,20 @@ from link_h264_results import (  # noqa: E402
 from link_h264_roles import robot_sim, viewer  # noqa: E402
 
 SIM_PORT = 8080
+#: the repository paths whose changes can move this bench's figures (``bench/report.py``)
+INPUTS = (
+    "bench/bench_link_h264.py",
+    "bench/link_h264_roles.py",
+    "bench/link_h264_results.py",
+    "axis_ptz_ros2/axis_ptz_ros2/streaming",
+    "axis_ptz_ros2/axis_ptz_ros2/media",
+    "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
+    "axis_ptz_ros2/axis_ptz_ros2/nodes/link_monitor.py",
+    "tests/support/link.py",
+    "config/fastdds_weak_link.xml",
+    "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+    "config/sim_world.yaml",
+)
 #: the link's rate each way (kbit/s; ``--rate-kbit``): the thesis's link is 2000, issue 21's second case 1000
 LINK_KBIT = 2000
 
@@ -97,6 +114,8 @@ def start_viewer(hosts: Any, link: Any, s: Session, env: dict[str, str], refdir:
         argv.append("--no-feedback")
     if s.pan_speed:
         argv.append("--save-pictures")
+    if s.acuity_every:
+        argv += ["--acuity", str(s.acuity_every)]
     err = open(hosts.logs / f"{hosts.tag}-viewer-{k}.log", "wb")  # noqa: SIM115 - closed below, the child keeps it
     spawned = time.time_ns()
     proc = link.popen("operator", argv, env=env, stdout=subprocess.PIPE, stderr=err, cwd=str(ROOT))
@@ -151,12 +170,14 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
     env = host_env(FASTRTPS_DEFAULT_PROFILES_FILE=profile) if profile else host_env()
     refdir = logs / f"ref-{s.name}"
     try:
-        link.set_rate(LINK_KBIT)
+        link.set_rate(s.rate_kbit or LINK_KBIT)
         link.set_loss(2)
         sim = link.popen(
             "robot",
             [sys.executable, str(Path(__file__).resolve()), "--robot-sim", str(SIM_PORT), "--ref", str(refdir)]
-            + ["--model", s.model, "--pan-speed", str(s.pan_speed)],
+            + ["--model", s.model, "--pan-speed", str(s.pan_speed), "--pan-flip", str(s.pan_flip_s)]
+            + (["--aim", s.aim] if s.aim else [])
+            + (["--diagnostics"] if s.diagnostics else []),
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
@@ -165,7 +186,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
         hosts.procs.append(("sim", sim))
         sim_log = LineReader(sim.stdout)
         wait_for(lambda: sim_log.of("ready"), 60, "the simulated camera", hosts)
-        pose0 = sim_log.of("ready")[0]["pose"]
+        pose0 = s.pose0 = sim_log.of("ready")[0]["pose"]
         codec_args = ["-p", "codec:=h264"] if s.codec == "h264" else ["-p", "compression:=30"]
         if s.model != "axis214":  # the current-Axis persona: its RTSP H.264 on the next port
             codec_args += ["-p", f"rtsp_port:={SIM_PORT + 1}", "-p", "compression:=30"]
@@ -203,6 +224,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
                     link.set_up(what == "up")
                 s.events[what] = time.time_ns()
             time.sleep(0.05)
+        s.diag = [r for r in sim_log.of("diag") if s.t0 <= r["rx"] < end]
         s.pics = [r for r in reader.of("pic") if s.t0 <= r["rx"] < end]
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
         s.gaps = [r for r in reader.of("gap") if s.t0 <= r["rx"] < end]
@@ -224,19 +246,7 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
     """The README rows of the sessions run; True if every row with a target meets it."""
     from report import inputs, row
 
-    inputs(
-        "bench/bench_link_h264.py",
-        "bench/link_h264_roles.py",
-        "bench/link_h264_results.py",
-        "axis_ptz_ros2/axis_ptz_ros2/streaming",
-        "axis_ptz_ros2/axis_ptz_ros2/media",
-        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/axis_ptz_ros2/nodes/link_monitor.py",
-        "tests/support/link.py",
-        "config/fastdds_weak_link.xml",
-        "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
-        "config/sim_world.yaml",
-    )
+    inputs(*INPUTS)
     ok = True
 
     def checked(what: str, figure: str, target: str, good: bool | None) -> None:
@@ -333,6 +343,10 @@ def main() -> int:
     ap.add_argument("--robot-sim", type=int, default=0, help=argparse.SUPPRESS)
     ap.add_argument("--model", default="axis214", help=argparse.SUPPRESS)
     ap.add_argument("--pan-speed", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--pan-flip", type=float, default=0.0, help=argparse.SUPPRESS)
+    ap.add_argument("--aim", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--diagnostics", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--acuity", type=int, default=0, help=argparse.SUPPRESS)
     ap.add_argument("--viewer", choices=("mjpeg", "h264"), default="", help=argparse.SUPPRESS)
     ap.add_argument("--no-feedback", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--save-pictures", action="store_true", help=argparse.SUPPRESS)
@@ -341,9 +355,9 @@ def main() -> int:
     global LINK_KBIT  # noqa: PLW0603 - one run, one link
     LINK_KBIT = a.rate_kbit
     if a.robot_sim:
-        return robot_sim(a.robot_sim, a.ref, a.model, a.pan_speed)
+        return robot_sim(a.robot_sim, a.ref, a.model, a.pan_speed, a.aim, a.pan_flip, a.diagnostics)
     if a.viewer:
-        return viewer(a.viewer, not a.no_feedback, a.ref, a.save_pictures)
+        return viewer(a.viewer, not a.no_feedback, a.ref, a.save_pictures, a.acuity)
     from tests.support import link as linkmod
 
     reason = linkmod.available()

@@ -6,6 +6,7 @@ session's PSNR against references rendered from each picture's pose, the printed
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,11 @@ class Session:
     model: str = "axis214"  # the simulated camera: the 214 (MJPEG, transcoded) or q6075 (RTSP H.264, passed through)
     size: tuple[int, int] = (W, H)  # asked of the camera
     pan_speed: int = 0  # the head sweeps at this speed (0: still)
+    rate_kbit: int = 0  # the link's rate each way for this session (0: the run's ``--rate-kbit``)
+    aim: str = ""  # a world target the head is aimed at (zoomed as far as it fits) before the session measures
+    pan_flip_s: float = 0.0  # a panning head reverses every this many seconds (0: ``link_h264_roles.PAN_FLIP_S``)
+    acuity_every: int = 0  # the viewer keeps every this-many-th picture shown for the acuity chart (0: none)
+    diagnostics: bool = False  # the robot side records the stream node's H.264 bitrate target (/diagnostics)
     t0: int = 0
     pics: list[dict[str, Any]] = field(default_factory=list)
     params: list[dict[str, Any]] = field(default_factory=list)
@@ -47,6 +53,12 @@ class Session:
     pan_deg_s: float = math.nan  # the head's measured pan speed over the measurement
     note: str = ""
     events: dict[str, int] = field(default_factory=dict)  # what happened to the link, and when (ns)
+    acuity: list[dict[str, Any]] = field(default_factory=list)  # chart readings (``bench/bench_acuity_link.py``)
+    diag: list[dict[str, Any]] = field(default_factory=list)  # the stream node's H.264 bitrate target over time
+    pose0: list[float] = field(default_factory=list)  # the pose the camera started measuring from
+    #: panning: called with (picture record, the saved picture, the camera that renders the references, the pose it
+    #: was rendered at, the camera's compression-0 picture of that pose) for every saved picture (:func:`panning_psnr`)
+    on_saved: Callable[[dict[str, Any], Any, Any, list[float], Any], None] | None = None
 
     def t(self, ns: int) -> float:
         return (ns - self.t0) / NS
@@ -87,7 +99,7 @@ def panning_psnr(s: Session, refdir: Path) -> None:
     """Give every picture the viewer saved (``refdir/pics/<capture ns>.npy``) its PSNR against the camera's view at
     the pose that picture was rendered at (``s.shots``): ``soft`` (through its optics and video chain, before noise
     and compression), ``render`` and ``c0`` (a compression-0 JPEG of that pose as the camera sends it, its own
-    noise draw); the saved pictures are deleted."""
+    noise draw), and hand each to ``s.on_saved`` when set; the saved pictures are deleted."""
     import cv2
     import numpy as np
 
@@ -108,6 +120,8 @@ def panning_psnr(s: Session, refdir: Path) -> None:
         soft = cam.persona.picture.soften(render, zoom)
         cam.teleport(pan, tilt, zoom)
         c0 = cv2.imdecode(np.frombuffer(cam.frame_jpeg(w, h, 0), np.uint8), cv2.IMREAD_COLOR)
+        if s.on_saved is not None:
+            s.on_saved(r, img, cam, pose, c0)
         r["psnr"] = {
             "soft": psnr_db(img, soft.astype(np.float32)),
             "render": psnr_db(img, render.astype(np.float32)),
@@ -129,6 +143,7 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:  # noqa: PLR0915 - on
     ages = [x for x in (age_ms(r) for r in steady) if not math.isnan(x)]
     full = [r for r in steady if (r["w"], r["h"]) == s.size]
     out: dict[str, Any] = {"name": s.name, "size": s.size_name}
+    out["link"] = f"{link_name(s.rate_kbit)} + 2 % loss" if s.rate_kbit else ""
     out["camera"] = f"{s.model}, " + (f"pans {s.pan_deg_s:.0f}°/s" if s.pan_speed else "still")
     out["fps"] = len(steady) / span
     pts = [r["pts"] for r in steady + lost if r.get("pts", -1) >= 0]
@@ -291,7 +306,14 @@ def link_name(link_kbit: int) -> str:
     return f"{link_kbit / 1000:g} Mbit/s"
 
 
-def print_table(results: list[dict[str, Any]], seconds: float, link_kbit: int) -> None:
+def print_table(
+    results: list[dict[str, Any]],
+    seconds: float,
+    link_kbit: int,
+    extra: tuple[tuple[str, str, str, str], ...] = (),
+) -> None:
+    """The sessions side by side; ``extra``: more rows (label, format, figure key, target) at the end; sessions on
+    links of their own (``Session.rate_kbit``) say which."""
     col = 22
 
     def row(label: str, f: str, key: str, target: str = "") -> None:
@@ -299,7 +321,11 @@ def print_table(results: list[dict[str, Any]], seconds: float, link_kbit: int) -
         print(f"{label:<50}{cells}" + (f"   target {target}" if target else ""))
 
     print(f"{'':<50}" + "".join(f"{r['name']:>{col}}" for r in results))
-    print(f"{link_name(link_kbit)}, 2 % loss each way, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
+    per_session = any(r.get("link") for r in results)
+    on = "each session's link" if per_session else f"{link_name(link_kbit)}, 2 % loss each way"
+    print(f"{on}, {seconds - SETTLE_S:.0f} s after the first {SETTLE_S:.0f} s:")
+    if per_session:
+        row("  link (each way)", "{}", "link")
     row("  camera", "{}", "camera")
     row("  pictures shown [fps]", "{:.1f}", "fps")
     row("  H.264 access units sent by the stream node [/s]", "{:.1f}", "sent_fps")
@@ -328,6 +354,8 @@ def print_table(results: list[dict[str, Any]], seconds: float, link_kbit: int) -
     row("stream node's budget (video/params) [kbit/s]", "{}", "budget")
     row("  last video/params settings", "{}", "settings")
     row("camera moved during the session", "{}", "pose_moved")
+    for label, f, key, target in extra:
+        row(label, f, key, target)
     for r in results:
         print(f"{r['name']}: picture sizes shown (count): {r['sizes']}" + (f"; {r['note']}" if r["note"] else ""))
 

@@ -5,15 +5,24 @@ Robot side (:func:`robot_sim`): the simulated camera (the 214, or the current-Ax
 which writes its references of the still view when it starts (``refdir``: ``render.npy`` its render,
 ``soft.npy`` that render through its optics and video chain, before sensor noise and compression, ``c0.jpg`` one
 compression-0 JPEG as it sends it), prints its pose every second and, when asked to pan, sweeps the head with
-``continuouspantiltmove`` (reversing every :data:`PAN_FLIP_S` s) and prints the pose each MJPEG picture was rendered
-at with the capture stamp the picture carries (``{"t": "shot", "cap": ns, "pose": [...]}``): a panning session's
-reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``).
+``continuouspantiltmove`` (reversing every :data:`PAN_FLIP_S` s of motion) and prints the pose each MJPEG picture was
+rendered at with the capture stamp the picture carries (``{"t": "shot", "cap": ns, "pose": [...]}``): a panning
+session's reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``).
 
 Operator side (:func:`viewer`): ``axis_link_monitor`` itself (its node class in-process, with its parameters, so the
 link carries one copy of the video) with every picture also recorded, or a plain subscription that sends no
 feedback. Every picture shown is a JSON line (receipt time, capture stamp, bytes, size, pts); every
 :data:`PSNR_EVERY`-th (every 2·:data:`PSNR_EVERY`-th above 704x576) carries its PSNR against the still references,
 or, when the camera pans, is saved (``refdir/pics/<capture ns>.npy``) for the reference rendered later.
+
+Acuity mode (``bench/bench_acuity_link.py``): the robot side first aims the head at a chart of the world
+(:func:`aim_at`: ``ptz.cgi`` pan/tilt/zoom through the simulator's own handler, zoomed as far as the whole chart fits,
+at most the tele limit; a panning head then sweeps across it, ``pan_flip_s`` of motion end to end), writes the chart's
+homography at that pose (``refdir/chart_h.npy``) and can print the stream node's H.264 bitrate target from
+``/diagnostics`` (read on the robot's side: nothing more crosses the link); the viewer keeps every
+``acuity_every``-th picture it shows (twice that above 704x576) as ``refdir/pics/<capture ns>.npy``, its line marked
+``"acuity": true``, for the chart to be read after the session (reading a 1920x1080 picture costs ~0.4 s of CPU:
+in the viewer's process it would delay the pictures it times and the monitor's feedback).
 """
 
 from __future__ import annotations
@@ -26,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-#: a panning session's head: ``continuouspantiltmove`` speed (% of the 214's 100°/s pan) and the sweep's half period
+#: a panning session's head: the seconds of ``continuouspantiltmove`` from one end of its sweep to the other
 PAN_FLIP_S = 5.0
 PSNR_EVERY = 3
 
@@ -34,7 +43,59 @@ PSNR_EVERY = 3
 # ---------------------------------------------------------------------------------------------------------
 # robot side
 # ---------------------------------------------------------------------------------------------------------
-def robot_sim(port: int, refdir: str, model: str = "axis214", pan_speed: int = 0) -> int:
+def aim_at(cam: Any, target_name: str, w: int, h: int) -> tuple[tuple[float, float, float], Any]:
+    """Aim the simulated head at the world target ``target_name``'s centre, zoomed as far as the whole target stays
+    in the ``w`` x ``h`` view (at most the tele limit; ``bench/acuity.py``'s pose, as ``bench/bench_acuity.py``), with
+    one ``ptz.cgi`` absolute move through the simulator's own handler; returns the pose once the head is there and
+    the chart's homography (chart mm -> picture px) at that pose."""
+    import acuity  # bench/acuity.py (bench/ is on sys.path)
+
+    renderer = cam.frames.renderer
+    target = renderer.scene.target(target_name)
+    pan, tilt = acuity.aim(cam.world, target.center)
+    zoom = round(acuity.fit_zoom(renderer, target, pan, tilt, w, h))  # VAPIX zoom is an integer
+    cam.state.handle([("pan", f"{pan:.5f}"), ("tilt", f"{tilt:.5f}"), ("zoom", str(zoom))])
+    deadline = time.monotonic() + 30.0
+    while cam.state.moving():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the head did not reach {target_name} in 30 s")
+        time.sleep(0.05)
+    pose = cam.frames.position()
+    return pose, acuity.pose_homography(renderer, target, *pose, w, h)
+
+
+def watch_diagnostics() -> None:
+    """Print the stream node's H.264 bitrate target (``/diagnostics``) as ``{"t": "diag", ...}`` lines, from a node
+    of this process spun on a daemon thread (on the robot's side: nothing more crosses the link)."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+
+    key = "h264 bitrate target [kbit/s]"
+    rclpy.init(args=["link_h264_diagnostics"])
+    node = rclpy.create_node("bench_diagnostics_watch")
+
+    def on_diag(m: Any) -> None:
+        for st in m.status:
+            for kv in st.values:
+                if kv.key == key:
+                    print(json.dumps({"t": "diag", "rx": time.time_ns(), "target_kbps": float(kv.value)}), flush=True)
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+
+
+def robot_sim(  # noqa: C901, PLR0912, PLR0915 - one process's set-up, step by step
+    port: int,
+    refdir: str,
+    model: str = "axis214",
+    pan_speed: int = 0,
+    aim: str = "",
+    pan_flip_s: float = 0.0,
+    diagnostics: bool = False,
+) -> int:
     import numpy as np
 
     from axis_ptz_ros2.sim import persona as personas
@@ -72,35 +133,53 @@ def robot_sim(port: int, refdir: str, model: str = "axis214", pan_speed: int = 0
         frames.frame_jpeg = frame_jpeg  # type: ignore[method-assign]  # bench instrumentation, this process only
         mjpeg_side.stamp = stamped  # type: ignore[assignment]
     cam.start()
-    pan, tilt, zoom = cam.frames.position()
     ref = Path(refdir)
     ref.mkdir(parents=True, exist_ok=True)
+    if aim:  # the chart's homography at the aimed pose: its pictures are read through it (bench_acuity_link.py)
+        np.save(ref / "chart_h.npy", aim_at(cam, aim, w, h)[1])
+    if diagnostics:
+        watch_diagnostics()
+    pan, tilt, zoom = cam.frames.position()
     render = np.ascontiguousarray(cam.frames.renderer.render(pan, tilt, zoom, w, h))
     np.save(ref / "render.npy", render)
     np.save(ref / "soft.npy", np.ascontiguousarray(cam.persona.picture.soften(render, zoom)))
     (ref / "c0.jpg").write_bytes(cam.frames.frame_jpeg(w, h, 0))
     print(json.dumps({"t": "ready", "pose": [pan, tilt, zoom], "size": [w, h]}), flush=True)
-    direction, flip_at = 1, time.monotonic() + PAN_FLIP_S / 2  # a sweep centred on the home view
+    # a sweep centred on the view it starts from, reversed where the head is PAN_FLIP_S (``pan_flip_s``) of motion
+    # from one end: by position, so late reversals (a loaded machine) never walk the sweep's centre away
+    flip_s = pan_flip_s or PAN_FLIP_S
+    half = pan_speed / 100.0 * cam.state.speeds.pan_deg_s * flip_s / 2  # degrees either side of the centre
+    direction = 1
     if pan_speed:
         cam.state.handle([("continuouspantiltmove", f"{pan_speed},0")])
+    tick = min(0.2, flip_s / 20) if pan_speed else 1.0  # a reversal overshoots by at most a tick's motion
+    next_pose = 0.0
     try:
         while True:
-            time.sleep(0.2 if pan_speed else 1.0)
-            if pan_speed and time.monotonic() >= flip_at:
-                direction, flip_at = -direction, flip_at + PAN_FLIP_S
+            time.sleep(tick)
+            if pan_speed and direction * math.remainder(cam.frames.position()[0] - pan, 360.0) >= half:
+                direction = -direction
                 cam.state.handle([("continuouspantiltmove", f"{direction * pan_speed},0")])
-            print(json.dumps({"t": "pose", "pose": list(cam.frames.position())}), flush=True)
+            if time.monotonic() >= next_pose:  # the pose about once a second
+                next_pose = time.monotonic() + 0.9
+                print(json.dumps({"t": "pose", "pose": list(cam.frames.position())}), flush=True)
     except KeyboardInterrupt:
         pass
     finally:
         cam.stop()
+        if diagnostics:
+            import rclpy
+
+            rclpy.try_shutdown()
     return 0
 
 
 # ---------------------------------------------------------------------------------------------------------
 # operator side
 # ---------------------------------------------------------------------------------------------------------
-def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False) -> int:  # noqa: C901, PLR0915
+def viewer(  # noqa: C901, PLR0915
+    codec: str, feedback: bool, refdir: str, save_pictures: bool = False, acuity_every: int = 0
+) -> int:
     import cv2
     import numpy as np
     import rclpy
@@ -119,7 +198,7 @@ def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False)
             "c0": c0.astype(np.float32),
         }
     pics = ref / "pics"
-    if save_pictures:
+    if save_pictures or acuity_every:
         pics.mkdir(parents=True, exist_ok=True)
     lock = threading.Lock()
     count = [0]
@@ -128,6 +207,9 @@ def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False)
         with lock:
             sys.stdout.write(json.dumps(rec, separators=(",", ":")) + "\n")
             sys.stdout.flush()
+
+    if acuity_every % PSNR_EVERY:  # the pictures kept are among those decoded for the PSNR
+        raise ValueError(f"acuity_every must be a multiple of {PSNR_EVERY}, not {acuity_every}")
 
     def psnr(img: Any) -> dict[str, float]:
         return {name: psnr_db(img, r) for name, r in refs.items()}
@@ -138,6 +220,9 @@ def viewer(codec: str, feedback: bool, refdir: str, save_pictures: bool = False)
 
     def shown(rx: int, capture_ns: int, nbytes: int, img: Any | None, w: int, h: int, pts: int = -1) -> None:
         rec: dict[str, Any] = {"t": "pic", "rx": rx, "cap": capture_ns, "bytes": nbytes, "w": w, "h": h, "pts": pts}
+        if acuity_every and img is not None and capture_ns and count[0] % (acuity_every * (2 if w > 704 else 1)) == 0:
+            np.save(pics / f"{capture_ns}.npy", img)  # the chart is read after the session, not here
+            rec["acuity"] = True
         if measured(w) and img is not None:
             if save_pictures and capture_ns:
                 np.save(pics / f"{capture_ns}.npy", img)
