@@ -316,13 +316,17 @@ def _read_until(proc: subprocess.Popen[bytes], pattern: bytes, timeout: float) -
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_axis_camera_stops_cleanly_within_2_s_and_ignores_a_second_signal(camera, sig):
+def test_axis_camera_stops_cleanly_within_2_s_and_ignores_a_second_signal(camera, sig, ros):
     exe = Path(sys.executable).parent / "axis_camera"
     argv = [str(exe), "--ros-args", "-r", f"__ns:=/spin_{sig.name.lower()}", "-p", f"port:={camera.port}"]
     with node_process(argv) as proc:
         out = _read_until(proc, b"PTZ node up", 30.0)
         assert b"PTZ node up" in out, out.decode(errors="replace")[-2000:]
-        time.sleep(0.5)  # let it get into its spin (not observable from outside): the signal must come while it spins
+        # a service answer comes from its executor: it spins (the signal must come while it does)
+        from axis_ptz_interfaces.srv import ListPresets  # noqa: PLC0415
+
+        client = ros.probe().create_client(ListPresets, f"/spin_{sig.name.lower()}/ptz/list_presets")
+        ros.query(client, ListPresets.Request(), timeout=10.0)
         t0 = time.monotonic()
         proc.send_signal(sig)
         proc.send_signal(sig)  # an impatient second signal (spinning: a flag; in clean-up: ignored) changes nothing
@@ -346,6 +350,13 @@ class Stuck(rclpy.node.Node):
     def __init__(self):
         super().__init__("stuck_clean_up")
         print("up", flush=True)
+        self._ticked = False
+        self.create_timer(0.05, self._tick)
+
+    def _tick(self):  # a timer callback runs: the executor spins
+        if not self._ticked:
+            self._ticked = True
+            print("spinning", flush=True)
 
     def destroy_node(self):
         threading.Event().wait()  # a clean-up that never returns (a join on a thread that never ends)
@@ -359,9 +370,8 @@ def test_a_clean_up_that_hangs_ends_the_process_with_every_threads_stack_in_the_
     """A hung clean-up must not hold the process until whoever stopped it kills it (with nothing in the log, as a
     CI run's web console did): past EXIT_WITHIN_S the process prints every thread's stack and exits 1."""
     with node_process([sys.executable, "-c", HANGING_CLEAN_UP, "--ros-args", "-r", "__ns:=/spin_hang"]) as proc:
-        out = _read_until(proc, b"up", 30.0)
-        assert b"up" in out, out.decode(errors="replace")[-2000:]
-        time.sleep(0.5)  # let it get into its spin (not observable from outside): the signal must come while it spins
+        out = _read_until(proc, b"spinning", 30.0)  # the signal must come while it spins
+        assert b"spinning" in out, out.decode(errors="replace")[-2000:]
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         code = proc.wait(10)
