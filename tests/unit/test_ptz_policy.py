@@ -4,6 +4,7 @@ checks and clamps, following orders (arrival, cancel, pre-emption), drive-safe c
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -167,7 +168,13 @@ def test_state_loop_stop_ends_the_wait_between_ticks_at_once() -> None:
     loop = StateLoop(poller, head.limits, got.append)
     loop.start()
     RosFreeWait.until(lambda: len(got) == 1, 5.0)
-    time.sleep(0.05)  # let the thread reach its 30 s wait between ticks (not observable from outside)
+
+    def in_its_wait() -> bool:  # the loop thread has reached its 30 s wait between ticks
+        assert loop._thread is not None  # noqa: SLF001 - which frame the thread is in is the point
+        frame = sys._current_frames().get(loop._thread.ident or 0)  # noqa: SLF001
+        return frame is not None and frame.f_code.co_name == "_sleep"
+
+    RosFreeWait.until(in_its_wait, 5.0)
     t0 = time.monotonic()
     loop.stop(5.0)
     assert not loop.alive
