@@ -162,10 +162,9 @@ def test_h264_decoded_on_the_canvas_shows_the_scene_and_follows_a_move(
     assert console.subscribed("ptz.h264")
     wait_for(lambda: not console.subscribed("ptz"), 10.0, "the MJPEG topic unsubscribed while H.264 shows")
     t0, n0 = time.monotonic(), pg.evaluate(FRAMES_JS)
-    time.sleep(3.0)  # a measuring window: the thing under test is the decoded frame rate over it
-    rate = (pg.evaluate(FRAMES_JS) - n0) / (time.monotonic() - t0)
-    print(f"decoded on the page: {rate:.1f} fps (stream asked for 10)")
-    assert rate >= 5.0
+    # at least 5 fps decoded: 15 frames within 3 s (a deadline here, not scaled)
+    n = wait_for(lambda: (k := pg.evaluate(FRAMES_JS)) >= n0 + 15 and k, 3.0, "15 frames decoded within 3 s", pg)
+    print(f"decoded on the page: {(n - n0) / (time.monotonic() - t0):.1f} fps (stream asked for 10)")
 
     # the canvas shows the scene: the simulator's own render of the same view
     psnr, corr = _matches_truth(pg, cam)
