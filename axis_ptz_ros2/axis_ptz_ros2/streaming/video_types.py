@@ -33,7 +33,7 @@ class VideoSettings:
     # default) never above it: on the thesis's link a probe past ~1000 kbit/s ended in a retransmission collapse
     # (README, weak link)
     h264_max_bitrate_kbps: int = 1000
-    h264_keyframe_interval: int = 30  # frames between periodic IDRs (at most one second's worth applies)
+    h264_keyframe_interval: int = 30  # frames per intra-refresh wave (between IDRs with refresh "idr"); <= 1 s
     h264_preset: str = "superfast"  # libx264 preset
 
     def budget_config(self) -> BudgetConfig:
