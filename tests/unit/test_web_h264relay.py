@@ -28,6 +28,7 @@ from axis_ptz_ros2.web.h264relay import (  # noqa: E402
 )
 from axis_ptz_ros2.web.relay import FrameSlot  # noqa: E402
 from axis_ptz_ros2.web.server import ConsoleServer  # noqa: E402
+from tests.support.waiting import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.unit
 
@@ -223,14 +224,12 @@ def test_http_stream_delivers_decodable_access_units(
     res = conn.getresponse()
     assert res.status == 200
     assert res.getheader("Content-Type") == CONTENT_TYPE
-    deadline = time.monotonic() + 5
-    while backend.h264.watchers == 0 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: backend.h264.watchers > 0, 5.0, scaled=False, raises=False)
 
     def feed() -> None:
         for i, f in enumerate(frames):
             backend.h264.publish(f.data, f.keyframe, 100.0 + i / 30)
-            time.sleep(0.005)
+            time.sleep(0.005)  # a paced stream (200 frames/s), not one burst into the client's bounded queue
 
     t = threading.Thread(target=feed)
     t.start()
@@ -250,9 +249,7 @@ def test_http_stream_delivers_decodable_access_units(
     assert _decode([g[0].data for g in got]) == len(frames)
     res.close()
     conn.close()
-    deadline = time.monotonic() + 5
-    while backend.h264.watchers and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: backend.h264.watchers == 0, 5.0, 0.05, scaled=False, raises=False)
     assert backend.h264.watchers == 0, "the client left: the relay stops watching (the node unsubscribes)"
 
 
