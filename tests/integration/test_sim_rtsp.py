@@ -21,6 +21,7 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.rtsp.server import RtspListener
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -381,9 +382,7 @@ def test_a_reboot_drops_the_rtsp_connection(cam: SimulatedCamera) -> None:
             r.pump(5)
     finally:
         r.close()
-    deadline = time.monotonic() + 10
-    while cam.rebooting and time.monotonic() < deadline:
-        time.sleep(0.1)
+    wait_until(lambda: not cam.rebooting, timeout=10, interval=0.1, raises=False)
 
 
 def test_cli_rtsp_port_defaults_to_8554_or_a_free_one_with_a_free_http_port() -> None:

@@ -22,6 +22,7 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.vapix.errors import AuthError, CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspControl, RtspStatusError, sprop_parameter_sets
 from axis_ptz_ros2.vapix.rtsp_client import RtspClient
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -143,9 +144,7 @@ def test_a_stall_is_a_timeout_a_drop_or_reboot_a_lost_connection(cam: SimulatedC
         cam.reboot(0.5)
         with pytest.raises(CameraUnreachable):
             _read_many(c, 100)
-    deadline = time.monotonic() + 10
-    while cam.rebooting and time.monotonic() < deadline:
-        time.sleep(0.1)
+    wait_until(lambda: not cam.rebooting, timeout=10, interval=0.1, raises=False)
 
 
 # ---- GStreamer's RTSP server ----------------------------------------------------------------------------------
@@ -239,8 +238,6 @@ def test_a_packet_dropping_reboot_is_a_read_timeout_then_the_camera_plays_again(
         with pytest.raises(CameraTimeout):  # the connection goes mute, not closed
             _read_many(c, 100)
         assert time.monotonic() - t0 < 2.0
-    deadline = time.monotonic() + 15
-    while cam.rebooting and time.monotonic() < deadline:
-        time.sleep(0.1)
+    wait_until(lambda: not cam.rebooting, timeout=15, interval=0.1, what="the camera back from its reboot")
     with _client(cam) as c:
         assert c.read().keyframe

@@ -25,6 +25,7 @@ from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
 from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
 from axis_ptz_ros2.vapix.rtsp_sdp import NoH264VideoError
+from tests.support.waiting import wait_until
 
 
 def test_media_request_follows_the_params_and_caps_the_gop_at_one_second() -> None:
@@ -86,7 +87,7 @@ class Session:
             self.closed.wait(timeout_s)
             raise self.then
         data = self.units.popleft()
-        time.sleep(0.02)
+        time.sleep(0.02)  # the scripted camera's frame pacing (50 access units a second)
         self.sent += 1
         return ClientAccessUnit(data, annexb.is_idr(data), 0, self.t0_ns + self.sent)
 
@@ -127,16 +128,11 @@ def test_plays_renews_reconnects_and_never_publishes_a_dead_sessions_frames() ->
     src.start()
     try:
         src.set_active(True)
-        deadline = time.monotonic() + 5
-        while not out and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: out, timeout=5, what="the first session's frames")
         stage.request_idr()  # a new subscriber: within the on-demand rate limit of the session's start, so held
-        while len(made) < 2 and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert len(made) >= 2
+        wait_until(lambda: len(made) >= 2, timeout=5, what="a reconnect after the stall")
         assert told == [True]
-        while len(out) < 45 and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: len(out) >= 45, timeout=5, raises=False)
     finally:
         src.stop()
     assert len(out) >= 45
@@ -166,10 +162,8 @@ def test_a_camera_without_h264_is_never_asked_for_rtsp() -> None:
     src.start()
     try:
         src.set_active(True)
-        deadline = time.monotonic() + 2
-        while not told and time.monotonic() < deadline:
-            time.sleep(0.01)
-        time.sleep(0.1)
+        wait_until(lambda: told, timeout=2, raises=False)
+        time.sleep(0.1)  # a window in which nothing may happen: no connect to a camera that said it has no H.264
     finally:
         src.stop()
     assert told == [False]
@@ -218,12 +212,9 @@ def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_i
         src.start()
         try:
             src.set_active(True)
-            deadline = time.monotonic() + 5
-            while len(out) < 5 and time.monotonic() < deadline:
-                time.sleep(0.01)
+            wait_until(lambda: len(out) >= 5, timeout=5, raises=False)
             bitrate[0] = 1100  # a small move: live where adjustable, ignored (no reconnect) where not
-            while len(out) < 15 and time.monotonic() < deadline:
-                time.sleep(0.01)
+            wait_until(lambda: len(out) >= 15, timeout=5, raises=False)
         finally:
             src.stop()
         playing = sessions[-1]
@@ -262,9 +253,7 @@ def test_a_camera_whose_rtsp_offers_no_h264_is_transcoded_not_asked_again() -> N
     src.start()
     try:
         src.set_active(True)
-        deadline = time.monotonic() + 5
-        while told != [True, False] and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: told == [True, False], timeout=5, raises=False)
     finally:
         src.stop()
     assert told == [True, False]

@@ -28,16 +28,9 @@ pytestmark = pytest.mark.unit
 
 TESTS = Path(__file__).resolve().parents[1]
 #: The most fixed sleeps tests/ may hold (issue 38: from 165 down to this; its target is 60).
-BUDGET = 73
-#: Files whose sleeps are counted but do not carry their reasons yet: other work was editing them when this test
-#: came (the RTSP tests). Take a file out once its sleeps say why.
-AWAITING_REASONS = frozenset(
-    {
-        "unit/test_rtsp_source.py",
-        "integration/test_vapix_rtsp_client.py",
-        "integration/test_sim_rtsp.py",
-    }
-)
+BUDGET = 63
+#: Files whose sleeps are counted but do not carry their reasons yet (none left: keep it empty).
+AWAITING_REASONS: frozenset[str] = frozenset()
 #: The wait helper whose polling pause is not a fixed sleep: (file relative to tests/, function name).
 WAIT_HELPER = ("support/waiting.py", "wait_until")
 _SCRIPT_SLEEP = re.compile(r"^\s*(?:await\s+)?(?:\w+\.)?sleep\(")
