@@ -81,13 +81,22 @@ def test_missing_playwright_fails_the_browser_tier_when_required(tmp_path: Path)
     assert "playwright" in out, out
 
 
+def _copy_conftest(tests: Path) -> None:
+    """The suite's conftest.py into ``tests``, with what it imports of ``tests/`` (the wait helper)."""
+    (tests / "support").mkdir(parents=True, exist_ok=True)
+    (tests / "__init__.py").write_text("")
+    (tests / "support" / "__init__.py").write_text("")
+    (tests / "support" / "waiting.py").write_text((ROOT / "tests" / "support" / "waiting.py").read_text())
+    (tests / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+
+
 def test_a_module_that_collects_nothing_fails_when_required(tmp_path: Path) -> None:
     """Generic rule for any tier (a new one too): each requested test module must yield a test; and the
     collection-skip rule holds for a module-level importorskip of any dependency."""
     tests = tmp_path / "tests"
     (tests / "tier_a").mkdir(parents=True)
     (tests / "tier_b").mkdir()
-    (tests / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+    _copy_conftest(tests)
     (tests / "tier_a" / "test_fine.py").write_text("def test_ok():\n    assert 1 + 1 == 2\n")
     (tests / "tier_a" / "test_empty.py").write_text("if False:\n    def test_never():\n        pass\n")
     (tests / "tier_b" / "test_needs.py").write_text(
@@ -112,7 +121,7 @@ def test_applies_to_deselects_cases_that_do_not_apply(tmp_path: Path) -> None:
     """A case that does not apply is not generated (deselected), so it neither skips nor fails the run."""
     tests = tmp_path / "tests"
     (tests / "tier_a").mkdir(parents=True)
-    (tests / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+    _copy_conftest(tests)
     (tests / "tier_a" / "test_p.py").write_text(
         "import pytest\n\n"
         "@pytest.fixture(params=['old', 'new'])\ndef cam(request):\n    return request.param\n\n"
