@@ -5,7 +5,7 @@ Rotations and rigid transforms (matrices, quaternions, :class:`~axis_ptz_ros2.tr
 :mod:`axis_ptz_ros2.transforms`, the zoom optics and intrinsics in :mod:`axis_ptz_ros2.optics`; both follow the
 conventions written here, and neither converts units or signs.
 
-Conventions (see README "Conventions" and geometry-and-calibration.md §1-§5):
+Conventions (see docs/conventions.md and geometry-and-calibration.md §1-§5):
 
 * ROS side (every topic, service and parameter): REP-103, radians. ``pan`` is yaw about the ``ptz_base`` +z
   axis, counter-clockwise positive (looking left); ``tilt`` is elevation, up positive.

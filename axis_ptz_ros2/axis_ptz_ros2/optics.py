@@ -1,7 +1,7 @@
 """Zoom optics and pinhole intrinsics (ROS-free, numpy only): zoom units ↔ magnification ↔ field of view, and
 the intrinsics of a stream at a zoom.
 
-Conventions (README "Conventions", geometry-and-calibration.md §3): VAPIX zoom units 1…9999 map to magnification
+Conventions (docs/conventions.md, geometry-and-calibration.md §3): VAPIX zoom units 1…9999 map to magnification
 ``m(z)`` through a per-camera monotone table (default: linear in magnification; each camera's HFOV and
 magnification from its ``config/<model>.yaml``); ``HFOV = 2·atan(tan(HFOV_w/2)/m)``. Pinhole for a W×H stream:
 ``fx = (W/2)/tan(HFOV/2)``, ``fy = fx·(H/W)·image_aspect`` (4:3 analogue image for the 214, so PAL 704×576 has

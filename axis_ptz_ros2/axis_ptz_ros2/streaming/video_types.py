@@ -31,7 +31,7 @@ class VideoSettings:
     h264_bitrate_kbps: int = 1000  # kbit/s: the encoder's bitrate without feedback (a budget lowers it)
     # kbit/s: the most a clear link (consumers' feedback) may raise it to; at or below h264_bitrate_kbps (the
     # default) never above it: on the thesis's link a probe past ~1000 kbit/s ended in a retransmission collapse
-    # (README, weak link)
+    # (docs/weak-link.md)
     h264_max_bitrate_kbps: int = 1000
     h264_keyframe_interval: int = 30  # frames per intra-refresh wave (between IDRs with refresh "idr"); <= 1 s
     h264_preset: str = "superfast"  # libx264 preset
