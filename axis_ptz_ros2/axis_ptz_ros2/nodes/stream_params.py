@@ -66,7 +66,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _live(
         "adapt_to_link",
-        "follow the consumers' video/feedback: a budget from what arrives at them (see README, Weak link)",
+        "follow the consumers' video/feedback: a budget from what arrives at them (see docs/weak-link.md)",
     ),
     _live(
         "link_release",
