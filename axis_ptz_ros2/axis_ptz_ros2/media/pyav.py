@@ -10,6 +10,7 @@ MJPEG. ``pyproject.toml`` declares the same minimum (a test compares the two).
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.metadata
 import re
@@ -54,12 +55,11 @@ def _metadata_version() -> str:
         return ""
 
 
-_checked: list[str | None] = []
-
-
 def require() -> None:
     """Raise :class:`PyAvUnavailableError` unless PyAV is installed and new enough (checked once per process)."""
-    if not _checked:
-        _checked.append(problem())
-    if _checked[0] is not None:
-        raise PyAvUnavailableError(_checked[0])
+    why = _problem_once()
+    if why is not None:
+        raise PyAvUnavailableError(why)
+
+
+_problem_once = functools.cache(problem)
