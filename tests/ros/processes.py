@@ -6,14 +6,17 @@ import contextlib
 import os
 import signal
 import subprocess
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 
 @contextlib.contextmanager
-def node_process(argv: Sequence[str]) -> Iterator[subprocess.Popen[bytes]]:
+def node_process(
+    argv: Sequence[str], env: Mapping[str, str] | None = None, cwd: str | os.PathLike[str] | None = None
+) -> Iterator[subprocess.Popen[bytes]]:
     """Run ``argv`` in its own session with DDS on loopback (ROS_DOMAIN_ID: this test session's, from
-    tests/conftest.py), output merged into ``stdout``; on exit SIGINT (a clean node stop), then SIGKILL."""
-    env = dict(os.environ)
+    tests/conftest.py; ``env``: the environment instead of this process's), output merged into ``stdout``; on exit
+    SIGINT (a clean node stop), then SIGKILL."""
+    env = dict(os.environ if env is None else env)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     proc = subprocess.Popen(
         list(argv),
@@ -21,6 +24,7 @@ def node_process(argv: Sequence[str]) -> Iterator[subprocess.Popen[bytes]]:
         stderr=subprocess.STDOUT,
         stdin=subprocess.DEVNULL,
         env=env,
+        cwd=cwd,
         start_new_session=True,
     )
     try:

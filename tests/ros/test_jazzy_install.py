@@ -33,6 +33,7 @@ import pytest
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS
+from tests.ros.processes import node_process
 from tests.support.harness import RosHarness
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(1500)]
@@ -223,43 +224,22 @@ def test_nodes_started_from_the_overlay_deliver_images(overlay: Path, ros: RosHa
     """``ros2 run axis_ptz_ros2 axis_camera_sim`` and ``ros2 run axis_ptz_ros2 axis_stream --ros-args
     --params-file <share>/config/axis_camera.params.yaml`` (what the launch file passes), from the overlay: images
     arrive over DDS at a subscriber in this process."""
-    env = overlay_env(overlay)
-    env["ROS_DOMAIN_ID"] = os.environ["ROS_DOMAIN_ID"]
+    env = overlay_env(overlay)  # this session's ROS_DOMAIN_ID included
     lib = overlay / "axis_ptz_ros2" / "lib" / "axis_ptz_ros2"
-    share = overlay / "axis_ptz_ros2" / "share" / "axis_ptz_ros2"
-    procs: list[subprocess.Popen[str]] = []
-    try:
-        sim = subprocess.Popen(
-            [str(lib / "axis_camera_sim"), "--port", "0"],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=overlay.parent,
-            start_new_session=True,
-        )  # fmt: skip
-        procs.append(sim)
+    params = overlay / "axis_ptz_ros2" / "share" / "axis_ptz_ros2" / "config" / "axis_camera.params.yaml"
+    with node_process([str(lib / "axis_camera_sim"), "--port", "0"], env=env, cwd=overlay.parent) as sim:
         assert sim.stdout is not None
-        line = sim.stdout.readline()  # "Simulated AXIS 214 PTZ at http://127.0.0.1:PORT/ ..."
+        line = sim.stdout.readline().decode()  # "Simulated AXIS 214 PTZ at http://127.0.0.1:PORT/ ..."
         m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
         assert m, line
-        stream = subprocess.Popen(
-            [str(lib / "axis_stream"), "--ros-args", "--params-file", str(share / "config" / "axis_camera.params.yaml"),
-             "-p", f"port:={m.group(1)}"],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=overlay.parent, start_new_session=True,
-        )  # fmt: skip
-        procs.append(stream)
-        probe = ros.probe()
-        got: list[int] = []
-        probe.create_subscription(
-            CompressedImage, "/image_raw/compressed", lambda msg: got.append(len(msg.data)), STREAM_QOS
-        )
-        ros.wait_for(lambda: len(got) >= 5 or stream.poll() is not None, timeout=90.0, period=0.05)
-        assert stream.poll() is None, f"axis_stream from the overlay exited with {stream.returncode}"
-        assert len(got) >= 5, got
-        assert min(got) > 1000, got
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(2)
-                try:
-                    p.wait(10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait(5)
+        argv = [str(lib / "axis_stream"), "--ros-args", "--params-file", str(params), "-p", f"port:={m.group(1)}"]
+        with node_process(argv, env=env, cwd=overlay.parent) as stream:
+            probe = ros.probe()
+            got: list[int] = []
+            probe.create_subscription(
+                CompressedImage, "/image_raw/compressed", lambda msg: got.append(len(msg.data)), STREAM_QOS
+            )
+            ros.wait_for(lambda: len(got) >= 5 or stream.poll() is not None, timeout=90.0, period=0.05)
+            assert stream.poll() is None, f"axis_stream from the overlay exited with {stream.returncode}"
+            assert len(got) >= 5, got
+            assert min(got) > 1000, got

@@ -73,7 +73,7 @@ class Output:
             return self.text
 
 
-@contextlib.contextmanager
+@contextlib.contextmanager  # not tests.ros.processes.node_process: the output is read to its end, shutdown included
 def started(exe: str, av_path: Path, *ros_args: str) -> Iterator[tuple[subprocess.Popen[bytes], Output]]:
     env = dict(os.environ, PYTHONPATH=f"{av_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
