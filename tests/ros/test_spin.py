@@ -382,3 +382,24 @@ def test_a_clean_up_that_hangs_ends_the_process_with_every_threads_stack_in_the_
     assert 1.5 <= took < 5.0, f"ended {took:.2f} s after the signal"
     assert "Timeout (0:00:01.500000)!" in text, text[-3000:]  # faulthandler's dump, every thread
     assert "in destroy_node" in text, text[-3000:]  # the stack names where it hung
+
+
+def test_a_stop_signal_raises_once_while_nodes_are_built_and_a_second_one_only_sets_the_flag():
+    """A CI run's ``axis_panorama_sim`` exited 1 with a ``_Stop`` traceback: the process group's SIGINT raised the
+    stop while the node was being built, and a second signal, landing as the clean-up started (before the handlers
+    were set to ignore), raised again inside it. Only the first signal may raise."""
+    from axis_ptz_ros2.nodes.runner import _Signals, _Stop  # noqa: PLC0415
+
+    signals = _Signals()
+    with pytest.raises(_Stop):
+        signals._on_signal(signal.SIGINT, None)
+    assert signals.stop.is_set()
+    assert signals.wake.is_set()
+    signals._on_signal(signal.SIGINT, None)  # the second: no raise, the flag stays set
+    signals._on_signal(signal.SIGTERM, None)
+    assert signals.stop.is_set()
+    spinning = _Signals()
+    spinning.spinning = True
+    spinning._on_signal(signal.SIGTERM, None)  # once spinning, never a raise (only the flag and the wake-up)
+    assert spinning.stop.is_set()
+    assert spinning.wake.is_set()

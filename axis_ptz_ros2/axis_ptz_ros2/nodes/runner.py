@@ -289,6 +289,9 @@ class _Signals:
         #: what the main thread waits on: a stop signal, a spin thread ending or the context shutting down
         self.wake = threading.Event()
         self.spinning = False
+        #: a stop was raised once already: a second signal (a group's SIGINT and the launcher's, or one that
+        #: lands while the first one's clean-up starts) only sets the flag, so it never cuts the clean-up short
+        self.raised = False
         self.previous: dict[int, Any] = {}
 
     def install(self) -> None:
@@ -299,7 +302,8 @@ class _Signals:
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.stop.set()
         self.wake.set()
-        if not self.spinning:
+        if not self.spinning and not self.raised:
+            self.raised = True
             raise _Stop(signum)
 
     def ignore(self) -> None:
@@ -341,12 +345,12 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     if not faulthandler.is_enabled():  # a crash in native code leaves every thread's Python stack in the log
         faulthandler.enable()
     signals = _Signals()
-    signals.install()
-    rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Node] = []
     spinners: list[Spinner] = []
     code = 0
     try:
+        signals.install()
+        rclpy.init(args=list(args) if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
         for f in factories:
             n = f()
             nodes.append(n)
