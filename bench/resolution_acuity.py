@@ -1,0 +1,123 @@
+"""Which picture size reads best at a given H.264 bitrate, by acuity rows (issue 39 item 6; offline, no link).
+
+The current-Axis persona (q6075: its camera model's softness and a new draw of sensor noise per picture) looks at
+the demo world's acuity chart (``acuity_35m``, zoomed as far as the whole chart stays in the 1920x1080 view, at most
+the tele limit: the camera's limit) at each size the camera lists in 16:9; each size is encoded by
+:class:`~axis_ptz_ros2.media.encoder.H264Encoder` (one ``--preset`` for every size: the camera has one encoder of
+its own, unknown to us), a VBV of the bitrate × the encoder's default buffer and IDRs every ``--gop`` pictures, at
+each bitrate, decoded, and read by ``bench/acuity.py`` with the chart's true homography at that size (so a small
+picture is not penalised for a marker it cannot find). Reported per (size, bitrate): rows read (median and worst
+of the pictures read after the first second), the rate reached and the **bits per pixel per picture**
+(bitrate / (w·h·fps)): the quantity the driver's size choice uses (``streaming/passthrough_size.py``).
+
+    .venv/bin/python bench/resolution_acuity.py [--kbps 300,500,800,1200,2000] [--fps 25] [--preset veryfast]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import acuity  # noqa: E402
+from report import inputs, row  # noqa: E402  (bench/report.py)
+
+from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
+from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
+from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+
+SIZES = ((1920, 1080), (1280, 720), (1024, 576), (800, 450), (640, 360), (480, 270))
+CHART = "acuity_35m"
+
+
+def _noisy(soft: np.ndarray, noise: tuple[np.ndarray, np.ndarray] | None, rng: np.random.Generator) -> np.ndarray:
+    if noise is None:
+        return soft
+    pos, neg = noise
+    h, w = soft.shape[:2]
+    dy = int(rng.integers(0, pos.shape[0] - h + 1))
+    dx = int(rng.integers(0, pos.shape[1] - w + 1))
+    return cv2.subtract(cv2.add(soft, pos[dy : dy + h, dx : dx + w]), neg[dy : dy + h, dx : dx + w])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--kbps", default="300,500,800,1200,2000", help="bitrates (kbit/s, comma-separated)")
+    ap.add_argument("--fps", type=int, default=25)
+    ap.add_argument("--seconds", type=float, default=3.0, help="coded seconds per setting (the first is not read)")
+    ap.add_argument("--gop", type=int, default=0, help="pictures between IDRs (0: one IDR a second)")
+    ap.add_argument("--preset", default="veryfast", help="x264 preset for every size")
+    args = ap.parse_args(argv)
+    inputs(
+        "bench/resolution_acuity.py",
+        "bench/acuity.py",
+        "bench/acuity_chart.py",
+        "axis_ptz_ros2/axis_ptz_ros2/media/encoder.py",
+        "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "config/sim_world.yaml",
+    )
+    fps, gop = args.fps, args.gop or args.fps
+    pictures = round(args.seconds * fps)
+    cam = SimulatedCamera(host="127.0.0.1", port=0, model="q6075", rtsp_port=None)  # not started: its pictures
+    renderer = cam.renderer
+    model = cam.persona.picture
+    target = renderer.scene.target(CHART)
+    pan, tilt = acuity.aim(renderer.world, target.center)
+    zoom = acuity.fit_zoom(renderer, target, pan, tilt, *SIZES[0])
+    distance = float(np.linalg.norm(target.center - renderer.camera_pose(pan, tilt).t))
+    print(f"current-Axis persona (q6075), {CHART} at {distance:.1f} m, zoom {zoom:.0f}; {fps} fps, x264 {args.preset}, "
+          f"IDR every {gop}; rows read median/worst of every 5th picture after the first second")  # fmt: skip
+    rng = np.random.default_rng(1)
+    views = {}
+    for w, h in SIZES:
+        views[(w, h)] = (
+            model.soften(renderer.render(pan, tilt, zoom, w, h), zoom),
+            model.noise_field(w, h) if model.noisy else None,
+            acuity.pose_homography(renderer, target, pan, tilt, zoom, w, h),
+        )
+        raw = acuity.score(_noisy(views[(w, h)][0], views[(w, h)][1], rng), views[(w, h)][2])
+        print(f"  {w}x{h} uncoded: {raw.rows_read} rows")
+    best: dict[int, tuple[int, int, int]] = {}  # bitrate -> (median rows, worst rows, pixels) of the best size
+    sizes_at: dict[int, str] = {}
+    for kbps in (int(k) for k in args.kbps.split(",")):
+        for w, h in SIZES:
+            soft, noise, H = views[(w, h)]
+            t0 = time.perf_counter()
+            enc = H264Encoder(
+                EncoderConfig(w, h, fps=fps, bitrate_bps=kbps * 1000, keyframe_interval=gop, preset=args.preset)
+            )
+            dec = H264Decoder()
+            rows: list[int] = []
+            bits = 0
+            for k in range(pictures):
+                out = enc.encode_bgr(np.ascontiguousarray(_noisy(soft, noise, rng), dtype=np.uint8), 1)
+                pic = dec.decode(out.data)
+                if k < fps:
+                    continue
+                bits += len(out.data) * 8
+                if pic is not None and k % 5 == 0:
+                    rows.append(acuity.score(pic.image, H).rows_read)
+            rate = bits * fps / max(1, pictures - fps) / 1e3
+            bpp = kbps * 1000 / (w * h * fps)
+            med, worst = int(np.median(rows)), min(rows)
+            print(
+                f"{kbps:5d} kbit/s {w:4d}x{h:<4d}: {rate:5.0f} kbit/s reached, {bpp:.3f} bit/px, rows read "
+                f"median {med:2d} worst {worst:2d} ({time.perf_counter() - t0:.1f} s)"
+            )
+            if kbps not in best or (med, worst, w * h) > best[kbps]:
+                best[kbps] = (med, worst, w * h)
+                sizes_at[kbps] = f"{w}x{h}"
+        m, worst, _ = best[kbps]
+        print(f"  best at {kbps} kbit/s: {sizes_at[kbps]} ({m} rows median, {worst} worst)")
+        what = f"best {sizes_at[kbps]}: {m} rows (worst {worst})"
+        row(f"resolution by acuity, q6075 persona, {CHART}, {kbps} kbit/s", what)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
