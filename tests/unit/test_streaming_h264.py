@@ -24,12 +24,12 @@ from axis_ptz_ros2.streaming.h264 import (
     H264Settings,
     H264Stage,
     StagedFrame,
-    camera_stamp_ns,
 )
 from axis_ptz_ros2.streaming.h264_policy import IDR_LINK_S, h264_target_kbps, h264_vbv_kbit
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 from axis_ptz_ros2.streaming.video_types import VideoSettings
+from tests.support.stamps import sim_stamp
 
 pytestmark = pytest.mark.unit
 
@@ -113,10 +113,14 @@ def test_frames_pts_headers_and_stamps(jpegs: list[bytes]) -> None:
         if f.keyframe:  # SPS/PPS in front of every IDR
             assert types.index(NalType.SPS) < types.index(NalType.PPS) < types.index(NalType.IDR)
         assert (f.width, f.height) == (704, 576)
-    # header stamp: the arrival time; SEI: the camera's own time from its JPEG comment
-    assert out[3].stamp_ns == 1_000_000_000 + 3 * 100_000_000
-    assert annexb.extract_capture_stamp(out[3].data) == camera_stamp_ns(jpegs[3])
-    assert camera_stamp_ns(jpegs[3]) is not None
+    # header stamp and SEI: the JPEG's arrival, as image_raw/compressed is stamped; the simulator's comment in the
+    # JPEG (its own send time) is not read (issue 38: no simulator knowledge in the product)
+    for i, f in enumerate(out):
+        assert f.stamp_ns == 1_000_000_000 + i * 100_000_000
+        assert annexb.extract_capture_stamp(f.data) == f.stamp_ns
+    comment = sim_stamp(jpegs[3])
+    assert comment is not None
+    assert comment[1] != out[3].stamp_ns
 
 
 def test_keyframe_interval_is_at_most_one_second(jpegs: list[bytes]) -> None:

@@ -10,10 +10,10 @@ through one shared :class:`~axis_ptz_ros2.media.transcoder.MjpegTranscoder` (cam
 * one Annex B access unit per call, SPS/PPS in front of every IDR (prepended from the last ones seen when a
   source does not repeat them in-band, as real Axis cameras do not);
 * ``pts``: a unique, strictly increasing counter of the stage (it survives encoder re-opens and source changes);
-* the frame's capture time (the stamp of the JPEG or access unit it came from), also in the access unit's
-  capture-stamp SEI (:func:`~axis_ptz_ros2.media.annexb.insert_capture_stamp`). For a JPEG that carries the
-  simulated camera's own send time (its ``axsim … t=<ns>`` comment) the SEI holds that time, so a subscriber
-  measures a frame's age from the camera; otherwise the arrival time.
+* the frame's capture time: the stamp of the JPEG or access unit it came from (a JPEG's is its arrival on this
+  host, as ``image_raw/compressed`` is stamped; an RTSP access unit's is the one its source gives), the same in
+  the message's header and, for a transcoded frame, in the access unit's capture-stamp SEI
+  (:func:`~axis_ptz_ros2.media.annexb.insert_capture_stamp`). Nothing in a JPEG's bytes is read for it.
 
 Policy that lives here:
 
@@ -70,7 +70,6 @@ from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL, PRESETS
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
-from axis_ptz_ros2.streaming.jpeg import jpeg_comments
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
 
 if TYPE_CHECKING:  # the transcoder needs PyAV, imported only when a stage first transcodes (media.pyav)
@@ -183,20 +182,6 @@ class Transcoder(Protocol):
     def request_idr(self) -> None:
         """The next frame out is an IDR."""
         ...
-
-
-def camera_stamp_ns(jpeg: bytes) -> int | None:
-    """The camera's own time of a JPEG when it carries one (the simulated camera's ``axsim … t=<ns>`` comment)."""
-    for text in jpeg_comments(jpeg):
-        if not text.startswith(b"axsim"):
-            continue
-        for tok in text.split():
-            if tok.startswith(b"t="):
-                try:
-                    return int(tok[2:])
-                except ValueError:
-                    return None
-    return None
 
 
 class H264Stage:
@@ -326,9 +311,8 @@ class H264Stage:
             except PyAvUnavailableError as err:  # said once; the MJPEG topics are not affected
                 self._unavailable = unavailable = f"H.264 transcoding is off (MJPEG goes on): {err}"
             else:
-                stamp = camera_stamp_ns(jpeg) or arrival_ns
                 try:
-                    frame = transcoder.transcode(jpeg, stamp)
+                    frame = transcoder.transcode(jpeg, arrival_ns)  # stamped as the JPEG: its arrival
                     want = self._opened_with
                     if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
                         transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
