@@ -420,3 +420,26 @@ def test_the_pyav_reader_of_the_driver_plays_the_simulator(cam: SimulatedCamera)
     ]
     assert offsets
     assert max(offsets) < 100_000_000
+
+
+def test_a_camera_clock_offset_moves_the_sender_reports_not_the_sei_stamp(cam: SimulatedCamera) -> None:
+    """``clock_offset_s`` (a camera without NTP): the sender reports' wall clock is 30 s behind the capture time
+    in the SEI, which stays the true time."""
+    cam.set_faults(clock_offset_s=-30.0)
+    offsets = []
+    try:
+        with av.open(_url(cam), options=OPEN, timeout=(8, 5)) as c:
+            stream = c.streams.video[0]
+            deadline = time.monotonic() + 10
+            for pkt in c.demux(stream):
+                if time.monotonic() > deadline or len(offsets) >= 10:
+                    break
+                stamp = annexb.extract_capture_stamp(bytes(pkt)) if pkt.size else None
+                if stamp is None or pkt.pts is None or not c.start_time_realtime:
+                    continue
+                capture_s = c.start_time_realtime / 1e6 + float(pkt.pts * stream.time_base)
+                offsets.append(capture_s - stamp / 1e9)
+    finally:
+        cam.set_faults(clock_offset_s=0.0)
+    assert len(offsets) >= 5, "no RTCP sender report or no capture-time SEI"
+    assert max(abs(o + 30.0) for o in offsets) < 0.1, offsets

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import socket
 import threading
 import time
@@ -36,12 +37,16 @@ class FaultConfig:
     latency_ms: float = 0.0  #: added delay before every reply; video frames are delivered this late
     bandwidth_kbps: float = 0.0  #: cap on the bytes sent per connection (kbit/s), 0 = unlimited
     no_imagesize: bool = False  #: imagesize.cgi answers 404, as on firmware without it (issue 23)
+    clock_offset_s: float = 0.0  #: the camera's wall clock minus the true time (a camera without NTP): the RTCP
+    #: sender reports carry it, the RTP clock does not move; the SEI capture stamp stays the true time (ground truth)
 
     def __post_init__(self) -> None:
         """Validate."""
         for name in ("drop_after_frames", "stall_after_frames", "truncate_every", "wrong_length_every"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0")
+        if not math.isfinite(self.clock_offset_s):
+            raise ValueError("clock_offset_s must be finite (seconds)")
         if self.stall_seconds < 0 or self.latency_ms < 0 or self.bandwidth_kbps < 0:
             raise ValueError("stall_seconds, latency_ms and bandwidth_kbps must be >= 0")
         if self.http_error not in (0, *HTTP_ERROR_CODES):

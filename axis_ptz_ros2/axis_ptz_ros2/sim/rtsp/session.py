@@ -9,7 +9,9 @@ clock tied to the wall clock (RTP time = ``rtp0 + (t − t0)·90 kHz``), so the 
 first frame, then every second) give a client the capture time of every frame.
 
 Faults (:class:`~axis_ptz_ros2.sim.faults.FaultConfig`, per session): ``stall_after_frames`` /
-``stall_seconds`` (nothing sent, connection open), ``drop_after_frames`` (the connection closes mid access unit).
+``stall_seconds`` (nothing sent, connection open), ``drop_after_frames`` (the connection closes mid access unit),
+``clock_offset_s`` (the sender reports' wall clock is off the true time by that much, as a camera without NTP; the RTP
+clock and the SEI capture stamp are unchanged).
 """
 
 from __future__ import annotations
@@ -228,5 +230,6 @@ class RtspSession:
 
     def _send_sr(self, now_ns: int) -> None:
         p = self.packetizer
-        rtcp = sender_report(p.ssrc, now_ns, self.rtp_time(now_ns), p.packets, p.octets, f"axis-sim@{self.cam.mac}")
+        wall_ns = now_ns + round(self.cam.faults.clock_offset_s * 1e9)  # the camera's clock (clock_offset_s fault)
+        rtcp = sender_report(p.ssrc, wall_ns, self.rtp_time(now_ns), p.packets, p.octets, f"axis-sim@{self.cam.mac}")
         self._send(interleave(self.channels[1], rtcp))
