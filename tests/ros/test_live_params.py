@@ -305,7 +305,8 @@ def test_visualizer_param_get_tells_what_it_uses(ros: RosHarness) -> None:
 def test_republish_lazy_is_live(ros: RosHarness) -> None:
     from axis_ptz_ros2.nodes.republish import RepublishNode
 
-    node = ros.add(RepublishNode(context=ros.context))
+    # input jpeg: no stream node here to announce its codec (auto would wait for video/params)
+    node = ros.add(RepublishNode(context=ros.context, parameter_overrides=[Parameter("input", value="jpeg")]))
     remote = Remote(ros, ros.probe(), node)
     assert not node.subscribed  # lazy, nobody watches image_raw
     assert not remote.set(input="h264").successful  # read-only

@@ -10,6 +10,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
+from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage, Image  # noqa: E402
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
@@ -19,7 +20,8 @@ pytestmark = pytest.mark.ros
 
 
 def test_decodes_only_while_someone_subscribes(ros):
-    node = ros.add(RepublishNode(context=ros.context))
+    # input jpeg: the topic is published by this test, not by a stream node announcing its codec on video/params
+    node = ros.add(RepublishNode(context=ros.context, parameter_overrides=[Parameter("input", value="jpeg")]))
     probe = ros.probe()
     pub = probe.create_publisher(CompressedImage, "image_raw/compressed", STREAM_QOS)
     time.sleep(0.5)  # a window for a (wrong) subscription with nobody on image_raw: the thing under test is none

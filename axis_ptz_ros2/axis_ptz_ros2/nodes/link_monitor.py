@@ -10,7 +10,14 @@ viewer on the operator's station). Run it on the *operator's* host only where no
 subscriber across the link receives its own copy of each frame, so a second subscriber doubles the video's
 share of the link.
 
-With ``codec`` = ``h264`` the monitor subscribes to the H.264 topic (``h264_topic``, ``FFMPEGPacket``) instead and
+What it watches follows the stream by default (``codec`` = ``auto``): the codec the stream node announces on
+``video/params`` (latched), switched when it changes, the old subscription dropped (:mod:`axis_ptz_ros2.codec_follow`);
+until ``video/params`` is heard it subscribes to no video and sends no report (a report of nothing received would
+read as a dead link). A monitor left at MJPEG while the robot streams H.264 pulled the transcoder's compression-0
+JPEGs at full rate over a 2 Mbit/s link and starved the H.264 viewer (issue 40). ``codec`` = ``mjpeg`` or ``h264``
+fixes the choice.
+
+Watching H.264, the monitor subscribes to the H.264 topic (``h264_topic``, ``FFMPEGPacket``) and
 decodes what arrives (:class:`~axis_ptz_ros2.streaming.receiver.AccessUnitReceiver`): access units lost on the way
 or that do not decode are reported as ``decode_errors``, and the stream node answers them with an IDR. The first
 access unit that cannot be shown after a picture was is reported at once, not at the next period: every access
@@ -25,10 +32,13 @@ from typing import Any
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import CompressedImage
 
 from axis_ptz_interfaces.msg import LinkFeedback
+from axis_ptz_ros2.codec_follow import CHOICES
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
+from axis_ptz_ros2.nodes.codec_follow import follow_stream_codec, no_events
 from axis_ptz_ros2.nodes.common import (
     FEEDBACK_QOS,
     STREAM_QOS,
@@ -49,12 +59,15 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topic", "image_raw/compressed", "JPEG topic whose reception is reported", read_only=True),
     ParamSpec(
         "codec",
-        "mjpeg",
-        "which video to watch: image_topic (JPEG) or h264_topic",
-        choices=("mjpeg", "h264"),
+        "auto",
+        "which video to watch: auto = the codec the stream node announces on video/params (switched when it "
+        "changes; no video subscribed until it is heard), mjpeg = image_topic, h264 = h264_topic",
+        choices=CHOICES,
         read_only=True,
     ),
-    ParamSpec("h264_topic", "image_raw/ffmpeg", "H.264 topic (FFMPEGPacket) watched with codec h264", read_only=True),
+    ParamSpec(
+        "h264_topic", "image_raw/ffmpeg", "H.264 topic (FFMPEGPacket) watched when the codec is h264", read_only=True
+    ),
     ParamSpec("feedback_topic", "video/feedback", "where the reports go (the stream node listens)", read_only=True),
     ParamSpec("period", 0.5, "report period", "s", float_range=(0.05, 10.0), read_only=True),
     ParamSpec("window", 2.0, "measurement window of a report", "s", float_range=(0.1, 30.0), read_only=True),
@@ -91,6 +104,20 @@ class FeedbackPublisher:
         self.lost = 0  # access units that never arrived, a running count (H.264: set by the node)
         self._last_urgent = -1e18
         self.reports = 0
+
+    @property
+    def topic(self) -> str:
+        """The (resolved) video topic whose reception is reported (the reports' ``header.frame_id``)."""
+        return self._topic
+
+    def retarget(self, image_topic: str) -> None:
+        """The node watches another topic now (another codec): reports stop until :meth:`watch` and start afresh
+        (frames, bytes and losses of the old codec say nothing of the new one)."""
+        self.stop()
+        self._topic = self._node.resolve_topic_name(image_topic)
+        self._meter = ReceiveMeter(self._meter.consumer, self._meter.window_s)
+        self._errors.clear()
+        self.lost = 0  # a restarted running count (the stream node takes it as such)
 
     def watch(self) -> None:
         """The node subscribed to the video: report from now on (idempotent)."""
@@ -155,26 +182,61 @@ class FeedbackPublisher:
 
 
 class LinkMonitorNode(Node):
-    """``axis_link_monitor``: subscribe to the image topic and report its reception on ``video/feedback``."""
+    """``axis_link_monitor``: subscribe to the stream's video and report its reception on ``video/feedback``."""
 
     def __init__(self, **kwargs: Any) -> None:
         """``kwargs`` go to :class:`rclpy.node.Node`."""
         super().__init__("axis_link_monitor", **kwargs)
         p = LiveParams(self, PARAMS).params  # all read-only: read once
-        h264 = p["codec"] == "h264"
-        topic = str(p["h264_topic"] if h264 else p["image_topic"])
-        self.feedback = FeedbackPublisher(self, topic, str(p["feedback_topic"]), float(p["period"]), float(p["window"]))
+        self._topics = {"mjpeg": str(p["image_topic"]), "h264": str(p["h264_topic"])}
         self.receiver: AccessUnitReceiver | None = None
+        self._sub: Subscription | None = None
         self._showing = False  # the last access unit was shown (a loss after it is reported at once)
         self._gaps = PtsGaps()  # without a decoder (no usable PyAV): losses from the pts, no decode errors
-        if h264:
+        self._pyav_told = False
+        self.codec = ""  # the video watched now: mjpeg, h264, '' = none (waiting for video/params)
+        self.follower = follow_stream_codec(self, str(p["codec"]), self._watch)
+        first = self.follower.codec or "mjpeg"
+        self.feedback = FeedbackPublisher(
+            self, self._topics[first], str(p["feedback_topic"]), float(p["period"]), float(p["window"])
+        )
+        self._watch(self.follower.codec)
+
+    @property
+    def subscribed_topic(self) -> str:
+        """The resolved video topic subscribed now ('' = none)."""
+        return self._sub.topic_name if self._sub is not None else ""
+
+    def _watch(self, codec: str) -> None:
+        """Subscribe to the video of ``codec`` ('' = none), dropping the old subscription first."""
+        if codec == self.codec and (self._sub is not None or not codec):
+            return
+        if self._sub is not None:
+            self.destroy_subscription(self._sub)
+            self._sub = None
+        self.codec = codec
+        self.receiver = None
+        self._showing = False
+        self._gaps = PtsGaps()
+        if not codec:
+            self.feedback.stop()
+            return
+        topic = self._topics[codec]
+        self.feedback.retarget(topic)
+        if codec == "h264":
             try:
-                self.receiver = AccessUnitReceiver()
+                self.receiver = AccessUnitReceiver()  # a new subscription waits for an IDR
             except PyAvUnavailableError as err:
-                self.get_logger().error(f"{err}; reporting what arrives and what is lost, not what decodes")
-            self.create_subscription(FFMPEGPacket, topic, self._on_packet, VIDEO_QOS)
+                if not self._pyav_told:
+                    self._pyav_told = True
+                    self.get_logger().error(f"{err}; reporting what arrives and what is lost, not what decodes")
+            self._sub = self.create_subscription(
+                FFMPEGPacket, topic, self._on_packet, VIDEO_QOS, event_callbacks=no_events()
+            )
         else:
-            self.create_subscription(CompressedImage, topic, self.feedback.add, STREAM_QOS)
+            self._sub = self.create_subscription(
+                CompressedImage, topic, self.feedback.add, STREAM_QOS, event_callbacks=no_events()
+            )
         self.feedback.watch()
 
     def _on_packet(self, msg: FFMPEGPacket) -> None:
