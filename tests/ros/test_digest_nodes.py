@@ -138,7 +138,7 @@ def test_stream_node_digest_reconnects_after_expiry_and_restart(ros: RosHarness,
         ros.wait_for(lambda: frames_since(0.0) >= 5, 15.0)
         # Each drop forces a new video request with credentials; the nonces expire in between.
         for _ in range(3):
-            time.sleep(lifetime + 0.3)  # let the nonce lifetime pass (the simulator's real clock): expiry is under test
+            cam.authenticator.age_nonces(lifetime + 0.3)  # the simulator's clock past the lifetime: expiry
             cam.set_faults(drop_after_frames=2)
             t = time.monotonic()
             ros.wait_for(lambda t=t: frames_since(t) >= 2, 10.0)

@@ -342,10 +342,8 @@ def test_center_on_rendered_target_at_steep_tilt(
 
 def test_area_zoom_fills_the_view_with_the_box(ros: Any, node: PtzNode, cam: SimulatedCamera) -> None:
     cam.teleport(-12.0 + 3.0, 38.0, 1)
-    ros.wait_for(
-        lambda: node.poller.latest is not None and abs(node.poller.latest.reading.tilt - math.radians(38)) < 1e-3
-    )
-    time.sleep(0.1)  # let the state loop hand this sample to the commander too (not observable from outside)
+    # the pose the area zoom starts from is the commander's reading (what ptz/area_zoom reads): wait for it there
+    ros.wait_for(lambda: (r := node.commander.reading()) is not None and abs(r.tilt - math.radians(38)) < 1e-3)
     box = find_marker(snapshot(cam), UP_COLOR)
     assert box is not None
     probe = ros.probe()

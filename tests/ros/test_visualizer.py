@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-import time
+from collections.abc import Callable
+from typing import Any
 
 import cv2
 import numpy as np
@@ -73,14 +74,29 @@ class _Rig:
         return cv2.imdecode(np.frombuffer(bytes(self.out[-1].data), np.uint8), cv2.IMREAD_COLOR)
 
 
+def timer_fired(timer: Any, times: int) -> Callable[[], bool]:
+    """A condition: ``timer`` has been called ``times`` times since this was made (each call restarts its
+    ``time_since_last_call``; polled far more often than its period, so none is missed)."""
+    state = {"last": timer.time_since_last_call(), "fired": 0}
+
+    def fired() -> bool:
+        since = timer.time_since_last_call()
+        if since < state["last"]:
+            state["fired"] += 1
+        state["last"] = since
+        return state["fired"] >= times
+
+    return fired
+
+
 def test_red_mark_lands_on_the_ptz_look_point_seen_from_the_panorama(ros):
     rig = _Rig(ros, [Parameter("depth", value=5.0)])
     pano = _grey_panorama()
     rig.pano_pub.publish(pano)
     rig.state_pub.publish(_state(0.6, 0.2))
     rig.ros.wait_for(lambda: rig.node._state is not None and rig.node._pano_msg is not None)
-    # Nobody subscribed yet: nothing is encoded.
-    time.sleep(0.6)  # three timer periods at 5 Hz
+    # Nobody subscribed yet: nothing is encoded, however many times its timer fires.
+    rig.ros.wait_for(timer_fired(rig.node._timer, 4), timeout=10)  # noqa: SLF001 - the node's one timer
     assert rig.node.frames_published == 0
     rig.subscribe()
     for pan, tilt, depth in ((0.6, 0.2, 5.0), (-1.2, -0.3, 5.0), (0.6, 0.2, 1.0)):
