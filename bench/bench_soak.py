@@ -24,11 +24,11 @@ import time
 import urllib.request
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pipelines import BIN, ROOT, Proc, start_sim  # noqa: E402
 from report import inputs, row  # noqa: E402
+from soak_common import SAMPLE_EVERY_S, rss_slope_mb_per_h, sample  # noqa: E402
+from soak_common import ranges as half_ranges  # noqa: E402
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
@@ -44,17 +44,6 @@ from axis_ptz_ros2.nodes.common import COMMAND_QOS, STREAM_QOS  # noqa: E402
 WATCHDOG_S = 1.0  # the stream node's default stall watchdog (stall_timeout)
 
 
-def fd_count(pid: int) -> int:
-    return len(os.listdir(f"/proc/{pid}/fd"))
-
-
-def status(pid: int, key: str) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(key + ":"):
-            return int(line.split()[1])
-    return -1
-
-
 def main() -> int:  # noqa: PLR0915 - one scripted hour
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=60.0)
@@ -66,6 +55,7 @@ def main() -> int:  # noqa: PLR0915 - one scripted hour
         "axis_ptz_ros2/axis_ptz_ros2/ptz",
         "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "bench/bench_soak.py",
+        "bench/soak_common.py",
     )
 
     sim, port = start_sim()
@@ -135,14 +125,13 @@ def main() -> int:  # noqa: PLR0915 - one scripted hour
             urllib.request.urlopen(f"http://127.0.0.1:{port}/sim/control?reboot=20", timeout=5).read()  # noqa: S310 - loopback
             next_reboot += 60.0 * args.reboot_every_min
         if now >= next_sample:
-            pid = driver.p.pid
-            samples.append((now - start, driver.rss_mb(), status(pid, "Threads"), fd_count(pid)))
+            samples.append(sample(driver.p.pid, now - start))
             if len(samples) % 30 == 1:
                 t, rss, th, fds = samples[-1]
                 print(
                     f"t={t / 60:5.1f} min  RSS {rss:6.1f} MB  threads {th}  fds {fds}  frames {frames[0]}", flush=True
                 )
-            next_sample += 10.0
+            next_sample += SAMPLE_EVERY_S
         time.sleep(0.05)
 
     alive = driver.p.poll() is None
@@ -151,12 +140,8 @@ def main() -> int:  # noqa: PLR0915 - one scripted hour
     rclpy.try_shutdown()
     sim.stop()
 
-    half = [s for s in samples if s[0] >= samples[-1][0] / 2.0]
-    t = np.array([s[0] for s in half]) / 3600.0
-    rss = np.array([s[1] for s in half])
-    slope = float(np.polyfit(t, rss, 1)[0]) if len(half) >= 3 else math.nan
-    threads = (min(s[2] for s in half), max(s[2] for s in half))
-    fds = (min(s[3] for s in half), max(s[3] for s in half))
+    slope = rss_slope_mb_per_h(samples)
+    threads, fds = half_ranges(samples)
     with lock:
         oldest = max(ages) if ages else math.inf
         count = frames[0]
