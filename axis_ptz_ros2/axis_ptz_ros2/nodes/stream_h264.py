@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
@@ -24,9 +25,11 @@ from axis_ptz_ros2.nodes.common import VIDEO_QOS, publisher, stamp_from_ns
 from axis_ptz_ros2.streaming import ReaderConfig
 from axis_ptz_ros2.streaming.controller import VideoController
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING, H264Stage, StagedFrame
+from axis_ptz_ros2.streaming.passthrough_size import PassthroughSize
 from axis_ptz_ros2.streaming.rtsp_source import passthrough_source
 from axis_ptz_ros2.streaming.status import LogLine, h264_diagnostic_values, h264_mode_line
 from axis_ptz_ros2.vapix import VapixClient
+from axis_ptz_ros2.vapix.models import VideoParams
 
 
 class H264Output:
@@ -69,16 +72,31 @@ class H264Output:
         )
         self._told_mode = False
         self.transcode = False  # codec h264 from a camera that cannot stream it: the MJPEG feeds the stage
+        self.size = PassthroughSize()  # the size the camera's own H.264 is asked for with resolution auto
         self.rtsp = passthrough_source(  # codec h264 from a camera that streams it: its own H.264, as it is
             client,
             rtsp_port,
-            lambda: video.current,
+            self._passthrough_params,
             video.h264_settings,
             self.stage,
             reader_config,
             on_supported=lambda _ok: on_supported(),
             on_event=lambda text: log(LogLine("warn", text, "rtsp", 10.0)),
         )
+
+    def _passthrough_params(self) -> VideoParams:
+        """What the camera's own H.264 is asked for (RTSP thread, every access unit): the parameters in effect; with
+        ``resolution`` auto and the camera's sizes known, at the size that reads best at the bitrate in force
+        (:class:`~axis_ptz_ros2.streaming.passthrough_size.PassthroughSize`), shown on ``video/params``."""
+        video = self._video
+        params = video.current
+        if str(video.settings.resolution).strip() or not video.resolutions_known:
+            video.set_stream_size(None)  # an explicit size is asked for as it is
+            return params
+        kbps = video.h264_settings().bitrate_kbps
+        size = self.size.update(time.monotonic(), video.state().resolutions, params.resolution, params.fps, kbps)
+        video.set_stream_size(size)
+        return replace(params, resolution=size)
 
     @property
     def publishers(self) -> tuple[Publisher, Publisher]:

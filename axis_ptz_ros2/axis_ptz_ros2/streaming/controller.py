@@ -32,6 +32,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Collection
+from dataclasses import replace
 
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
@@ -113,6 +114,7 @@ class VideoController:
         self._budget_check = -1e18
         self._decision: Decision | None = None
         self._announced_kbps = self._budget_kbps()  # the budget in force at the last announcement
+        self._stream_size: Resolution | None = None  # h264: the size a camera's own H.264 is asked for (auto)
 
     # -- reading -------------------------------------------------------------------------------------------
     @property
@@ -129,6 +131,18 @@ class VideoController:
     def resolutions_known(self) -> bool:
         """Whether the camera's own resolution list has been learned."""
         return self._resolutions is not None
+
+    def set_stream_size(self, size: Resolution | None) -> None:
+        """h264 mode: the size a camera's own H.264 is asked for when it is not :attr:`current`'s (resolution auto,
+        passed through: :mod:`.passthrough_size` picks it by the bitrate), shown in :meth:`state` (``video/params``,
+        diagnostics); None = :attr:`current`'s. A change is announced, as ``bandwidth_budget`` after the first."""
+        with self._lock:
+            if size == self._stream_size:
+                return
+            if size is not None and self._stream_size is not None:
+                self._source = "bandwidth_budget"
+            self._stream_size = size
+        self._announce()
 
     @property
     def h264(self) -> bool:
@@ -157,9 +171,10 @@ class VideoController:
         """A consistent snapshot of what is in effect."""
         with self._lock:
             known = sorted(self._known_resolutions(), key=lambda r: (r.width * r.height, r.width))
+            size = self._stream_size if self.h264 else None
             adapt = bool(self._settings.adapt_to_link)
             return VideoState(
-                params=self._current,
+                params=self._current if size is None else replace(self._current, resolution=size),
                 source=self._source,
                 budget_kbps=self._budget_kbps(),
                 level=self._budget.level,
