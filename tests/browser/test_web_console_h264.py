@@ -12,6 +12,7 @@ import math
 import time
 from collections.abc import Iterator
 from typing import Any
+from urllib.parse import urlparse
 
 import cv2
 import numpy as np
@@ -284,4 +285,50 @@ def test_a_second_page_starts_from_the_current_gop(
     second.close()
     wait_for(lambda: console.state()["h264"]["watchers"] == 1, 10.0, "the second page's stream ended")
     assert console.subscribed("ptz.h264")
+    assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def _set_stream_codec(ros: RosHarness, codec: str) -> None:
+    """The stream node's ``codec`` parameter at runtime, as ``ros2 param set`` does it."""
+    from rcl_interfaces.srv import SetParameters
+
+    probe = ros.probe(f"codec_setter_{codec}")
+    client = probe.create_client(SetParameters, f"{NS}/axis_stream/set_parameters")
+    req = SetParameters.Request()
+    req.parameters = [Parameter("codec", value=codec).to_parameter_msg()]
+    results = ros.call(client, req).results
+    assert all(r.successful for r in results), [r.reason for r in results]
+
+
+def test_the_page_opens_only_the_streams_codec_and_follows_a_change(
+    suite: tuple[SimulatedCamera, WebConsole], page: tuple[Any, list[str]], ros: RosHarness
+) -> None:
+    """Issue 40: while the stream is H.264 the page never asks for the MJPEG route (the console would subscribe
+    to the transcoder's compression-0 JPEGs beside the H.264), not even while the H.264 starts; the stream's
+    codec set to MJPEG at runtime switches the page to MJPEG and the console drops its H.264 subscription, and
+    back."""
+    _cam, console = suite
+    pg, errors = page
+    asked: list[str] = []
+    pg.on("request", lambda r: asked.append(urlparse(r.url).path))
+    pg.goto(console.url, wait_until="domcontentloaded")
+    wait_for(lambda: console.state()["h264"]["codec"], 30.0, "a key frame relayed by the console")
+    codec = console.state()["h264"]["codec"]
+    if not _supported(pg, codec)["supported"]:
+        pytest.skip(f"this chromium cannot decode {codec} with WebCodecs")
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= 5, 30.0, "5 frames decoded on the canvas", pg)
+    assert console.state()["ptz_video"]["codec"] == "h264"
+    assert "/video/ptz.mjpg" not in asked, asked
+    assert not console.subscribed("ptz")
+
+    _set_stream_codec(ros, "mjpeg")
+    wait_js(pg, "!document.getElementById('ptz').hidden && document.getElementById('ptz').naturalWidth > 0", 30)
+    wait_for(lambda: not console.subscribed("ptz.h264"), 10.0, "the H.264 topic unsubscribed")
+    assert pg.evaluate("document.getElementById('ptz-canvas').hidden")
+    assert console.subscribed("ptz")
+
+    _set_stream_codec(ros, "h264")
+    n0 = pg.evaluate(FRAMES_JS)
+    wait_for(lambda: pg.evaluate(FRAMES_JS) >= n0 + 5, 30.0, "H.264 frames on the canvas again", pg)
+    wait_for(lambda: not console.subscribed("ptz"), 10.0, "the MJPEG topic unsubscribed again")
     assert not errors, f"JavaScript errors on the page: {errors}"

@@ -244,7 +244,7 @@ def test_h264_access_units_lost_on_the_way_count_in_the_consoles_feedback(ros: A
     from axis_ptz_interfaces.msg import LinkFeedback
     from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, VIDEO_QOS
 
-    console = make_console(ros)
+    console = make_console(ros, codec="h264")  # no stream node here to announce its codec on video/params
     probe = ros.probe()
     pub = probe.create_publisher(FFMPEGPacket, "image_raw/ffmpeg", VIDEO_QOS)
     reports: list[LinkFeedback] = []

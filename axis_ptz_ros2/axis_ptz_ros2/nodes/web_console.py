@@ -14,9 +14,14 @@ PTZ video and the panorama, and turns the operator's mouse and keys into the PTZ
   (:mod:`~axis_ptz_ros2.nodes.web_still`).
 
 Video is passed through (JPEG bytes of the CompressedImage, never re-encoded); each image topic is subscribed
-only while an HTTP client watches it. The PTZ video also goes out as H.264 (``h264_topic``, FFMPEGPacket access
-units, relayed by :mod:`axis_ptz_ros2.web.h264relay`) for pages that decode it with WebCodecs; the page falls
-back to MJPEG when no H.264 is published or the browser cannot decode it, and reports what it decodes
+only while an HTTP client watches it. The PTZ video goes out as MJPEG (``ptz_topic``) or as H.264 (``h264_topic``,
+FFMPEGPacket access units, relayed by :mod:`axis_ptz_ros2.web.h264relay`) for pages that decode it with WebCodecs.
+Which of the two follows the stream by default (``codec`` = ``auto``): the codec the stream node announces on
+``video/params`` (:mod:`axis_ptz_ros2.codec_follow`). The page asks for that one only (``ptz_video`` in its state):
+H.264 while the stream is H.264 — no MJPEG subscription pulling the transcoder's compression-0 JPEGs over the link
+beside it (issue 40) — MJPEG while it is MJPEG (``/video/ptz.h264`` is then refused with the reason and the H.264
+subscription dropped), nothing until ``video/params`` is heard. The page falls back to MJPEG only when it cannot
+decode the H.264 (no WebCodecs, a codec the browser refuses, ``?video=mjpeg``), and reports what it decodes
 (``/api/decoder``): its decode errors go out on ``video/feedback`` (the stream node answers with an IDR).
 Service calls are asynchronous with a timeout, so neither the HTTP threads nor the executor ever block for good.
 
@@ -36,7 +41,9 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
 
 from axis_ptz_interfaces.msg import PtzState, VideoParams
+from axis_ptz_ros2.codec_follow import AUTO, CHOICES
 from axis_ptz_ros2.config import RobotConfig, load_robot
+from axis_ptz_ros2.nodes.codec_follow import follow_stream_codec
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS, ParamSpec
 from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.runner import run_nodes
@@ -102,6 +109,15 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "h264_topic", "image_raw/ffmpeg", "PTZ camera H.264 topic (FFMPEGPacket; '' = MJPEG only)", read_only=True
     ),  # fmt: skip
+    ParamSpec(
+        "codec",
+        AUTO,
+        "PTZ video the page is given: auto = the codec the stream node announces on video/params (switched when it "
+        "changes; no PTZ video until it is heard), mjpeg = ptz_topic only, h264 = h264_topic (MJPEG only for "
+        "browsers that cannot decode it)",
+        choices=CHOICES,
+        read_only=True,
+    ),
     ParamSpec("panorama_topic", "panorama/image_raw/compressed", "panorama JPEG topic", read_only=True),
     ParamSpec(
         "overlay_topic",
@@ -153,6 +169,13 @@ class WebConsole(Node):
         if self.p["overlay_topic"]:
             topics["overlay"] = self.p["overlay_topic"]
         self._streams = ConsoleStreams(self, topics, str(self.p["h264_topic"]), self.model, g)
+        codec = str(self.p["codec"])
+        if not self.p["h264_topic"]:
+            if codec == "h264":
+                raise ValueError("invalid start-up parameter: codec=h264 needs an h264_topic ('' = MJPEG only)")
+            codec = "mjpeg"  # no H.264 topic: MJPEG whatever the stream announces
+        self.codec = follow_stream_codec(self, codec, self._streams.set_codec, callback_group=g)
+        self._streams.set_codec(self.codec.codec)
         self._commands = ConsoleCommands(
             self, self.model, self.robot, lambda: self._live.params, self._streams.feedback, lambda: self._cloud
         )
@@ -228,13 +251,22 @@ class WebConsole(Node):
         return self._still.slot if name == "still" else self._streams.slots.get(name)
 
     def h264_slot(self, name: str) -> H264Slot | None:
-        """ConsoleBackend: the H.264 relay (PTZ only, and only with an ``h264_topic``)."""
-        return self._streams.h264 if name == "ptz" and self.p["h264_topic"] else None
+        """ConsoleBackend: the H.264 relay (PTZ only, and only while the PTZ video is H.264)."""
+        return self._streams.h264 if name == "ptz" and self._streams.codec == "h264" else None
+
+    def h264_refusal(self, name: str) -> str:
+        """Why :meth:`h264_slot` gives no relay for ``name`` (the 404's text)."""
+        if name != "ptz":
+            return "only the PTZ video goes out as H.264"
+        if self._streams.codec == "mjpeg":
+            return f"the PTZ video is MJPEG ({self.codec.describe()}): /video/ptz.mjpg"
+        return self.codec.describe()
 
     def state(self) -> dict[str, Any]:
         """ConsoleBackend: everything the page shows."""
         extra = {
             **self._streams.state(),
+            "ptz_video": {"codec": self._streams.codec, "choice": self.codec.choice, "text": self.codec.describe()},
             "mouse": {k: self.p[k] for k in ("shift_zoom_delta", "ctrl_zoom_delta", "look_zoom")},
             "services": {**self._commands.services_ready(), "still": self._still.ready()},
             "still": self._still.state(),

@@ -3,9 +3,10 @@
 Each stream (``ptz``, ``panorama``, ``overlay``) has a :class:`~axis_ptz_ros2.web.relay.FrameSlot` the HTTP
 threads read from; the PTZ video also has an :class:`~axis_ptz_ros2.web.h264relay.H264Slot` (FFMPEGPacket access
 units for WebCodecs pages). When the first client comes or the last goes, the HTTP thread triggers a guard
-condition and the executor subscribes to exactly the topics someone watches. What arrives of the PTZ video is
-metered for the page and reported on ``video/feedback`` (the stream node's link adaptation; decode errors ask
-it for an IDR). ROS glue: the slots and the page's meter are ``web/``'s.
+condition and the executor subscribes to exactly the topics someone watches; the H.264 topic only while the PTZ
+video is H.264 (:meth:`ConsoleStreams.set_codec`: the console's ``codec``, by default the stream's). What arrives
+of the PTZ video is metered for the page and reported on ``video/feedback`` (the stream node's link adaptation;
+decode errors ask it for an IDR). ROS glue: the slots and the page's meter are ``web/``'s.
 """
 
 from __future__ import annotations
@@ -55,11 +56,18 @@ class ConsoleStreams:
         self.h264 = H264Slot("ptz", self._on_watchers, lambda: self.feedback.add_errors(1))
         self._pts_gaps = PtsGaps()  # access units lost on the way (pts gaps): video/feedback's ``lost``
         self._h264_sub: Any = None
+        self.codec = ""  # the PTZ video's codec: mjpeg, h264, '' = none yet (set_codec)
         self._group = MutuallyExclusiveCallbackGroup()
         self._reconcile_gc = node.create_guard_condition(self._reconcile, self._group)
 
     def _on_watchers(self, name: str, count: int) -> None:
         """HTTP thread: the first client came or the last went; let the executor (un)subscribe."""
+        self._reconcile_gc.trigger()
+
+    def set_codec(self, codec: str) -> None:
+        """The PTZ video is ``codec`` now (``mjpeg``, ``h264``, ``''`` = none yet): the H.264 subscription follows
+        (dropped unless ``h264``); any thread."""
+        self.codec = codec
         self._reconcile_gc.trigger()
 
     def _subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos: Any) -> Any:  # noqa: ANN401
@@ -86,7 +94,7 @@ class ConsoleStreams:
                 )
             elif have and not want:
                 self._node.destroy_subscription(self._image_subs.pop(name))
-        want = self.h264.watchers > 0 and bool(self._h264_topic)
+        want = self.h264.watchers > 0 and bool(self._h264_topic) and self.codec == "h264"
         if want and self._h264_sub is None:
             self._pts_gaps = PtsGaps()  # a new subscription joins the stream where it is: no gap to count
             self._h264_sub = self._subscribe(FFMPEGPacket, self._h264_topic, self._on_h264, VIDEO_QOS)
@@ -135,7 +143,7 @@ class ConsoleStreams:
         return {
             "stream": {"watchers": {n: sl.watchers for n, sl in self.slots.items()}},
             "h264": {
-                "available": bool(self._h264_topic) and self._published(self._h264_topic),
+                "available": self.codec == "h264" and bool(self._h264_topic) and self._published(self._h264_topic),
                 "subscribed": self._h264_sub is not None,
                 "watchers": self.h264.watchers,
                 **self.h264.counters(),

@@ -402,7 +402,9 @@ class ConsoleHandler(BaseHTTPRequestHandler):
         get = getattr(self.server.backend, "h264_slot", None)
         slot = get(name) if get is not None and name in STREAMS else None
         if slot is None:
-            self._error(HTTPStatus.NOT_FOUND, f"no H.264 stream {name!r}")
+            why = getattr(self.server.backend, "h264_refusal", None)
+            reason = why(name) if why is not None and name in STREAMS else ""
+            self._error(HTTPStatus.NOT_FOUND, f"no H.264 stream {name!r}" + (f": {reason}" if reason else ""))
             return
         self._stream_head(H264_CONTENT_TYPE, sndbuf=256 * 1024)
         with slot.watch() as client:

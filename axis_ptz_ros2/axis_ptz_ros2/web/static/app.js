@@ -104,9 +104,12 @@ function updatePanoramaSource() {
 // ------------------------------------------------------------------------------------------------------
 // PTZ video as H.264, decoded here with WebCodecs and drawn on a canvas (web/h264relay.py has the wire
 // format: per access unit u32 length, u8 flags (1 key, 2 catch-up), u8 codec length, f64 capture stamp,
-// codec string, Annex B bytes). Falls back to the MJPEG <img> when the console has no H.264, the browser has
-// no WebCodecs or cannot decode the stream's codec; after a decode error the decoder is recreated and waits
-// for the next key frame (the console passes the error on as link feedback: the stream node sends an IDR).
+// codec string, Annex B bytes). Which video the page opens is the console's decision (state.ptz_video.codec,
+// by default the stream's own codec from video/params): H.264 only while the stream is H.264 (an MJPEG request
+// beside it would pull the transcoder's compression-0 JPEGs over the link), MJPEG while it is MJPEG, nothing
+// before the console knows. Falls back to the MJPEG <img> when the browser has no WebCodecs or cannot decode
+// the stream's codec; after a decode error the decoder is recreated and waits for the next key frame (the
+// console passes the error on as link feedback: the stream node sends an IDR).
 // ------------------------------------------------------------------------------------------------------
 const h264 = {
   running: false, // a /video/ptz.h264 request is open
@@ -120,6 +123,7 @@ const h264 = {
   note: "",
   retryAt: 0,
   lastStamp: 0,
+  abort: null, // the AbortController of the open /video/ptz.h264 request
 };
 const H264_ALLOWED = new URLSearchParams(location.search).get("video") !== "mjpeg";
 
@@ -234,7 +238,12 @@ async function runH264() {
   h264.codec = "";
   let ok = true;
   try {
-    const res = await fetch("/video/ptz.h264", { credentials: "same-origin", cache: "no-store" });
+    h264.abort = new AbortController();
+    const res = await fetch("/video/ptz.h264", {
+      credentials: "same-origin",
+      cache: "no-store",
+      signal: h264.abort.signal,
+    });
     if (!res.ok || !res.body) throw new Error(`HTTP ${res.status}`);
     const reader = res.body.getReader();
     let buf = new Uint8Array(0);
@@ -266,6 +275,7 @@ async function runH264() {
   }
   closeDecoder();
   h264.running = false;
+  h264.abort = null;
   h264.retryAt = Date.now() + (ok ? 2000 : 30000);
   showMjpeg(h264.note);
 }
@@ -273,18 +283,36 @@ async function runH264() {
 function maybeStartH264(s) {
   if (h264.running || Date.now() < h264.retryAt) return;
   if (!H264_ALLOWED) {
-    h264.note = "MJPEG asked for (?video=mjpeg)";
+    showMjpeg("MJPEG asked for (?video=mjpeg)");
     return;
   }
   if (typeof VideoDecoder === "undefined" || typeof EncodedVideoChunk === "undefined") {
-    h264.note = "no WebCodecs in this browser: MJPEG";
+    showMjpeg("no WebCodecs in this browser: MJPEG");
     return;
   }
   if (!s.h264 || !s.h264.available) {
-    h264.note = "no H.264 published: MJPEG";
+    showMjpeg("no H.264 published: MJPEG");
     return;
   }
   runH264();
+}
+
+// The PTZ video the console gives (ptz_video.codec: "h264", "mjpeg", or "" while it waits for the stream's
+// video/params): only that one is opened, and a change of the stream's codec switches the page over.
+function choosePtzVideo(s) {
+  const pv = s.ptz_video || { codec: "mjpeg", text: "" };
+  if (pv.codec === "h264") {
+    maybeStartH264(s);
+  } else if (pv.codec === "mjpeg") {
+    if (h264.running && h264.abort) {
+      h264.note = "the stream is MJPEG now";
+      h264.abort.abort(); // runH264 ends and shows the MJPEG <img>
+    } else if (!h264.running) {
+      showMjpeg("the stream is MJPEG");
+    }
+  } else if (!h264.showing && !$("ptz").getAttribute("src")) {
+    h264.note = pv.text || "waiting for the stream's codec";
+  }
 }
 
 async function reportDecoder() {
@@ -488,10 +516,15 @@ function render(s) {
   $("r-fps").textContent = fmt(Number.isFinite(fps) ? fps : null, 1, " fps");
   $("r-kbps").textContent = fmt(Number.isFinite(kbps) ? kbps : null, 0, " kbit/s");
   $("r-latency").textContent = fmt(st.latency_ms, 0, " ms");
+  const mjpegOpen = Boolean($("ptz").getAttribute("src"));
   $("r-decoder").textContent = h264.showing
     ? `H.264 ${h264.codec} · ${h264.decoded} frames, ${h264.errors} errors`
-    : `MJPEG${h264.note ? ` (${h264.note})` : ""}`;
-  maybeStartH264(s);
+    : mjpegOpen
+      ? `MJPEG${h264.note ? ` (${h264.note})` : ""}`
+      : h264.running
+        ? "H.264: waiting for a key frame"
+        : h264.note || "no video yet";
+  choosePtzVideo(s);
   const v = s.video;
   if (v) {
     $("r-video").textContent = v.text;  // worded by the console (web/view.py video_text), as its answers are
