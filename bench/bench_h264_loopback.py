@@ -8,9 +8,11 @@ picture at a subscriber, passed through and transcoded.
     that arrived are printed beside it. Single windows one after the other: indicative (README, "How CPU is
     compared").
 (b) Age: camera capture -> picture decoded at a subscriber in another process (``AccessUnitReceiver``, the link
-    monitor's decoder), from the capture time the access unit carries in its SEI: the q6075's own H.264 passed
-    through at 1920x1080 @ 30, and the simulated 214's MJPEG transcoded by the stream node at 704x576 @ 30 (its
-    capture time is the 214's send time, from the JPEG comment). Target: median <= 50 ms each.
+    monitor's decoder): the q6075's own H.264 passed through at 1920x1080 @ 30, from the capture time the
+    simulator puts in its SEI, and the simulated 214's MJPEG transcoded by the stream node at 704x576 @ 30, from
+    the 214's send time of the picture's JPEG (the stream node stamps it with the JPEG's arrival, so the bench
+    runs a 214 that logs every send, ``bench/capture_match.py``, and finds each picture's JPEG among them).
+    Target: median <= 50 ms each.
 
     .venv/bin/python bench/bench_h264_loopback.py [--seconds 10]
 """
@@ -19,14 +21,18 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
+from capture_match import lag_summary, match, sends_of
 from pipelines import BIN, Proc, Subscriber, pct, wait_until
 from report import inputs, row
 
 SIZE = "1920x1080"
+HERE = Path(__file__).resolve().parent
 
 
 class Counter:
@@ -42,13 +48,14 @@ class Counter:
 
 
 class Ages:
-    """Decodes every access unit (the subscriber's executor thread); the age of each picture shown (ms)."""
+    """Decodes every access unit (the subscriber's executor thread); each picture shown: pts, the capture stamp in
+    its SEI, when it was decoded (ns)."""
 
     def __init__(self) -> None:
         from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
         self.receiver = AccessUnitReceiver()
-        self.ages: list[float] = []
+        self.shown: list[tuple[int, int, int]] = []
         self.measuring = False
         self._lock = threading.Lock()
 
@@ -57,7 +64,19 @@ class Ages:
         now = time.time_ns()
         if picture is not None and picture.capture_ns and self.measuring:
             with self._lock:
-                self.ages.append((now - picture.capture_ns) / 1e6)
+                self.shown.append((int(msg.pts), picture.capture_ns, now))
+
+    def ages(self, sends: list[int] | None = None) -> list[float]:
+        """Each picture's age (ms): from the capture stamp in its SEI, or with ``sends`` (the simulator's log)
+        from the send time of its JPEG (:func:`capture_match.match`), printed with the match's lag."""
+        with self._lock:
+            shown = list(self.shown)
+        if sends is None:
+            return [(rx - cap) / 1e6 for _pts, cap, rx in shown]
+        pairs = [(pts, cap) for pts, cap, _rx in shown]
+        matched = match(pairs, sends)
+        print(f"(b) transcoded: {lag_summary(pairs, matched)}")
+        return [(rx - m) / 1e6 for (_pts, _cap, rx), m in zip(shown, matched, strict=True) if m is not None]
 
     @property
     def count(self) -> int:
@@ -101,7 +120,7 @@ def cpu_window(sub: Subscriber, codec: str, port: int, rtsp_port: int, sim: Proc
         node.stop()
 
 
-def age_window(sub: Subscriber, node: Proc, ns: str, seconds: float) -> list[float]:
+def age_window(sub: Subscriber, node: Proc, ns: str, seconds: float) -> Ages:
     from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 
     from axis_ptz_ros2.nodes.common import VIDEO_QOS
@@ -115,7 +134,7 @@ def age_window(sub: Subscriber, node: Proc, ns: str, seconds: float) -> list[flo
         ages.measuring = True
         time.sleep(seconds)
         ages.measuring = False
-        return list(ages.ages)
+        return ages
     finally:
         sub.node.destroy_subscription(handle)
         node.stop()
@@ -128,6 +147,7 @@ def main() -> int:
     inputs(
         "bench/bench_h264_loopback.py",
         "bench/pipelines.py",
+        "bench/capture_match.py",
         "axis_ptz_ros2/axis_ptz_ros2/streaming",
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
@@ -150,14 +170,15 @@ def main() -> int:
             node = start_node(
                 "/age_pass", port, f"rtsp_port:={rtsp_port}", "codec:=h264", f"resolution:={SIZE}", "compression:=30"
             )
-            ages["pass-through 1920x1080"] = age_window(sub, node, "/age_pass", args.seconds)
+            ages["pass-through 1920x1080"] = age_window(sub, node, "/age_pass", args.seconds).ages()
         finally:
             sim.stop()
-        sim = Proc([str(BIN / "axis_camera_sim"), "--port", "0"], "sim(214)")
+        sim = Proc([sys.executable, str(HERE / "capture_match.py"), "--sim"], "sim(214, sends logged)")
         try:
             port = int(sim.wait_line(r"http://127\.0\.0\.1:(\d+)/").group(1))
             node = start_node("/age_tc", port, "codec:=h264", "resolution:=704x576")
-            ages["transcoded 704x576"] = age_window(sub, node, "/age_tc", args.seconds)
+            shown = age_window(sub, node, "/age_tc", args.seconds)
+            ages["transcoded 704x576"] = shown.ages(sends_of(sim.lines))
         finally:
             sim.stop()
     finally:

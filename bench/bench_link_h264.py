@@ -24,13 +24,15 @@ The operator's measuring viewer is this script's ``--viewer`` mode: with feedbac
 (its node class, run in-process with its parameters, so the link carries one copy of the video as in the README's
 setup) with every frame also recorded; without feedback a plain subscription (``STREAM_QOS``) that decodes.
 
-Per frame: age = decode (H.264) or receipt (MJPEG) time at the operator - the simulated camera's capture stamp (the
-JPEG comment ``tests/support/stamps.py`` reads; for H.264 the capture-time SEI ``media/annexb`` extracts: the
-stream node carries the JPEG's stamp into it); both namespaces share one clock. kbit/s = bytes received per second
-(every message, decodable or not); picture size; fps = pictures shown per second; PSNR (every 3rd picture, every
-6th above 704x576, the mean squared error over B, G, R) of the shown picture, upscaled to the size asked when
-smaller, against three references the simulated camera makes of the same still view when it starts (panning: of
-each picture's pose, afterwards; ``bench/link_h264_roles.py``):
+Per frame: age = decode (H.264) or receipt (MJPEG) time at the operator - the simulated camera's send time (the
+JPEG comment ``tests/support/stamps.py`` reads; the stream node stamps a transcoded picture with its JPEG's arrival
+on the robot, in the capture-time SEI ``media/annexb`` extracts, and the bench finds that JPEG's send time in the
+simulator's log of every JPEG it sent: ``bench/capture_match.py``, the match's lag printed per session; the
+current-Axis persona's H.264 carries its capture time in its own SEI); both namespaces share one clock. kbit/s =
+bytes received per second (every message, decodable or not); picture size; fps = pictures shown per second; PSNR
+(every 3rd picture, every 6th above 704x576, the mean squared error over B, G, R) of the shown picture, upscaled
+to the size asked when smaller, against three references the simulated camera makes of the same still view when
+it starts (panning: of each picture's pose, afterwards; ``bench/link_h264_roles.py``):
 
   soft    its view through its optics and video chain (``CameraModel.soften`` of ``PtzRenderer.render``) before
           sensor noise and compression -- the issue's reference; the targets are held to this one
@@ -67,6 +69,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from bench_link import LineReader  # noqa: E402  (the two-host bench's helpers)
+from capture_match import rekey  # noqa: E402
 from link_h264_results import (  # noqa: E402
     CAMERA_FPS,
     FPS_TARGET,
@@ -95,6 +98,7 @@ INPUTS = (
     "bench/bench_link_h264.py",
     "bench/link_h264_roles.py",
     "bench/link_h264_results.py",
+    "bench/capture_match.py",
     "axis_ptz_ros2/axis_ptz_ros2/streaming",
     "axis_ptz_ros2/axis_ptz_ros2/media",
     "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
@@ -231,12 +235,15 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
         s.params = reader.of("params")
         s.pose_moved = any(p["pose"] != pose0 for p in sim_log.of("pose"))
         s.shots = {r["cap"]: r["pose"] for r in sim_log.of("shot")}
+        sends = [r["cap"] for r in sim_log.of("sent")]
         poses = [(r["cap"], r["pose"][0]) for r in sim_log.of("shot") if s.t0 <= r["cap"] < end]
         if s.pan_speed and len(poses) > 1:  # the head's pan speed: distance travelled over the measurement
             travel = sum(abs(b[1] - a[1]) for a, b in zip(poses, poses[1:], strict=False))
             s.pan_deg_s = travel / ((poses[-1][0] - poses[0][0]) / NS)
     finally:
         hosts.close()
+    if s.codec == "h264" and s.model == "axis214":  # transcoded: a picture's stamp is its JPEG's arrival
+        print(f"  {s.name}: {rekey(s.pics, sends, refdir / 'pics')}", flush=True)
     if s.pan_speed:
         panning_psnr(s, refdir)
     return s

@@ -7,11 +7,15 @@ which writes its references of the still view when it starts (``refdir``: ``rend
 compression-0 JPEG as it sends it), prints its pose every second and, when asked to pan, sweeps the head with
 ``continuouspantiltmove`` (reversing every :data:`PAN_FLIP_S` s of motion) and prints the pose each MJPEG picture was
 rendered at with the capture stamp the picture carries (``{"t": "shot", "cap": ns, "pose": [...]}``): a panning
-session's reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``).
+session's reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``). It
+prints every MJPEG JPEG's send time too (``{"t": "sent", "cap": ns}``; ``bench/capture_match.py``): the stream node
+stamps a transcoded picture with its JPEG's arrival, and the bench finds that JPEG's send time among these.
 
 Operator side (:func:`viewer`): ``axis_link_monitor`` itself (its node class in-process, with its parameters, so the
 link carries one copy of the video) with every picture also recorded, or a plain subscription that sends no
-feedback. Every picture shown is a JSON line (receipt time, capture stamp, bytes, size, pts); every
+feedback. Every picture shown is a JSON line (receipt time, capture stamp -- the simulator's send time in an
+MJPEG picture's comment, the stream node's stamp in a transcoded picture's SEI, an RTSP camera's capture time in
+its own SEI --, bytes, size, pts); every
 :data:`PSNR_EVERY`-th (every 2·:data:`PSNR_EVERY`-th above 704x576) carries its PSNR against the still references,
 or, when the camera pans, is saved (``refdir/pics/<capture ns>.npy``) for the reference rendered later.
 
@@ -97,7 +101,9 @@ def robot_sim(  # noqa: C901, PLR0912, PLR0915 - one process's set-up, step by s
     diagnostics: bool = False,
 ) -> int:
     import numpy as np
+    from capture_match import log_sends  # bench/capture_match.py (bench/ is on sys.path)
 
+    import axis_ptz_ros2.sim.http.mjpeg as mjpeg_side
     from axis_ptz_ros2.sim import persona as personas
     from axis_ptz_ros2.sim.camera import SimulatedCamera
     from tests.support.stamps import sim_stamp
@@ -107,9 +113,15 @@ def robot_sim(  # noqa: C901, PLR0912, PLR0915 - one process's set-up, step by s
     rtsp = port + 1 if p.key != "axis214" else None  # the current-Axis persona's RTSP H.264
     cam = SimulatedCamera(host="127.0.0.1", port=port, model=model, https=False, auth="none", rtsp_port=rtsp)
     lock = threading.Lock()
-    if pan_speed:
-        import axis_ptz_ros2.sim.http.mjpeg as mjpeg_side
 
+    # every JPEG's send time: a transcoded picture's capture time is found among them (capture_match.match)
+    def sent(_seq: int, t: int) -> None:
+        with lock:
+            sys.stdout.write(json.dumps({"t": "sent", "cap": t}) + "\n")
+            sys.stdout.flush()
+
+    log_sends(sent)
+    if pan_speed:
         rendered: dict[int, list[float]] = {}  # id(JPEG bytes) -> the pose it was rendered at
         frames = cam.frames
         render_jpeg, stamp = frames.frame_jpeg, mjpeg_side.stamp

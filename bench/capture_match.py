@@ -1,0 +1,139 @@
+"""Capture-to-display of transcoded H.264 measured without the product's help (issue 38 item 3).
+
+The stream node stamps a transcoded access unit (header and capture-stamp SEI) with the arrival of the JPEG it came
+from, as it stamps ``image_raw/compressed``: it reads nothing the simulator writes into its JPEGs. The benches
+measure a picture's age from the simulated camera's send time all the same, from the simulator's own record of
+what it sent: the bench runs the simulator in a process of its own that logs every JPEG's send time
+(:func:`log_sends`: the ``t=`` it writes into that JPEG's ``axsim`` comment), and :func:`match` finds the JPEG of
+each decoded picture:
+
+* its JPEG is the last one sent at or before the picture's stamp (the simulator and the stream node share one
+  clock: the same host, or two network namespaces of one machine); the reader stamps a JPEG once it holds all of
+  it, so never before it was sent, and on loopback a few milliseconds after;
+* every access unit comes from a JPEG of its own, in order (the stage's ``pts`` counts them), so a picture ``k``
+  pts before another came from a JPEG at least ``k`` sends before that one's: a picture whose JPEG the reader took
+  only after the next had been sent (a loaded machine) is put back on its own JPEG when a later picture shows it.
+
+The lag of each match (stamp - send) is what :func:`lag_summary` reports: if it ever nears a frame interval, the
+matching is in doubt and the bench says so.
+
+    .venv/bin/python bench/capture_match.py --sim [--port 0]   # a simulated 214 that prints "sent <ns>" per JPEG
+"""
+
+from __future__ import annotations
+
+import bisect
+import signal
+import statistics
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support (the simulator's comment reader)
+
+#: the line a :func:`sim_child` prints per JPEG sent
+SENT_PREFIX = "sent "
+
+
+def log_sends(record: Callable[[int, int], None]) -> None:
+    """Have this process's simulated cameras call ``record(seq, send_ns)`` for every MJPEG JPEG they send (the
+    values of the comment they write into it; bench instrumentation of this process only)."""
+    import axis_ptz_ros2.sim.http.mjpeg as mjpeg_side
+    from tests.support.stamps import sim_stamp
+
+    stamp = mjpeg_side.stamp
+
+    def stamped(jpeg: bytes, seq: int) -> bytes:
+        out = stamp(jpeg, seq)
+        st = sim_stamp(out)
+        if st is not None:
+            record(*st)
+        return out
+
+    mjpeg_side.stamp = stamped  # type: ignore[assignment]
+
+
+def match(pictures: Sequence[tuple[int, int]], sends: Sequence[int]) -> list[int | None]:
+    """The send time (ns) of each picture's JPEG; ``pictures`` are ``(pts, stamp_ns)`` of the pictures decoded (any
+    order, some missing), ``sends`` every send time of the simulator (any order). None: no send before its stamp."""
+    sent = sorted(sends)
+    idx = [bisect.bisect_right(sent, stamp) - 1 for _pts, stamp in pictures]
+    order = sorted(range(len(pictures)), key=lambda i: pictures[i][0])
+    later = -1  # the picture with the next higher pts (already settled)
+    for i in reversed(order):
+        pts = pictures[i][0]
+        if later >= 0 and idx[later] >= 0 and idx[i] >= 0 and 0 <= pts < pictures[later][0]:  # (no pts: -1)
+            idx[i] = min(idx[i], idx[later] - (pictures[later][0] - pts))
+        later = i
+    return [sent[k] if k >= 0 else None for k in idx]
+
+
+def lag_summary(pictures: Sequence[tuple[int, int]], matched: Sequence[int | None]) -> str:
+    """How long after its send each matched picture's JPEG was stamped by the stream node: median, max, and how
+    many matches the pts order moved back (a reader behind the camera)."""
+    lags = [(stamp - m) / 1e6 for (_pts, stamp), m in zip(pictures, matched, strict=True) if m is not None]
+    if not lags:
+        return "no picture matched a send"
+    unmatched = sum(m is None for m in matched)
+    return (
+        f"{len(lags)} pictures matched to the simulator's sends (stamp - send: median {statistics.median(lags):.1f} "
+        f"ms, max {max(lags):.1f} ms)" + (f"; {unmatched} without a send before them" if unmatched else "")
+    )
+
+
+def rekey(pictures: list[dict[str, Any]], sends: Sequence[int], saved: Path | None = None) -> str:
+    """Give each picture record (``{"pts": n, "cap": stamp ns, ...}``, a transcoded picture as the link bench's
+    viewer records it) the send time of its JPEG as ``cap`` (its own stamp kept as ``stamp``; left as it is when no
+    send precedes it), renaming a picture saved as ``saved/<stamp>.npy`` to ``<cap>.npy``; returns
+    :func:`lag_summary`."""
+    todo = [r for r in pictures if r.get("cap")]
+    pairs = [(int(r["pts"]), int(r["cap"])) for r in todo]
+    matched = match(pairs, sends)
+    for r, m in zip(todo, matched, strict=True):
+        if m is None:
+            continue
+        r["stamp"], r["cap"] = r["cap"], m
+        f = saved / f"{r['stamp']}.npy" if saved is not None else None
+        if f is not None and f.exists():
+            f.rename(f.with_name(f"{m}.npy"))
+    return lag_summary(pairs, matched)
+
+
+def sim_child(port: int = 0) -> int:
+    """A simulated Axis 214 that prints its address as ``axis_camera_sim`` does, then ``sent <ns>`` per JPEG."""
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
+
+    lock = threading.Lock()
+
+    def record(_seq: int, t_ns: int) -> None:
+        with lock:
+            print(f"{SENT_PREFIX}{t_ns}", flush=True)
+
+    log_sends(record)
+    cam = SimulatedCamera(port=port).start()  # as axis_camera_sim --port <port>
+    print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (logging every JPEG's send time)", flush=True)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    signal.signal(signal.SIGINT, lambda *_: done.set())
+    done.wait()
+    cam.stop()
+    return 0
+
+
+def sends_of(lines: Sequence[str]) -> list[int]:
+    """The send times a :func:`sim_child` printed."""
+    return [int(line[len(SENT_PREFIX) :]) for line in lines if line.startswith(SENT_PREFIX)]
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sim", action="store_true", help="run the logging simulator")
+    ap.add_argument("--port", type=int, default=0)
+    a = ap.parse_args()
+    if not a.sim:
+        ap.error("nothing to do without --sim")
+    raise SystemExit(sim_child(a.port))
