@@ -6,14 +6,24 @@ they are) or from the node's JPEGs, transcoded (the 214). Both topics carry the 
 message, stamped with the frame's capture time; nothing is read or encoded while neither has a subscriber. A new
 subscriber, a reconnect, or a consumer's report of decode errors asks for an IDR. ROS glue: what to encode and
 when is the stage's, the source's and the video controller's.
+
+A start point for every viewer (issue 40): with intra refresh the only IDRs are those asked for, and a viewer that
+sends no feedback (``rqt_image_view``, a plain subscription) asks only by appearing. The stage sends it two (at once
+and 0.4 s later); on a crowded link the keep-last-4 queue can replace both before they are repaired, and the viewer
+then waits forever (issue 40: 331 access units in 20 s, none an IDR). So a new subscriber is also sent an IDR at
+each of :data:`START_IDR_REPEATS_S` after it appeared, unless every H.264 subscriber has by then reported on
+``video/feedback`` that it shows pictures (frames, no decode errors: it has had a start point); a consumer that
+does report asks for more itself through its decode errors.
 """
 
 from __future__ import annotations
 
+import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
+from typing import Any, Final
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
 from foxglove_msgs.msg import CompressedVideo
@@ -30,6 +40,11 @@ from axis_ptz_ros2.streaming.rtsp_source import passthrough_source
 from axis_ptz_ros2.streaming.status import LogLine, h264_diagnostic_values, h264_mode_line
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import VideoParams
+
+#: s after a new H.264 subscriber appeared: further IDRs for it (see the module docstring). The first within the
+#: 2 s a viewer's first picture may take, the last ~5 s of congestion out; at least 1.2 s apart so that an intra
+#: refresh wave (one per second of frames) still begins between them, and each costs one squeezed picture
+START_IDR_REPEATS_S: Final = (1.2, 2.4, 4.8)
 
 
 class H264Output:
@@ -66,6 +81,11 @@ class H264Output:
         self._ffmpeg_msg.header.frame_id = frame_id
         self._foxglove_msg = CompressedVideo(format="h264", frame_id=frame_id)
         self.subscribers = 0  # on the two H.264 topics, at the last update
+        self._lock = threading.Lock()
+        self._repeats: deque[float] = deque()  # when the next start-point IDRs are due (monotonic)
+        self._viewers: frozenset[str] = frozenset()  # the H.264 subscribers' nodes (fully qualified)
+        self._showing: set[str] = set()  # consumers whose last H.264 report shows pictures without errors
+        self.start_repeats = 0  # start-point IDRs asked for by the repeats
         self._ffmpeg_wanted = self._foxglove_wanted = False
         self.stage = H264Stage(
             video.h264_settings, self._publish, on_problem=lambda text: log(LogLine("warn", text, "h264", 10.0))
@@ -111,6 +131,10 @@ class H264Output:
         h264 = ffmpeg + foxglove
         if h264 > self.subscribers:
             self.stage.new_subscriber()  # a new viewer needs a start point
+            now = time.monotonic()
+            with self._lock:
+                self._viewers = self._subscriber_nodes()
+                self._repeats = deque(now + t for t in START_IDR_REPEATS_S)
         self.subscribers = h264
         encode = self._video.h264 and h264 > 0
         supported = self.rtsp.supported  # None until asked (on the first activation)
@@ -132,11 +156,38 @@ class H264Output:
         if self.transcode:
             self.stage.discontinuity()
 
-    def on_decode_errors(self, consumer: str, errors: int) -> None:
-        """A consumer's count of access units it could not show (its report's window): when it grew (new
-        losses), a start point now, not at the next periodic IDR (:meth:`H264Stage.consumer_errors`)."""
+    def on_report(self, consumer: str, topic: str, frames: int, errors: int) -> None:
+        """A consumer's report on ``video/feedback`` about ``topic`` (the name it wrote): its count of access units
+        it could not show (its report's window), when it grew (new losses), asks for a start point now
+        (:meth:`H264Stage.consumer_errors`); pictures without errors on an H.264 topic mean it has had one."""
+        if topic and not any(names_topic(topic, pub.topic_name) for pub in self.publishers):
+            return  # about another topic (the MJPEG share): says nothing of the H.264 stream (no topic: taken as H.264)
+        with self._lock:
+            if frames > 0 and errors == 0:
+                self._showing.add(consumer)
+            else:
+                self._showing.discard(consumer)
         if self.stage.active:
             self.stage.consumer_errors(consumer, errors)
+
+    def _subscriber_nodes(self) -> frozenset[str]:
+        names = set()
+        for pub in self.publishers:
+            for info in self._node.get_subscriptions_info_by_topic(pub.topic_name):
+                names.add(f"{info.node_namespace.rstrip('/')}/{info.node_name}")
+        return frozenset(names)
+
+    def _start_repeat_due(self, now: float) -> bool:
+        """Whether a start-point IDR is due now (reader or RTSP thread; see the module docstring)."""
+        if not self._repeats or now < self._repeats[0]:
+            return False
+        with self._lock:
+            while self._repeats and now >= self._repeats[0]:
+                self._repeats.popleft()
+            if self._viewers and self._viewers <= self._showing:
+                self._repeats.clear()  # every viewer has reported pictures: it has had its start point
+                return False
+        return True
 
     def _publish(self, frame: StagedFrame) -> None:
         """One access unit (reader or RTSP thread): the same bytes on both H.264 topics."""
@@ -154,7 +205,11 @@ class H264Output:
             fox.timestamp = stamp
             fox._data = frame.data  # noqa: SLF001
             self.foxglove_pub.publish(fox)
-        self._video.on_h264_frame(time.monotonic(), len(frame.data))
+        now = time.monotonic()
+        self._video.on_h264_frame(now, len(frame.data))
+        if self._start_repeat_due(now):
+            self.start_repeats += 1
+            self.stage.request_idr()
 
     def diagnostics(self) -> dict[str, Any]:
         """The H.264 side's diagnostics values."""
@@ -177,3 +232,9 @@ class H264Output:
     def stop(self, timeout_s: float) -> None:
         """Stop and join the RTSP source."""
         self.rtsp.stop(timeout_s)
+
+
+def names_topic(name: str, topic: str) -> bool:
+    """Whether a report's topic ``name`` (as the consumer wrote it: relative or absolute) is ``topic``
+    (fully qualified)."""
+    return bool(name) and (name == topic or topic.endswith("/" + name.lstrip("/")))

@@ -26,6 +26,9 @@ compression 0) into H.264. Either way one H.264 stream is shared by ``image_raw/
 ``image_raw/foxglove`` (``CompressedVideo``): the same bytes, one access unit per message, stamped with the frame's
 capture time; read or encoded only while one of them has a subscriber. A new subscriber, a reconnect, or a
 consumer's report of decode errors on ``video/feedback`` asks for an IDR (from the camera: RTSP ``Renew-Stream``).
+Then ``image_raw/compressed`` comes from a second camera stream in a share of the budget, never the encoder's
+compression-0 JPEGs (:mod:`~axis_ptz_ros2.nodes.stream_mjpeg`), and consumers' reports about it do not judge the
+link (the H.264 consumers' do).
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ from axis_ptz_ros2.nodes.common import (
 from axis_ptz_ros2.nodes.live_params import LiveParams, Params
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.nodes.stream_camera_info import CameraInfoOutput
-from axis_ptz_ros2.nodes.stream_h264 import H264Output
+from axis_ptz_ros2.nodes.stream_h264 import H264Output, names_topic
+from axis_ptz_ros2.nodes.stream_mjpeg import MjpegShareOutput
 from axis_ptz_ros2.nodes.stream_params import PARAMS
 from axis_ptz_ros2.nodes.stream_still import StillOutput
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader, StreamState
@@ -133,13 +137,24 @@ class StreamNode(Node):
             on_supported=self._update_activity,
         )
         self._stage, self._rtsp = self._h264.stage, self._h264.rtsp  # (statistics for tests and diagnostics)
+        # h264 mode: image_raw/compressed from a second camera stream, in a share of the budget
+        self._mjpeg = MjpegShareOutput(
+            self._client,
+            self._video,
+            self._image_pub,
+            self._frame_id,
+            reader_config,
+            reference=lambda: (self._video.current, self._reader.meter.rate(time.monotonic()).bytes_per_frame),
+            on_event=self._on_share_event,
+        )
         # still/capture -> still/compressed: the camera's best JPEG on demand, counted against the budget
         self._still = StillOutput(self, self._client, self._video, self._frame_id, self.get_logger().warning)
 
+        self.feedback_reports = 0  # consumers' reports received (diagnostics, tests)
         self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)
         self.create_service(SetVideoParams, "video/set_params", self._on_set_video_params)
         self._lazy = bool(p["lazy"])
-        self._image_wanted = False
+        self._image_wanted = False  # the main stream's JPEGs go on image_raw/compressed (codec mjpeg)
         self._info_wanted = False
 
         self._reader = StreamReader(
@@ -153,6 +168,7 @@ class StreamNode(Node):
         )
         self._publish_params()
         self._reader.start()
+        self._mjpeg.start()
         self._h264.start()
         self._discovery.start()  # learn the camera even while nobody subscribes: video/params lists its sizes
         # Activity follows publisher-matched events at once; this 1 Hz timer is only the fallback poll,
@@ -275,6 +291,7 @@ class StreamNode(Node):
 
     def _on_feedback(self, msg: LinkFeedback) -> None:
         """A consumer's report: what it receives, judged by the controller against what was sent."""
+        self.feedback_reports += 1
         report = FeedbackReport(
             consumer=str(msg.consumer),
             frames=int(msg.frames),
@@ -286,7 +303,10 @@ class StreamNode(Node):
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,
             lost=int(msg.lost),
         )
-        self._h264.on_decode_errors(str(msg.consumer), int(msg.decode_errors))
+        topic = str(msg.header.frame_id)
+        self._h264.on_report(str(msg.consumer), topic, int(msg.frames), int(msg.decode_errors))
+        if self._video.h264 and names_topic(topic, self._image_pub.topic_name):
+            return  # about the MJPEG share: the H.264 consumers' reports judge the link (their bytes are its bulk)
         judgement = self._video.feedback(report, self._subscribed)
         if judgement is not None:
             self.get_logger().debug(str(judgement))
@@ -305,8 +325,13 @@ class StreamNode(Node):
     # -- activity, watchdog, diagnostics (1 Hz) ------------------------------------------------------------------
     def _want_active(self) -> bool:
         # Cached for the hot path (no rmw call per frame); refreshed on matched events and at 1 Hz.
-        self._image_wanted = self._image_pub.get_subscription_count() > 0
+        image = self._image_pub.get_subscription_count() > 0
+        h264 = self._video.h264
+        self._image_wanted = image and not h264
         self._info_wanted = self._camera_info.pub.get_subscription_count() > 0
+        mjpeg = getattr(self, "_mjpeg", None)
+        if mjpeg is not None:
+            mjpeg.set_active(image and h264)
         transcode = self._h264.update()
         return not self._lazy or self._image_wanted or self._info_wanted or transcode
 
@@ -342,12 +367,17 @@ class StreamNode(Node):
         if line is not None:
             self._log(line)
 
+    def _on_share_event(self, state: StreamState, message: str) -> None:
+        """The MJPEG share's reader (h264 mode): its errors, throttled."""
+        if message and state is not StreamState.STREAMING:
+            self._log(LogLine("warn", f"MJPEG share stream ({state}): {message}", "mjpeg-share", 10.0))
+
     def _publish_diagnostics(self) -> None:
         stats = self._reader.stats()
         rate = self._reader.meter.rate(time.monotonic())
         extra: dict[str, object] = {**self._client.auth_counters.as_dict()}
         if self._video.h264:
-            extra |= self._h264.diagnostics()
+            extra |= self._h264.diagnostics() | self._mjpeg.diagnostics()
         level, message, values = diagnostic_status(stats, rate, self._video.state(), extra)
         name = f"{self.get_fully_qualified_name()}: MJPEG stream"
         self._diag_pub.publish(diagnostic(self, name, level, message, values, hardware_id=self._client.config.base_url))
@@ -360,6 +390,9 @@ class StreamNode(Node):
         h264 = getattr(self, "_h264", None)
         if h264 is not None:
             h264.stop(1.5)
+        mjpeg = getattr(self, "_mjpeg", None)
+        if mjpeg is not None:
+            mjpeg.stop(1.5)
         still = getattr(self, "_still", None)
         if still is not None:
             still.close(1.5)

@@ -149,6 +149,26 @@ class BandwidthController:
         if self._changed_at is None:
             self._changed_at = now
 
+    def fit_from(self, ref: VideoParams, ref_bytes_per_frame: float, now: float) -> VideoParams:
+        """Start at the first level predicted under ``down_fraction`` of the budget from what another stream of
+        the same camera measured (``ref`` at ``ref_bytes_per_frame``), before a byte of this one is sent: a stream
+        that shares a link must not open at its request and swamp it for the first judgement. Without a budget or
+        a measurement, level 0; with a budget but no measurement, the bottom of the ladder (it climbs on its own
+        measurements)."""
+        if self._budget <= 0:
+            return self._go(0, now)
+        if ref_bytes_per_frame <= 0:
+            return self._go(len(self._ladder) - 1, now)
+        target = self._config.down_fraction * self._budget
+        level = 0
+        while level < len(self._ladder) - 1:
+            p = self._ladder[level]
+            kbps = self._bytes_per_frame(p, ref, ref_bytes_per_frame) * p.fps * 8.0 / 1000.0
+            if kbps <= target:
+                break
+            level += 1
+        return self._go(level, now)
+
     def _build_ladder(self) -> tuple[VideoParams, ...]:
         cfg = self._config
         p = self._requested

@@ -45,6 +45,7 @@ from axis_ptz_ros2.streaming.h264_policy import (
     h264_vbv_kbit,
 )
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
+from axis_ptz_ros2.streaming.mjpeg_share import MjpegShare, split_kbps
 from axis_ptz_ros2.streaming.still import ExtraBytes
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
@@ -115,6 +116,14 @@ class VideoController:
         self._decision: Decision | None = None
         self._announced_kbps = self._budget_kbps()  # the budget in force at the last announcement
         self._stream_size: Resolution | None = None  # h264: the size a camera's own H.264 is asked for (auto)
+        #: h264 mode: the MJPEG topic's own camera stream and its share of the budget (:mod:`.mjpeg_share`)
+        self.mjpeg = MjpegShare(
+            self._share_request(settings),
+            self.video_kbps,
+            max_compression=int(settings.budget_max_compression),
+            window_s=meter.window_s,
+            clock=clock,
+        )
 
     # -- reading -------------------------------------------------------------------------------------------
     @property
@@ -149,15 +158,26 @@ class VideoController:
         """Whether the codec asked for is H.264."""
         return self._settings.codec == "h264"
 
+    def video_kbps(self) -> int:
+        """h264 mode: what the budgets in force let the video have as a whole, kbit/s (:func:`h264_target_kbps`;
+        lock-free: one read of the link's budget)."""
+        s = self._settings
+        link = self._link.budget_kbps if s.adapt_to_link else 0.0
+        return h264_target_kbps(
+            int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
+        )[0]
+
     def h264_settings(self) -> H264Settings:
         """What the H.264 encoder (or the camera, passed through) is to do now: :func:`h264_target_kbps` of the
-        budgets in force (the hand-set one and the link's)."""
+        budgets in force (the hand-set one and the link's), less the MJPEG stream's share while it runs
+        (:func:`~.mjpeg_share.split_kbps`)."""
         s = self._settings
         with self._lock:
             link = self._link.budget_kbps if s.adapt_to_link else 0.0
         kbps, ceiling = h264_target_kbps(
             int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
         )
+        kbps = split_kbps(kbps, self.mjpeg.active)[0]
         return H264Settings(
             kbps,
             int(s.h264_keyframe_interval),
@@ -229,6 +249,8 @@ class VideoController:
                 self._current = self._budget.current
                 self._source = source
             moved = self._h264_budget_moved()  # (adaptation switched off: the link's budget is gone)
+        if video:
+            self.mjpeg.configure(self._share_request(settings), self._resolutions, int(settings.budget_max_compression))
         if video or H264_FIELDS & names or moved:  # (the encoder's settings are announced with the rest)
             self._announce()
         return self._current
@@ -246,6 +268,8 @@ class VideoController:
                 requested=self._request(self._settings), resolutions=self._resolutions, now=self._clock()
             )
             self._current = self._budget.current
+        s = self._settings
+        self.mjpeg.configure(self._share_request(s), self._resolutions, int(s.budget_max_compression))
         self._announce()
 
     # -- what happens --------------------------------------------------------------------------------------
@@ -345,6 +369,10 @@ class VideoController:
             res = _largest(self._resolutions) if self._resolutions else AUTO_PLACEHOLDER
         compression = 0 if settings.codec == "h264" else int(settings.compression)  # the encoder's best input
         return VideoParams(res, int(settings.fps), compression, camera=self._camera)
+
+    def _share_request(self, settings: VideoSettings) -> VideoParams:
+        """The MJPEG stream's request in h264 mode: the size and rate asked for, at the compression asked for."""
+        return replace(self._request(settings), compression=int(settings.compression))
 
     def _effective_budget(self) -> float:
         """The budget for the MJPEG ladder (0 = none; in h264 mode the encoder takes it); call with the lock held."""
