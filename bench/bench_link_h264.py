@@ -19,6 +19,10 @@ fresh link, so they never share it):
                   measured picture against the view at the pose it was rendered at (only if asked for)
   q6075-h264      the current-Axis persona (1920x1080 @ 30 asked, its RTSP H.264 passed through, no re-encoding),
                   ``axis_link_monitor`` with ``codec: h264``: what the operator gets (only if asked for)
+  crowded         ``codec: h264``, and on the operator side ``axis_link_monitor`` left at ``codec: mjpeg`` (an
+                  MJPEG subscriber that reports on its topic, started first) beside a plain H.264 viewer without
+                  feedback (issue 40's crowded link; both measured, rows ``crowded`` and ``crowded-mjpeg``; only if
+                  asked for)
 
 The operator's measuring viewer is this script's ``--viewer`` mode: with feedback it *is* ``axis_link_monitor``
 (its node class, run in-process with its parameters, so the link carries one copy of the video as in the README's
@@ -61,6 +65,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -204,6 +209,10 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             env,
         )
         time.sleep(6.0)  # the robot side up (nodes, discovery on its loopback) before the viewer starts
+        crowd = None
+        if s.crowd is not None:  # the other viewer first (the issue's order: the monitor, then the H.264 viewer)
+            _proc, (crowd, c_spawned) = start_viewer(hosts, link, s.crowd, env, refdir, 99)
+            first_picture(s.crowd, crowd, c_spawned, 40.0, hosts)
         n = starts if (s.codec == "h264" and not s.feedback) else 1
         for k in range(1, n):  # extra starts: the viewer comes and goes; each start's first picture is timed
             proc, (reader, spawned) = start_viewer(hosts, link, s, env, refdir, k)
@@ -233,6 +242,10 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
         s.gaps = [r for r in reader.of("gap") if s.t0 <= r["rx"] < end]
         s.params = reader.of("params")
+        if s.crowd is not None and crowd is not None:
+            c = s.crowd
+            c.t0, c.params = s.t0, crowd.of("params")
+            c.pics = [r for r in crowd.of("pic") if s.t0 <= r["rx"] < end]
         s.pose_moved = any(p["pose"] != pose0 for p in sim_log.of("pose"))
         s.shots = {r["cap"]: r["pose"] for r in sim_log.of("shot")}
         sends = [r["cap"] for r in sim_log.of("sent")]
@@ -310,6 +323,7 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
             "≤ 2 s",
             bool(n["first_s"] <= 2),
         )
+    crowded_rows(results, link, checked)
     p = results.get("h264-pan")
     if p:
         checked(
@@ -329,6 +343,27 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
             None,
         )
     return ok
+
+
+def crowded_rows(results: dict[str, dict[str, Any]], link: str, checked: Callable[..., None]) -> None:
+    """Issue 40's crowded link: the plain H.264 viewer (>= 20 fps of 704x576, first picture <= 2 s from its node
+    up, age p95 <= 300 ms) and the MJPEG subscriber beside it (>= 5 fps, age p95 <= 300 ms)."""
+    h, m = results.get("crowded"), results.get("crowded-mjpeg")
+    if not h or not m:
+        return
+    checked(
+        f"{link}, codec h264 with an MJPEG subscriber (axis_link_monitor, codec mjpeg) beside a plain H.264 viewer: "
+        f"H.264 {W}x{H} fps / first picture from its node up, worst of {h['starts']} / age p95",
+        f"{h['fps_full']:.1f} fps / {fmt(h['first_node_max'], '{:.1f}')} s / {h['age_p95']:.0f} ms",
+        "≥ 20 fps / ≤ 2 s / ≤ 300 ms",
+        bool(h["fps_full"] >= 20 and h["first_node_max"] <= 2 and h["age_p95"] <= 300),
+    )
+    checked(
+        f"{link}, the same: the MJPEG subscriber's fps / age p95 / sizes",
+        f"{m['fps']:.1f} fps / {m['age_p95']:.0f} ms / {m['sizes']}",
+        "≥ 5 fps / ≤ 300 ms",
+        bool(m["fps"] >= 5 and m["age_p95"] <= 300),
+    )
 
 
 def main() -> int:
@@ -385,7 +420,7 @@ def main() -> int:
         sessions.append(run_session(session(name), seconds, a.starts, logs, a.fastdds_profile))
     scripted = [s for s in sessions if s.name in SCRIPTS]
     sessions = [s for s in sessions if s.name not in SCRIPTS]
-    results = [figures(s, seconds) for s in sessions]
+    results = [figures(x, seconds) for s in sessions for x in (s, s.crowd) if x is not None]
     events = [event_figures(s) for s in scripted]
     print()
     for s in sessions:

@@ -56,6 +56,8 @@ class Session:
     acuity: list[dict[str, Any]] = field(default_factory=list)  # chart readings (``bench/bench_acuity_link.py``)
     diag: list[dict[str, Any]] = field(default_factory=list)  # the stream node's H.264 bitrate target over time
     pose0: list[float] = field(default_factory=list)  # the pose the camera started measuring from
+    #: ``crowded``: a second viewer on the operator's side beside this one, started before it (the MJPEG subscriber)
+    crowd: Session | None = None
     #: panning: called with (picture record, the saved picture, the camera that renders the references, the pose it
     #: was rendered at, the camera's compression-0 picture of that pose) for every saved picture (:func:`panning_psnr`)
     on_saved: Callable[[dict[str, Any], Any, Any, list[float], Any], None] | None = None
@@ -71,7 +73,12 @@ class Session:
 def session(name: str) -> Session:
     """A session by its name: ``mjpeg``, ``h264``, ``h264-nofb``, ``mjpeg-nofb``, ``h264-step``, ``h264-cut``,
     ``h264-pan`` (the head sweeping at :data:`PAN_SPEED`), ``q6075-h264`` (the current-Axis persona's H.264 passed
-    through, 1920x1080 asked)."""
+    through, 1920x1080 asked), ``crowded`` (issue 40: a plain H.264 viewer beside ``axis_link_monitor`` left at
+    ``codec: mjpeg``, started first -- the MJPEG subscriber -- while the stream node runs ``codec: h264``)."""
+    if name == "crowded":
+        s = Session(name, "h264", False)
+        s.crowd = Session("crowded-mjpeg", "mjpeg", True)
+        return s
     codec = "mjpeg" if name.startswith("mjpeg") else "h264"
     s = Session(name, codec, not name.endswith("-nofb"))
     if name == "h264-pan":
@@ -170,6 +177,9 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:  # noqa: PLR0915 - on
     # a start that showed nothing is the worst
     out["first_s"] = math.inf if any(math.isnan(x) for x in s.first_s) else max(s.first_s, default=math.nan)
     out["first_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_s)
+    out["first_node_max"] = (
+        math.inf if any(math.isnan(x) for x in s.first_node_s) else max(s.first_node_s, default=math.nan)
+    )
     out["first_node_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_node_s)
     out["first_detail"] = " ".join(s.first_detail) or "—"
     out["starts"] = len(s.first_s)
@@ -370,6 +380,7 @@ COLORS = {
     "mjpeg-nofb": (150, 40, 150),
     "h264-pan": (20, 150, 200),
     "q6075-h264": (120, 120, 120),
+    "crowded": (0, 200, 200),
 }
 LABELS = {
     "mjpeg": "MJPEG ladder + axis_link_monitor",
@@ -378,6 +389,7 @@ LABELS = {
     "mjpeg-nofb": "MJPEG, viewer without feedback",
     "h264-pan": f"H.264 + monitor, camera panning {PAN_SPEED} deg/s",
     "q6075-h264": "current-Axis persona: its H.264 passed through",
+    "crowded": "crowded: plain H.264 viewer beside an MJPEG subscriber",
 }
 
 
