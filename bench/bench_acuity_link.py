@@ -16,6 +16,9 @@ simulator's own handler, before the session measures). Sessions, one after anoth
               reversing every time it has moved one view width, so the chart goes from one edge of the view to the
               other)
   q6075-h264  2 Mbit/s: the current-Axis persona (1920x1080 asked), its RTSP H.264 passed through + the monitor
+  q6075-auto  2 Mbit/s: the same with ``resolution`` auto: the driver picks the size by the bitrate in force
+              (``streaming/passthrough_size.py``; the robot gets ``-p resolution:=""`` after the size asked, the last
+              ``-p`` wins); its pictures are upscaled to 1920x1080 before they are read
 
 How a picture is read: ``bench/acuity.py`` through the chart's homography at the camera's pose (known from the
 simulator, so the reading is the picture's detail, not whether its fiducials were found); a picture smaller than the
@@ -39,7 +42,7 @@ compression), frame age (p50 / p95) and, for H.264, the encoder's bitrate: its t
 of H.264 access units).
 
     sudo .venv/bin/python bench/bench_acuity_link.py [--seconds 40] [--every 15]
-        [--sessions mjpeg,h264,h264-nofb,h264-1m,h264-pan,q6075-h264]
+        [--sessions mjpeg,h264,h264-nofb,h264-1m,h264-pan,q6075-h264,q6075-auto]
 
 Needs root (network namespaces); installs nftables if missing.
 """
@@ -76,7 +79,9 @@ from link_h264_results import (  # noqa: E402
 from link_h264_roles import PSNR_EVERY  # noqa: E402
 
 CHART = "acuity_35m"
-SESSIONS = ("mjpeg", "h264", "h264-nofb", "h264-1m", "h264-pan", "q6075-h264")
+SESSIONS = ("mjpeg", "h264", "h264-nofb", "h264-1m", "h264-pan", "q6075-h264", "q6075-auto")
+#: sessions that are another one with extra robot parameters (``BENCH_LINK_ROBOT_ARGS`` of bench_link_h264.py)
+VARIANTS = {"h264-1m": ("h264", ""), "q6075-auto": ("q6075-h264", '-p resolution:=""')}
 REF_DRAWS = 5  #: compression-0 JPEGs of the still view read for the camera's own rows (median)
 SWEEP_VIEWS = 1.0  #: the panning head reverses after moving this many view widths (the chart edge to edge)
 
@@ -98,7 +103,7 @@ def acuity_session(name: str, every: int) -> Session:
     """Session ``name`` (:data:`SESSIONS`) in acuity mode."""
     if name not in SESSIONS:
         raise ValueError(f"unknown session {name!r}: one of {', '.join(SESSIONS)}")
-    s = session("h264" if name == "h264-1m" else name)
+    s = session(VARIANTS[name][0] if name in VARIANTS else name)
     s.name = name
     s.rate_kbit = 1000 if name == "h264-1m" else 2000
     s.aim = CHART
@@ -265,6 +270,13 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> bool:
         "more rows read than the 214 (H.264 + monitor" + (f": {fmt(h['rows_p50'], '{:g}')})" if h else ")"),
         (lambda r: r["rows_p50"] > h["rows_p50"]) if h else None,
     )  # fmt: skip
+    q = results.get("q6075-h264")
+    checked(
+        "q6075-auto", "2 Mbit/s", "current-Axis persona, resolution auto (size by the bitrate), passed through + "
+        "link monitor", "more rows read than 1920x1080 passed through" + (
+            f" ({fmt(q['rows_p50'], '{:g}')})" if q else ""
+        ), (lambda r: r["rows_p50"] > q["rows_p50"]) if q else None,
+    )  # fmt: skip
     return ok
 
 
@@ -308,7 +320,16 @@ def main() -> int:
         sweep = f", sweeping {PAN_SPEED}°/s reversing every {s.pan_flip_s:.2f} s" if s.pan_speed else ""
         print(f"== {name}: {seconds:.0f} s on the link; {s.model} aimed at {CHART}: pan {pan:.2f} tilt {tilt:.2f} "
               f"zoom {zoom:.0f}{sweep}", flush=True)  # fmt: skip
-        run_session(s, seconds, 1, logs, a.fastdds_profile)
+        extra = VARIANTS.get(name, ("", ""))[1]
+        saved = os.environ.get("BENCH_LINK_ROBOT_ARGS")
+        os.environ["BENCH_LINK_ROBOT_ARGS"] = f"{saved or ''} {extra}".strip()
+        try:
+            run_session(s, seconds, 1, logs, a.fastdds_profile)
+        finally:
+            if saved is None:
+                del os.environ["BENCH_LINK_ROBOT_ARGS"]
+            else:
+                os.environ["BENCH_LINK_ROBOT_ARGS"] = saved
         r = acuity_figures(s, logs / f"ref-{s.name}", seconds)
         print(f"   load average {os.getloadavg()[0]:.1f}" + (f"; {r['sweep']}" if "sweep" in r else ""), flush=True)
         sessions.append(s)
