@@ -66,7 +66,7 @@ class Ages:
             with self._lock:
                 self.shown.append((int(msg.pts), picture.capture_ns, now))
 
-    def ages(self, sends: list[int] | None = None) -> list[float]:
+    def ages(self, sends: dict[str, list[int]] | None = None) -> list[float]:
         """Each picture's age (ms): from the capture stamp in its SEI, or with ``sends`` (the simulator's log)
         from the send time of its JPEG (:func:`capture_match.match`), printed with the match's lag."""
         with self._lock:

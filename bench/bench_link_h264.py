@@ -248,7 +248,9 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
             c.pics = [r for r in crowd.of("pic") if s.t0 <= r["rx"] < end]
         s.pose_moved = any(p["pose"] != pose0 for p in sim_log.of("pose"))
         s.shots = {r["cap"]: r["pose"] for r in sim_log.of("shot")}
-        sends = [r["cap"] for r in sim_log.of("sent")]
+        sends: dict[str, list[int]] = {}  # per connection to the camera (crowded: two streams)
+        for r in sim_log.of("sent"):
+            sends.setdefault(r["conn"], []).append(r["cap"])
         poses = [(r["cap"], r["pose"][0]) for r in sim_log.of("shot") if s.t0 <= r["cap"] < end]
         if s.pan_speed and len(poses) > 1:  # the head's pan speed: distance travelled over the measurement
             travel = sum(abs(b[1] - a[1]) for a, b in zip(poses, poses[1:], strict=False))

@@ -12,7 +12,10 @@ each decoded picture:
   it, so never before it was sent, and on loopback a few milliseconds after;
 * every access unit comes from a JPEG of its own, in order (the stage's ``pts`` counts them), so a picture ``k``
   pts before another came from a JPEG at least ``k`` sends before that one's: a picture whose JPEG the reader took
-  only after the next had been sent (a loaded machine) is put back on its own JPEG when a later picture shows it.
+  only after the next had been sent (a loaded machine) is put back on its own JPEG when a later picture shows it;
+* the sends are logged per connection (a stream node with an MJPEG subscriber in ``codec: h264`` reads a second
+  stream, its MJPEG ladder, beside the compression-0 one it encodes): only the connections whose sends the
+  pictures follow (median lag within :data:`NEAR_MS`, or near the best one's) are searched.
 
 The lag of each match (stamp - send) is what :func:`lag_summary` reports: if it ever nears a frame interval, the
 matching is in doubt and the bench says so.
@@ -23,42 +26,76 @@ matching is in doubt and the bench says so.
 from __future__ import annotations
 
 import bisect
+import math
 import signal
 import statistics
 import sys
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support (the simulator's comment reader)
 
-#: the line a :func:`sim_child` prints per JPEG sent
+#: the line a :func:`sim_child` prints per JPEG sent: ``sent <ns> <connection>``
 SENT_PREFIX = "sent "
+#: ms: a connection whose sends the pictures' stamps follow by at most this (median) is one they come from
+NEAR_MS = 10.0
+
+Sends = Sequence[int] | Mapping[str, Sequence[int]]
 
 
-def log_sends(record: Callable[[int, int], None]) -> None:
-    """Have this process's simulated cameras call ``record(seq, send_ns)`` for every MJPEG JPEG they send (the
-    values of the comment they write into it; bench instrumentation of this process only)."""
+def log_sends(record: Callable[[int, int, str], None]) -> None:
+    """Have this process's simulated cameras call ``record(seq, send_ns, connection)`` for every MJPEG JPEG they
+    send (the values of the comment they write into it; ``connection`` names the stream it went out on: each is
+    served on a thread of its own, its ``seq`` counting from 1); bench instrumentation of this process only."""
     import axis_ptz_ros2.sim.http.mjpeg as mjpeg_side
     from tests.support.stamps import sim_stamp
 
     stamp = mjpeg_side.stamp
+    last: dict[int, tuple[int, int]] = {}  # thread -> (its connections so far, the last seq)
 
     def stamped(jpeg: bytes, seq: int) -> bytes:
         out = stamp(jpeg, seq)
         st = sim_stamp(out)
         if st is not None:
-            record(*st)
+            ident = threading.get_ident()
+            n, prev = last.get(ident, (0, 0))
+            if st[0] <= prev:  # a new connection on a thread used before
+                n += 1
+            last[ident] = (n, st[0])
+            record(st[0], st[1], f"{ident}.{n}")
         return out
 
     mjpeg_side.stamp = stamped  # type: ignore[assignment]
 
 
-def match(pictures: Sequence[tuple[int, int]], sends: Sequence[int]) -> list[int | None]:
+def _lag_ms(pictures: Sequence[tuple[int, int]], sent: Sequence[int]) -> float:
+    """Median lag (ms) of the pictures stamped within the span of ``sent`` (sorted) behind its last send before."""
+    lags = [
+        stamp - sent[bisect.bisect_right(sent, stamp) - 1]
+        for _pts, stamp in pictures
+        if sent[0] <= stamp <= sent[-1] + 1_000_000_000
+    ]
+    return statistics.median(lags) / 1e6 if lags else math.inf
+
+
+def followed(pictures: Sequence[tuple[int, int]], sends: Sends) -> list[int]:
+    """The send times of the connections the pictures come from (see the module docstring), sorted."""
+    if not isinstance(sends, Mapping):
+        return sorted(sends)
+    per = {k: sorted(v) for k, v in sends.items() if v}
+    lag = {k: _lag_ms(pictures, v) for k, v in per.items()}
+    best = min(lag.values(), default=math.inf)
+    keep = [k for k, v in lag.items() if v <= max(NEAR_MS, 1.5 * best)]
+    return sorted(t for k in keep for t in per[k])
+
+
+def match(pictures: Sequence[tuple[int, int]], sends: Sends) -> list[int | None]:
     """The send time (ns) of each picture's JPEG; ``pictures`` are ``(pts, stamp_ns)`` of the pictures decoded (any
-    order, some missing), ``sends`` every send time of the simulator (any order). None: no send before its stamp."""
-    sent = sorted(sends)
+    order, some missing), ``sends`` every send time of the simulator (any order), or those of each connection
+    (:func:`followed`). None: no send before its stamp."""
+    sent = followed(pictures, sends)
     idx = [bisect.bisect_right(sent, stamp) - 1 for _pts, stamp in pictures]
     order = sorted(range(len(pictures)), key=lambda i: pictures[i][0])
     later = -1  # the picture with the next higher pts (already settled)
@@ -83,7 +120,7 @@ def lag_summary(pictures: Sequence[tuple[int, int]], matched: Sequence[int | Non
     )
 
 
-def rekey(pictures: list[dict[str, Any]], sends: Sequence[int], saved: Path | None = None) -> str:
+def rekey(pictures: list[dict[str, Any]], sends: Sends, saved: Path | None = None) -> str:
     """Give each picture record (``{"pts": n, "cap": stamp ns, ...}``, a transcoded picture as the link bench's
     viewer records it) the send time of its JPEG as ``cap`` (its own stamp kept as ``stamp``; left as it is when no
     send precedes it), renaming a picture saved as ``saved/<stamp>.npy`` to ``<cap>.npy``; returns
@@ -107,9 +144,9 @@ def sim_child(port: int = 0) -> int:
 
     lock = threading.Lock()
 
-    def record(_seq: int, t_ns: int) -> None:
+    def record(_seq: int, t_ns: int, connection: str) -> None:
         with lock:
-            print(f"{SENT_PREFIX}{t_ns}", flush=True)
+            print(f"{SENT_PREFIX}{t_ns} {connection}", flush=True)
 
     log_sends(record)
     cam = SimulatedCamera(port=port).start()  # as axis_camera_sim --port <port>
@@ -122,9 +159,14 @@ def sim_child(port: int = 0) -> int:
     return 0
 
 
-def sends_of(lines: Sequence[str]) -> list[int]:
-    """The send times a :func:`sim_child` printed."""
-    return [int(line[len(SENT_PREFIX) :]) for line in lines if line.startswith(SENT_PREFIX)]
+def sends_of(lines: Sequence[str]) -> dict[str, list[int]]:
+    """The send times a :func:`sim_child` printed, per connection."""
+    out: dict[str, list[int]] = {}
+    for line in lines:
+        if line.startswith(SENT_PREFIX):
+            t, connection = line[len(SENT_PREFIX) :].split()
+            out.setdefault(connection, []).append(int(t))
+    return out
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ compression-0 JPEG as it sends it), prints its pose every second and, when asked
 ``continuouspantiltmove`` (reversing every :data:`PAN_FLIP_S` s of motion) and prints the pose each MJPEG picture was
 rendered at with the capture stamp the picture carries (``{"t": "shot", "cap": ns, "pose": [...]}``): a panning
 session's reference of a picture is rendered afterwards from that pose (``link_h264_figures.panning_psnr``). It
-prints every MJPEG JPEG's send time too (``{"t": "sent", "cap": ns}``; ``bench/capture_match.py``): the stream node
+prints every MJPEG JPEG's send time too (``{"t": "sent", "cap": ns, "conn": its connection}``;
+``bench/capture_match.py``): the stream node
 stamps a transcoded picture with its JPEG's arrival, and the bench finds that JPEG's send time among these.
 
 Operator side (:func:`viewer`): ``axis_link_monitor`` itself (its node class in-process, with its parameters, so the
@@ -115,9 +116,9 @@ def robot_sim(  # noqa: C901, PLR0912, PLR0915 - one process's set-up, step by s
     lock = threading.Lock()
 
     # every JPEG's send time: a transcoded picture's capture time is found among them (capture_match.match)
-    def sent(_seq: int, t: int) -> None:
+    def sent(_seq: int, t: int, connection: str) -> None:
         with lock:
-            sys.stdout.write(json.dumps({"t": "sent", "cap": t}) + "\n")
+            sys.stdout.write(json.dumps({"t": "sent", "cap": t, "conn": connection}) + "\n")
             sys.stdout.flush()
 
     log_sends(sent)

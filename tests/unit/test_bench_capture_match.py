@@ -67,8 +67,19 @@ def test_log_sends_reports_what_the_simulator_writes_into_each_jpeg(monkeypatch:
     from tests.support.stamps import sim_stamp
 
     monkeypatch.setattr(mjpeg_side, "stamp", mjpeg_side.stamp)  # restored after the test
-    got: list[tuple[int, int]] = []
-    log_sends(lambda seq, t: got.append((seq, t)))
-    out = mjpeg_side.stamp(encode_jpeg(np.zeros((16, 16, 3), np.uint8), 50), 7)
-    assert got == [sim_stamp(out)]
-    assert got[0][0] == 7
+    got: list[tuple[int, int, str]] = []
+    log_sends(lambda seq, t, conn: got.append((seq, t, conn)))
+    jpeg = encode_jpeg(np.zeros((16, 16, 3), np.uint8), 50)
+    outs = [mjpeg_side.stamp(jpeg, seq) for seq in (1, 2, 1)]  # a second connection on the same thread
+    assert [g[:2] for g in got] == [sim_stamp(o) for o in outs]
+    assert got[0][2] == got[1][2] != got[2][2]
+
+
+def test_only_the_connection_the_pictures_follow_is_searched() -> None:
+    # a second stream (the MJPEG ladder beside the compression-0 one, 5/s, out of step) sends 3 ms before some
+    # pictures' stamps: searched with the rest, it would be taken for their JPEG
+    ladder = [T0 + k * 200 * MS + 41 * MS for k in range(4)]
+    pics = [(k, SENDS[k] + 4 * MS) for k in range(20)]
+    assert SENDS[1] + 4 * MS - ladder[0] == 3 * MS  # (the trap)
+    assert match(pics, {"a.0": SENDS, "b.0": ladder}) == SENDS
+    assert match(pics, SENDS + ladder) != SENDS  # all sends together: wrong
