@@ -202,11 +202,6 @@ class LinkMonitorNode(Node):
         )
         self._watch(self.follower.codec)
 
-    @property
-    def subscribed_topic(self) -> str:
-        """The resolved video topic subscribed now ('' = none)."""
-        return self._sub.topic_name if self._sub is not None else ""
-
     def _watch(self, codec: str) -> None:
         """Subscribe to the video of ``codec`` ('' = none), dropping the old subscription first."""
         if codec == self.codec and (self._sub is not None or not codec):
