@@ -16,8 +16,12 @@ Why 0.03 bit per pixel per picture:
 * ``bench/resolution_acuity.py`` (offline, the simulated current-Axis persona looking at the 35 m acuity chart at
   its zoom limit, x264 ``veryfast``, an IDR a second, 25 fps; at d82297c): at 400 kbit/s 1024x576 (0.027 bit/px)
   reads 12 rows median and 10 worst, 1920x1080 (0.008) 12 median but 1 worst (its IDR picture breaks down); at
-  1000 kbit/s 1920x1080 (0.019) reads all 12 in every picture. So in this scene a size reads well down to about
-  0.02 and breaks down near 0.01.
+  1000 kbit/s 1920x1080 (0.019) reads all 12 in every picture. At 30 fps (``--kbps 150,300,700 --seconds 2 --fps
+  30``, at 7705f2d; rows median / worst; uncoded, the sizes from 1920x1080 down to 480x270 read 12, 11, 10, 10, 7
+  and 9 rows): 150 kbit/s: 480x270 (0.039) 9 / 8, 640x360 (0.022) 9 / 4, 1920x1080 0 / 0; 300 kbit/s: 1280x720
+  (0.011) 11 / 8, 800x450 (0.028) 10 / 9, 1920x1080 4 / 0; 700 kbit/s: 1920x1080 (0.011) 12 / 12, 1024x576 (0.040)
+  10 / 10. So in this scene a size reads down to about 0.01-0.02 and breaks down under 0.01; 0.03 gives up one or
+  two rows against the best size at 300-700 kbit/s here, and keeps the worst picture (8 rows, not 4, at 150).
 * The simulator's scene is static, with the sensor noise of its camera model only: a real scene moves, a PTZ pans,
   a real sensor's noise and the camera's own encoder (unknown to us; Axis's Zipstream and its rate control differ
   from x264) all take bits a static scene does not. 0.03 leaves 1.5× over the measured edge and stays under half the
