@@ -43,12 +43,17 @@ import atexit
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pipelines import Proc
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -157,6 +162,7 @@ def viewer(ns: str, diagnostics: bool) -> int:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
+    from rclpy.event_handler import SubscriptionEventCallbacks
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -180,7 +186,11 @@ def viewer(ns: str, diagnostics: bool) -> int:
         emit({"rx": rx, "st": st, "cap": cap, "ok": int(pic is not None)})
 
     plain = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-    node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", on_packet, plain)
+    # when discovery matched this reader with the node's writer: a slow first picture is discovery's or the node's
+    events = SubscriptionEventCallbacks(
+        matched=lambda info: emit({"t": "matched", "rx": time.time_ns(), "n": int(info.current_count)})
+    )
+    node.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", on_packet, plain, event_callbacks=events)
     if diagnostics:
         last: list[object] = [None]
 
@@ -215,13 +225,29 @@ class LinkCut:
 
     def __init__(self, ports: list[int]) -> None:
         """Check that nftables can be used here (root); raise RuntimeError saying why not."""
-        self.table = f"axis_soak_h264_{os.getpid()}"
+        self.table = f"{self.PREFIX}{os.getpid()}"
         self.ports = ports
         self.active = False
+        self._remove_orphans()
         probe = self._nft(f"add table inet {self.table}\ndelete table inet {self.table}\n")
         if probe:
             raise RuntimeError(f"the link cut needs nftables as root (CAP_NET_ADMIN): {probe}")
         atexit.register(self.restore)
+
+    PREFIX = "axis_soak_h264_"  #: the tables' names: this prefix and the bench's process id
+
+    def _remove_orphans(self) -> None:
+        """Delete the tables a killed run left (their process gone): they would cut whoever gets those ports next."""
+        try:
+            listing = subprocess.run(["nft", "list", "tables"], text=True, capture_output=True, timeout=10, check=False)
+        except (OSError, subprocess.TimeoutExpired):
+            return
+        for line in listing.stdout.splitlines():
+            name = line.split()[-1] if line.startswith("table inet ") else ""
+            pid = name.removeprefix(self.PREFIX)
+            if name.startswith(self.PREFIX) and pid.isdigit() and not Path(f"/proc/{pid}").exists():
+                self._nft(f"delete table inet {name}\n")
+                print(f"removed the link cut a killed run left: table inet {name}", flush=True)
 
     @staticmethod
     def _nft(script: str) -> str:
@@ -261,9 +287,10 @@ class Viewer:
 
     number: int
     stream: str
-    proc: object  # pipelines.Proc
+    proc: Proc
     monitor: bool = False
-    joined_ns: int | None = None
+    joined_ns: int | None = None  #: subscribed
+    matched_ns: int | None = None  #: discovery matched the subscription with the node's publisher
     left_ns: int | None = None
     msgs: list[tuple[int, int, int, int]] = field(default_factory=list)  # (rx, st, cap, ok)
     diag: list[tuple[int, float]] = field(default_factory=list)
@@ -271,7 +298,7 @@ class Viewer:
 
     def parse(self) -> None:
         """Take the lines printed since the last call."""
-        lines = self.proc.lines  # type: ignore[attr-defined]
+        lines = self.proc.lines
         new, self.parsed = lines[self.parsed :], len(lines)
         for line in new:
             if not line.startswith("{"):
@@ -282,13 +309,16 @@ class Viewer:
                 continue
             if rec.get("t") == "ready":
                 self.joined_ns = rec["rx"]
+            elif rec.get("t") == "matched":
+                if self.matched_ns is None and rec["n"] > 0:
+                    self.matched_ns = rec["rx"]
             elif rec.get("t") == "diag":
                 self.diag.append((rec["rx"], rec["off"]))
             elif "st" in rec:
                 self.msgs.append((rec["rx"], rec["st"], rec["cap"], rec["ok"]))
 
 
-def start_camera(model: str) -> tuple[object, int, int | None]:
+def start_camera(model: str) -> tuple[Proc, int, int | None]:
     """A simulator process; its HTTP port and RTSP port (None for the 214)."""
     import re
 
@@ -304,7 +334,7 @@ def start_camera(model: str) -> tuple[object, int, int | None]:
     return proc, http, int(m.group(1)) if m else None
 
 
-def start_node(stream: str, http: int, rtsp: int | None) -> object:
+def start_node(stream: str, http: int, rtsp: int | None) -> Proc:
     """``axis_stream`` for ``stream`` in namespace ``/soak_h264/<stream>``."""
     from pipelines import BIN, ROOT, Proc
 
@@ -328,7 +358,7 @@ def start_viewer(number: int, stream: str, monitor: bool = False) -> Viewer:
     return Viewer(number, stream, Proc(cmd, f"viewer {number} ({stream})"), monitor=monitor)
 
 
-def control(port: int, query: str) -> dict:
+def control(port: int, query: str) -> dict[str, Any]:
     from pipelines import sim_get
 
     return sim_get(port, f"/sim/control?{query}")
@@ -351,6 +381,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
         events = schedule(args.duration)
     except ValueError as err:
         ap.error(str(err))
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a stop cleans up too: links back, processes ended
 
     from pipelines import sim_get
     from report import inputs
@@ -371,7 +402,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
         f"{CLOCK_STEP_S:+g} s, {count['join']} viewers joining and leaving",
         flush=True,
     )
-    procs: list[object] = []
+    procs: list[Proc] = []
     viewers: list[Viewer] = []
     cut: LinkCut | None = None
     try:
@@ -395,7 +426,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
             time.sleep(0.2)
         for s, v in monitors.items():
             if not any(m[3] for m in v.msgs):
-                print(f"{s}: no picture within 60 s; node output:", *nodes[s].lines[-20:], sep="\n")  # type: ignore[attr-defined]
+                print(f"{s}: no picture within 60 s; node output:", *nodes[s].lines[-20:], sep="\n")
                 return 1
         print("both monitors decode; the schedule starts", flush=True)
 
@@ -415,8 +446,8 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
             if t >= args.duration:
                 break
             for s, node in nodes.items():
-                if node.p.poll() is not None:  # type: ignore[attr-defined]
-                    raise RuntimeError(f"axis_stream {s} exited; output: {node.lines[-20:]}")  # type: ignore[attr-defined]
+                if node.p.poll() is not None:
+                    raise RuntimeError(f"axis_stream {s} exited; output: {node.lines[-20:]}")
             if restore_at is not None and now >= restore_at:
                 cut.restore()
                 cuts[-1] = (cuts[-1][0], time.time())
@@ -445,7 +476,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
                     v = churn.pop(e.viewer)
                     v.left_ns = time.time_ns()
                     # stopped aside: a viewer's exit (up to 5 s) must not hold back the schedule
-                    threading.Thread(target=v.proc.stop, daemon=True).start()  # type: ignore[attr-defined]
+                    threading.Thread(target=v.proc.stop, daemon=True).start()
                 print(
                     f"t={t:6.1f} s  {e.kind}" + (f" viewer {e.viewer} ({e.stream})" if e.viewer >= 0 else ""),
                     flush=True,
@@ -460,7 +491,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
                         rec[s] = st["video_ok_at"] if st["video_ok_at"] is not None else math.nan
             if now >= next_sample:
                 for s, node in nodes.items():
-                    samples[s].append(sample(node.p.pid, t))  # type: ignore[attr-defined]
+                    samples[s].append(sample(node.p.pid, t))
                 if len(samples["transcoded"]) % 6 == 1:
                     rss = "  ".join(f"{s} RSS {samples[s][-1][1]:.1f} MB" for s in STREAMS)
                     pics = "  ".join(f"{s} {sum(m[3] for m in monitors[s].msgs)} pictures" for s in STREAMS)
@@ -470,18 +501,18 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
                 v.parse()
             time.sleep(0.1)
         for v in churn.values():
-            v.proc.stop()  # type: ignore[attr-defined]
+            v.proc.stop()
             v.left_ns = time.time_ns()
         for v in viewers:
             v.parse()
-        alive = all(n.p.poll() is None for n in nodes.values())  # type: ignore[attr-defined]
+        alive = all(n.p.poll() is None for n in nodes.values())
     finally:
         if cut is not None:
             cut.restore()
         for v in viewers:
-            v.proc.stop()  # type: ignore[attr-defined]
+            v.proc.stop()
         for p in reversed(procs):
-            p.stop()  # type: ignore[attr-defined]
+            p.stop()
 
     run = Run(samples, viewers, reboots, cuts, clock_step_wall, alive)
     return 0 if judge(run, args.duration) else 1
@@ -541,20 +572,22 @@ def judge(run: Run, duration: float) -> bool:  # noqa: PLR0915 - one target afte
     target("RSS slope of the stream nodes over the second half", "; ".join(figs), f"≤ {RSS_SLOPE_MB_H:g} MB/h", ok)
 
     # first picture (and, to tell discovery from waiting for a start point, the first message of any kind)
-    firsts: list[tuple[str, float, float]] = []  # (stream, first message, first picture) s after joining
+    firsts: list[tuple[str, float, float, float]] = []  # (stream, matched, first message, first picture) s after
     for v in run.viewers:
         if v.monitor or v.joined_ns is None:
             continue
         shown = [m[0] for m in v.msgs if m[3]]
+        matched = (v.matched_ns - v.joined_ns) / NS if v.matched_ns is not None else math.inf
         first_msg = (v.msgs[0][0] - v.joined_ns) / NS if v.msgs else math.inf
-        firsts.append((v.stream, first_msg, (shown[0] - v.joined_ns) / NS if shown else math.inf))
-    worst = max((f[2] for f in firsts), default=math.nan)
-    never = sum(not math.isfinite(f[2]) for f in firsts)
-    each = "; ".join(f"{s}: " + ", ".join(f"{f[2]:.2f}" for f in firsts if f[0] == s) for s in STREAMS)
+        firsts.append((v.stream, matched, first_msg, (shown[0] - v.joined_ns) / NS if shown else math.inf))
+    worst = max((f[3] for f in firsts), default=math.nan)
+    never = sum(not math.isfinite(f[3]) for f in firsts)
+    each = "; ".join(f"{s}: " + ", ".join(f"{f[3]:.2f}" for f in firsts if f[0] == s) for s in STREAMS)
     fig = f"worst {worst:.2f} s of {len(firsts)} joins ({each} s)" + (f"; {never} never shown" if never else "")
-    slow = [f for f in firsts if f[2] > FIRST_PICTURE_S]
+    slow = [f for f in firsts if f[3] > FIRST_PICTURE_S]
     if slow:
-        fig += "; first message of those > 2 s: " + ", ".join(f"{f[1]:.2f}" for f in slow) + " s"
+        fig += "; of those > 2 s, matched / first message: " + ", ".join(f"{f[1]:.2f}/{f[2]:.2f}" for f in slow)
+        fig += " s"
     target(
         "viewers' first picture after joining",
         fig,
