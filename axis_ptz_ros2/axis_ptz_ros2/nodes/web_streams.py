@@ -101,6 +101,11 @@ class ConsoleStreams:
         elif self._h264_sub is not None and not want:
             self._node.destroy_subscription(self._h264_sub)
             self._h264_sub = None
+        # the reports name the topic watched (their frame_id): the stream node takes decode errors as H.264's only
+        # from a report about an H.264 topic, and MJPEG reports while the stream is H.264 as the MJPEG share's
+        watched = self._h264_topic if self._h264_sub is not None else self._topics["ptz"]
+        if self._node.resolve_topic_name(watched) != self.feedback.topic:
+            self.feedback.retarget(watched)
         if "ptz" in self._image_subs or self._h264_sub is not None:
             self.feedback.watch()
         else:
@@ -121,7 +126,7 @@ class ConsoleStreams:
 
         def cb(msg: CompressedImage) -> None:
             data = _payload(msg.data)
-            if name == "ptz":
+            if name == "ptz" and self._h264_sub is None:  # while H.264 is watched, the reports are about it
                 self.feedback.add(msg, len(data))
                 self._model.ptz_frame(len(data), stamp_s(msg.header.stamp))
             slot.publish(data)
