@@ -73,6 +73,7 @@ from axis_ptz_ros2.streaming.jpeg import jpeg_sof
 from axis_ptz_ros2.streaming.status import LogLine, LogThrottle, diagnostic_status, reader_event_line
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix import VapixClient
+from axis_ptz_ros2.vapix.models import VideoParams as CameraVideoParams
 
 __all__ = ["PARAMS", "StreamNode", "main"]
 
@@ -144,7 +145,7 @@ class StreamNode(Node):
             self._image_pub,
             self._frame_id,
             reader_config,
-            reference=lambda: (self._video.current, self._reader.meter.rate(time.monotonic()).bytes_per_frame),
+            reference=self._share_reference,
             on_event=self._on_share_event,
         )
         # still/capture -> still/compressed: the camera's best JPEG on demand, counted against the budget
@@ -334,6 +335,13 @@ class StreamNode(Node):
             mjpeg.set_active(image and h264)
         transcode = self._h264.update()
         return not self._lazy or self._image_wanted or self._info_wanted or transcode
+
+    def _share_reference(self) -> tuple[CameraVideoParams, float]:
+        """The main stream's parameters and measured bytes a frame, the MJPEG share's first step is predicted from
+        (0 while the reader is being built: a subscriber already there makes the share start during construction)."""
+        reader = getattr(self, "_reader", None)
+        bpf = reader.meter.rate(time.monotonic()).bytes_per_frame if reader is not None else 0.0
+        return self._video.current, bpf
 
     def _update_activity(self) -> None:
         reader = getattr(self, "_reader", None)
