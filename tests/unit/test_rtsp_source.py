@@ -58,7 +58,18 @@ def _timing(*, read_timeout_s: float, stall_timeout_s: float) -> ReaderConfig:
 
 
 def _stream(n: int) -> list[bytes]:
-    enc = H264Encoder(EncoderConfig(width=64, height=48, fps=15, bitrate_bps=200_000, keyframe_interval=100))
+    enc = H264Encoder(
+        EncoderConfig(
+            width=64,
+            height=48,
+            fps=15,
+            bitrate_bps=200_000,
+            keyframe_interval=100,
+            preset="veryfast",
+            profile="baseline",
+            refresh="idr",
+        )
+    )
     return [enc.encode_bgr(np.full((48, 64, 3), i * 7 % 255, np.uint8)).data for i in range(n)]
 
 

@@ -311,7 +311,9 @@ def test_bad_jpeg_is_dropped_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
 
 def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
     """An access-unit source (an RTSP reader) whose IDRs lack SPS/PPS after the first: the stage adds them."""
-    t = MjpegTranscoder(TranscoderConfig(fps=10, keyframe_interval=4))
+    t = MjpegTranscoder(
+        TranscoderConfig(fps=10, keyframe_interval=4, preset="veryfast", profile="baseline", refresh="idr")
+    )
     frames = [t.transcode(j) for j in jpegs[:9]]
     stripped = []
     for i, f in enumerate(frames):

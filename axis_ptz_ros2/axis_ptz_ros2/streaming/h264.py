@@ -68,22 +68,23 @@ from typing import TYPE_CHECKING, Final, Protocol
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL, PRESETS
+from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_PRESET,
+    DEFAULT_PROFILE,
+    DEFAULT_REFRESH,
+)
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
 
 if TYPE_CHECKING:  # the transcoder needs PyAV, imported only when a stage first transcodes (media.pyav)
     from axis_ptz_ros2.media.transcoder import TranscoderConfig
 
-CODECS: Final = ("mjpeg", "h264")
-H264_PRESETS: Final = PRESETS
 #: s: on-demand IDRs at most this often (the periodic ones come every second anyway)
 IDR_MIN_INTERVAL_S: Final = 0.25
 #: s: a new subscriber's second IDR comes this long after its first (see the module docstring)
 NEW_SUBSCRIBER_IDR_AGAIN_S: Final = 0.4
-#: kbit/s: the encoder's bitrate range (the parameter's)
-BITRATE_RANGE_KBPS: Final = (100, 20_000)
-KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
 #: JPEG arrivals whose median interval gives the camera's own picture rate
 RATE_WINDOW: Final = 30
 #: pictures/s: the encoder re-opens at the measured rate only when it is this far from the one it runs at
@@ -95,16 +96,16 @@ FFMPEG_ENCODING: Final = "h264;yuv420p;bgr8;bgr8"
 
 @dataclass(frozen=True, slots=True)
 class H264Settings:
-    """What the encoder is to do now (from the video controller)."""
+    """What the encoder is to do now (from the video controller); defaults from :mod:`~axis_ptz_ros2.media.limits`."""
 
-    bitrate_kbps: int = 1000  # the target now (the budgets move it under the ceiling)
-    keyframe_interval: int = 30  # frames; capped at fps (one second)
-    preset: str = "superfast"
+    bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # the target now (the budgets move it under the ceiling)
+    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames; capped at fps (one second)
+    preset: str = DEFAULT_PRESET
     fps: int = 15
     ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
     vbv_kbit: int = 0  # the encoder's VBV buffer (bounds its largest picture, an IDR); 0 = its default
-    profile: str = "high"  # H.264 profile (media.limits.PROFILES; see the module docstring)
-    refresh: str = "intra"  # x264's periodic intra refresh, IDRs only on demand; or "idr" (media.limits.REFRESH_MODES)
+    profile: str = DEFAULT_PROFILE  # H.264 profile (media.limits.PROFILES; see the module docstring)
+    refresh: str = DEFAULT_REFRESH  # x264's periodic intra refresh, IDRs only on demand; or "idr" (REFRESH_MODES)
 
     def transcoder_config(self) -> TranscoderConfig:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
