@@ -34,7 +34,8 @@ from rclpy.publisher import Publisher
 from axis_ptz_ros2.nodes.common import VIDEO_QOS, publisher, stamp_from_ns
 from axis_ptz_ros2.streaming import ReaderConfig
 from axis_ptz_ros2.streaming.controller import VideoController
-from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING, H264Stage, StagedFrame
+from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING, H264Stage
 from axis_ptz_ros2.streaming.passthrough_size import PassthroughSize
 from axis_ptz_ros2.streaming.rtsp_source import passthrough_source
 from axis_ptz_ros2.streaming.status import LogLine, h264_diagnostic_values, h264_mode_line
@@ -189,7 +190,7 @@ class H264Output:
                 return False
         return True
 
-    def _publish(self, frame: StagedFrame) -> None:
+    def _publish(self, frame: EncodedFrame) -> None:
         """One access unit (reader or RTSP thread): the same bytes on both H.264 topics."""
         stamp = stamp_from_ns(frame.stamp_ns)
         if self._ffmpeg_wanted:

@@ -136,18 +136,6 @@ class H264Settings:
         return max(1, min(int(self.keyframe_interval), max(1, int(self.fps))))
 
 
-@dataclass(frozen=True, slots=True)
-class StagedFrame:
-    """An access unit ready to publish: the bytes, IDR or not, the stage's pts, size, capture stamp [ns]."""
-
-    data: bytes
-    keyframe: bool
-    pts: int
-    width: int
-    height: int
-    stamp_ns: int
-
-
 @dataclass(slots=True)
 class StageStats:
     """Counters since the stage was made (diagnostics)."""
@@ -192,7 +180,7 @@ class H264Stage:
     def __init__(
         self,
         settings: Callable[[], H264Settings],
-        publish: Callable[[StagedFrame], None],
+        publish: Callable[[EncodedFrame], None],
         *,
         transcoder_factory: Callable[[TranscoderConfig], Transcoder] | None = None,
         on_problem: Callable[[str], None] | None = None,
@@ -299,7 +287,7 @@ class H264Stage:
             self._last_idr_request = -1e18
 
     # -- frames (the reader thread) ----------------------------------------------------------------------------
-    def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> StagedFrame | None:
+    def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> EncodedFrame | None:
         """Transcode one JPEG of the camera and publish it; None while inactive or when it does not decode."""
         problem = unavailable = ""
         with self._lock:
@@ -332,7 +320,7 @@ class H264Stage:
             return None
         return self._emit(frame, arrival_ns)
 
-    def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame | None:
+    def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> EncodedFrame | None:
         """Seam for sources that deliver H.264 (RTSP pass-through): publish one access unit as it came, with
         SPS/PPS put in front of an IDR that lacks them. None while inactive or when it is malformed.
 
@@ -410,13 +398,13 @@ class H264Stage:
             self.stats.idr_requests += 1
         return t
 
-    def _emit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame:
+    def _emit(self, frame: EncodedFrame, stamp_ns: int) -> EncodedFrame:
         with self._lock:
             pts = self._pts
             self._pts += 1
             self.stats.frames += 1
             self.stats.idrs += int(frame.keyframe)
-        out = StagedFrame(frame.data, frame.keyframe, pts, frame.width, frame.height, stamp_ns)
+        out = replace(frame, pts=pts, capture_ns=stamp_ns)  # the stage's pts, the frame's capture stamp
         self._publish(out)
         return out
 
