@@ -151,7 +151,6 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/streaming",
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
-        "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_h264.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
         "config/sim_world.yaml",
     )

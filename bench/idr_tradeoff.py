@@ -94,7 +94,14 @@ def main() -> None:
         for gop in (FPS, 2 * FPS):
             encoder.VBV_BUFFER_S = vbv  # read when the encoder opens
             tc = MjpegTranscoder(
-                TranscoderConfig(preset="superfast", bitrate_bps=a.kbps * 1000, fps=FPS, keyframe_interval=gop)
+                TranscoderConfig(
+                    preset="superfast",
+                    bitrate_bps=a.kbps * 1000,
+                    fps=FPS,
+                    keyframe_interval=gop,
+                    profile="baseline",
+                    refresh="idr",  # periodic IDRs are what this bench weighs
+                )
             )
             dec = H264Decoder()
             idr: list[int] = []

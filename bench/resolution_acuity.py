@@ -89,7 +89,16 @@ def main(argv: list[str] | None = None) -> int:
             soft, noise, H = views[(w, h)]
             t0 = time.perf_counter()
             enc = H264Encoder(
-                EncoderConfig(w, h, fps=fps, bitrate_bps=kbps * 1000, keyframe_interval=gop, preset=args.preset)
+                EncoderConfig(
+                    w,
+                    h,
+                    fps=fps,
+                    bitrate_bps=kbps * 1000,
+                    keyframe_interval=gop,
+                    preset=args.preset,
+                    profile="baseline",
+                    refresh="idr",  # a camera's own H.264: an IDR every GOP
+                )  # fmt: skip
             )
             dec = H264Decoder()
             rows: list[int] = []

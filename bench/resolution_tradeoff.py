@@ -54,7 +54,16 @@ def main() -> None:
         for w, h in SIZES:
             soft = views[(w, h)]
             noise = model.noise_field(w, h) if model.noisy else None
-            cfg = EncoderConfig(w, h, fps=FPS, bitrate_bps=kbps * 1000, keyframe_interval=FPS, preset=a.preset)
+            cfg = EncoderConfig(
+                w,
+                h,
+                fps=FPS,
+                bitrate_bps=kbps * 1000,
+                keyframe_interval=FPS,
+                preset=a.preset,
+                profile="baseline",
+                refresh="idr",  # a camera's own H.264: an IDR every second
+            )
             enc = H264Encoder(cfg)
             dec = H264Decoder()
             scores: list[float] = []

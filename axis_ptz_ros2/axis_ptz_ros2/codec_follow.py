@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.streaming.h264 import CODECS
+from axis_ptz_ros2.media.limits import CODECS
 
 #: follow the stream node's ``video/params``
 AUTO: Final = "auto"

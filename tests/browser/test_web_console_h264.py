@@ -231,7 +231,9 @@ def test_after_a_decode_error_the_page_recovers_at_an_idr_the_stream_node_sends(
     pg.add_init_script(FAIL_ONCE_JS)
     pg.goto(console.url, wait_until="domcontentloaded")
     wait_for(lambda: pg.evaluate(FRAMES_JS) >= 10, 30.0, "10 frames decoded on the canvas", pg)
-    wait_for(lambda: idr_granted_at_once(stream._stage, stream._h264), 12.0, "the new subscriber's IDRs given", pg)
+    wait_for(
+        lambda: idr_granted_at_once(stream._stage, stream._pipeline.starts), 12.0, "the new subscriber's IDRs given", pg
+    )
     asked = stream._stage.stats.idr_requests
     pg.evaluate("window.__axisFailNext = true")
     wait_for(lambda: not pg.evaluate("window.__axisFailNext"), 5.0, "the injected decode failure", pg)

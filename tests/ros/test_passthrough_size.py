@@ -111,7 +111,7 @@ def test_a_lasting_bitrate_drop_restarts_the_camera_at_a_smaller_size(
 ) -> None:
     node, probe, params, rec = start(ros, camera, cred, 2000)
     assert session_size(camera) == (1920, 1080)
-    sizer = node._h264.size  # noqa: SLF001
+    sizer = node._pipeline.size  # noqa: SLF001
     sizer.config = SizeConfig(down_hold_s=0.5, min_interval_s=1.0)  # the test's patience, not 2 s / 10 s
     assert all(r.successful for r in set_params(ros, probe, h264_bitrate_kbps=100, h264_max_bitrate_kbps=100))
     assert camera.rtsp is not None

@@ -4,7 +4,7 @@
   (``streaming/mjpeg_share.py``), never the encoder's compression-0 JPEGs; the encoder makes room for it.
 * A report about the MJPEG topic does not judge the link the H.264 stream is held to.
 * A plain H.264 viewer that missed the new subscriber's first IDRs (replaced in the keep-last queue on a crowded
-  link) still gets a start point (``nodes/stream_h264.py``'s repeats), and a viewer that reports pictures stops them.
+  link) still gets a start point (``streaming/start_points.py``), and a viewer that reports pictures stops them.
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.stream_h264 import START_IDR_REPEATS_S  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: E402
 from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
+from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 
@@ -181,7 +181,9 @@ def test_a_viewer_whose_first_idrs_were_replaced_still_gets_a_start_point(
     first = Received()
     probe.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", first.on_packet, STREAM_QOS)
     ros.wait_for(lambda: len(first.since(0.0)) >= 10, timeout=15)
-    ros.wait_for(lambda: not node._h264._repeats, timeout=START_IDR_REPEATS_S[-1] + 2)  # the first one's are done
+    ros.wait_for(
+        lambda: not node._pipeline.starts._repeats, timeout=START_IDR_REPEATS_S[-1] + 2
+    )  # the first one's are done
     viewer = ros.probe("plain_viewer")
     t0 = time.monotonic()
     late = Received(drop_until=t0 + 0.7)
@@ -190,7 +192,7 @@ def test_a_viewer_whose_first_idrs_were_replaced_still_gets_a_start_point(
     ros.wait_for(lambda: any(k for _, _, k in late.since(0.0)), timeout=5)
     key_at = next(t for t, _, k in late.since(0.0) if k)
     assert key_at - t0 <= 2.0, f"a start point {key_at - t0:.2f} s after joining"
-    assert node._h264.start_repeats >= 1
+    assert node._pipeline.starts.start_repeats >= 1
 
 
 def test_start_point_repeats_stop_once_every_viewer_reports_pictures(ros: RosHarness, camera: SimulatedCamera) -> None:
@@ -199,12 +201,12 @@ def test_start_point_repeats_stop_once_every_viewer_reports_pictures(ros: RosHar
     got = Received()
     viewer.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", got.on_packet, STREAM_QOS)
     ros.wait_for(lambda: any(k for _, _, k in got.since(0.0)), timeout=15)
-    ros.wait_for(lambda: node._h264._viewers, timeout=5)
+    ros.wait_for(lambda: node._pipeline.starts._viewers, timeout=5)
     pub = viewer.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
     ros.wait_for(lambda: pub.get_subscription_count() > 0, timeout=5)
     msg = LinkFeedback(consumer=viewer.get_fully_qualified_name(), frames=10, fps=25.0, kbps=700.0, window_s=0.5)
     msg.header.frame_id = "image_raw/ffmpeg"
     msg.delay_p95_s, msg.delay_min_s, msg.gap_s = 0.02, 0.01, 0.04
     pub.publish(msg)
-    ros.wait_for(lambda: not node._h264._repeats, timeout=START_IDR_REPEATS_S[1])
-    assert node._h264.start_repeats < len(START_IDR_REPEATS_S)
+    ros.wait_for(lambda: not node._pipeline.starts._repeats, timeout=START_IDR_REPEATS_S[1])
+    assert node._pipeline.starts.start_repeats < len(START_IDR_REPEATS_S)

@@ -253,7 +253,7 @@ def test_mjpeg_mode_never_encodes_and_switches_live(ros: RosHarness, camera: Sim
     node = make_node(ros, camera, resolution="352x288", fps=15)
     probe = ros.probe()
     rec, _ = subscribe(probe)
-    ros.wait_for(lambda: node._h264.subscribers == 1, timeout=5)
+    ros.wait_for(lambda: node._pipeline.starts.subscribers == 1, timeout=5)
     time.sleep(1.0)  # a window for a (wrong) stream request or encoder: the thing under test is that none comes
     # codec mjpeg: an H.264 subscriber alone is nobody to stream for (lazy): no request, no encoder
     assert camera.request_counts.endpoints.get("video", 0) == 0
@@ -430,7 +430,9 @@ def test_link_monitor_decodes_and_its_loss_report_brings_an_idr(ros: RosHarness,
     # a consumer that lost sync says so: the stream node sends an IDR at once, not at the next periodic one
     rec, _ = subscribe(probe)
     ros.wait_for(lambda: rec.count() >= 5, timeout=5)
-    ros.wait_for(lambda: idr_granted_at_once(node._stage, node._h264), timeout=10)  # past the new subscription's IDRs
+    ros.wait_for(
+        lambda: idr_granted_at_once(node._stage, node._pipeline.starts), timeout=10
+    )  # past the new subscription's IDRs
     before = node._stage.stats.idr_requests
     pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
     msg = LinkFeedback(consumer="/lossy", frames=10, fps=10.0, kbps=500.0, window_s=1.0, decode_errors=3)

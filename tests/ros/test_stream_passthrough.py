@@ -178,7 +178,7 @@ def test_a_late_joiner_gets_an_idr_within_a_second(
     first, _ = subscribe(probe)
     ros.wait_for(lambda: first.count() >= 20, timeout=15)
     # outside the stage's on-demand rate limit, the first subscriber's start-point repeats over
-    ros.wait_for(lambda: idr_granted_at_once(node._stage, node._h264), timeout=10)
+    ros.wait_for(lambda: idr_granted_at_once(node._stage, node._pipeline.starts), timeout=10)
     before = len(renews)
     joiner_probe = ros.probe("late_joiner")
     late = H264Recorder()

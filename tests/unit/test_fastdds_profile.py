@@ -8,7 +8,7 @@ from pathlib import Path
 
 PROFILE = Path(__file__).resolve().parents[2] / "config" / "fastdds_weak_link.xml"
 NS = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
-H264_WRITERS = ("/image_raw/ffmpeg", "/image_raw/foxglove")  # the stream node's H.264 topics (stream_h264.py)
+H264_WRITERS = ("/image_raw/ffmpeg", "/image_raw/foxglove")  # the stream node's H.264 topics (nodes/stream_node.py)
 
 
 def _writer(name: str) -> ET.Element:

@@ -205,7 +205,7 @@ def test_h264_bitrate_keys_keep_the_ceiling_at_least_the_start_and_stop_at_the_r
 
 
 def test_bitrate_steps_span_the_stream_nodes_range():
-    from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS  # noqa: PLC0415 - loads FFmpeg: only here
+    from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS  # noqa: PLC0415
 
     assert (km.BITRATE_STEPS_KBPS[0], km.BITRATE_STEPS_KBPS[-1]) == BITRATE_RANGE_KBPS
     assert list(km.BITRATE_STEPS_KBPS) == sorted(set(km.BITRATE_STEPS_KBPS))

@@ -36,7 +36,9 @@ def renderer() -> PtzRenderer:
 @pytest.fixture(scope="module")
 def stream(renderer: PtzRenderer) -> list[bytes]:
     """Eight access units (IDR + 7 P) of the simulated camera panning, from libx264 via the transcoder."""
-    tc = MjpegTranscoder(TranscoderConfig(bitrate_bps=1_500_000, stamp_sei=False))
+    tc = MjpegTranscoder(
+        TranscoderConfig(bitrate_bps=1_500_000, stamp_sei=False, preset="veryfast", profile="baseline", refresh="idr")
+    )
     return [tc.transcode(encode_jpeg(renderer.render(20.0 + 1.0 * i, -4.0, 1.0, 704, 576), 0)).data for i in range(8)]
 
 

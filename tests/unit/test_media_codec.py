@@ -69,7 +69,11 @@ def check_idr_headers(frame: EncodedFrame) -> None:
 )
 def test_round_trip_psnr_at_1500_kbits(jpegs: list[bytes], jpeg_decoder: str, motion: str, median_db: float) -> None:
     """Against the camera's own compression-0 JPEG, decoded: ≥ 35 dB camera still, ≥ 33 dB panning (issue 21)."""
-    tc = MjpegTranscoder(TranscoderConfig(bitrate_bps=1_500_000, jpeg_decoder=jpeg_decoder))  # type: ignore[arg-type]
+    tc = MjpegTranscoder(
+        TranscoderConfig(
+            bitrate_bps=1_500_000, jpeg_decoder=jpeg_decoder, preset="veryfast", profile="baseline", refresh="idr"
+        )
+    )  # type: ignore[arg-type]
     dec = H264Decoder()
     psnr = []
     sizes = []
@@ -97,7 +101,11 @@ def test_round_trip_psnr_at_1500_kbits(jpegs: list[bytes], jpeg_decoder: str, mo
 
 def test_live_bitrate_change_changes_the_output_size(fast_pan: list[bytes]) -> None:
     images = [bgr(j) for j in fast_pan]
-    enc = H264Encoder(EncoderConfig(704, 576, bitrate_bps=2_000_000, keyframe_interval=600))
+    enc = H264Encoder(
+        EncoderConfig(
+            704, 576, bitrate_bps=2_000_000, keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr"
+        )
+    )
     high = [len(enc.encode_bgr(img).data) for img in images[:15]]
     enc.set_bitrate(300_000)
     low = [len(enc.encode_bgr(img).data) for img in images[15:]]
@@ -120,7 +128,11 @@ def test_a_new_vbv_buffer_waits_for_the_next_idr_and_bounds_it(fast_pan: list[by
     """The VBV buffer bounds the IDR; a new one re-opens the encoder only at an IDR it makes anyway (no extra
     keyframe), keeps the opened maxrate, and a change within VBV_REOPEN_SLACK is no re-open at all."""
     images = [bgr(j) for j in fast_pan]
-    enc = H264Encoder(EncoderConfig(704, 576, bitrate_bps=1_000_000, keyframe_interval=10))
+    enc = H264Encoder(
+        EncoderConfig(
+            704, 576, bitrate_bps=1_000_000, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr"
+        )
+    )
     assert enc.opened_vbv_bits == 150_000  # VBV_BUFFER_S of the bitrate
     keys, sizes = [], []
     for i, img in enumerate(images):
@@ -150,7 +162,9 @@ def test_a_new_vbv_buffer_waits_for_the_next_idr_and_bounds_it(fast_pan: list[by
 
 def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> None:
     images = [bgr(j) for j in jpegs[:30]]
-    enc = H264Encoder(EncoderConfig(704, 576, keyframe_interval=10))
+    enc = H264Encoder(
+        EncoderConfig(704, 576, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr")
+    )
     keys = []
     for i, img in enumerate(images):
         if i == 13:
@@ -171,7 +185,9 @@ def test_intra_refresh_makes_idrs_only_on_demand_and_every_picture_decodes(jpegs
     each wave's recovery point, which libx264 flags key (with SPS/PPS and a recovery-point SEI), is no IDR and is
     not passed on as a key frame (no decoder can start there); a new wave length re-opens x264 with an IDR."""
     images = [bgr(j) for j in jpegs[:40]]
-    enc = H264Encoder(EncoderConfig(704, 576, fps=25, keyframe_interval=8, refresh="intra", profile="high"))
+    enc = H264Encoder(
+        EncoderConfig(704, 576, fps=25, keyframe_interval=8, refresh="intra", profile="high", preset="veryfast")
+    )
     dec = H264Decoder()
     keys, recovery_points = [], []
     for i, img in enumerate(images):
@@ -207,7 +223,7 @@ def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> 
 
     def healed_after(refresh: str) -> int | None:
         enc = H264Encoder(EncoderConfig(704, 576, fps=25, keyframe_interval=10 if refresh == "intra" else 600,
-                                        refresh=refresh))  # fmt: skip
+                                        refresh=refresh, preset="veryfast", profile="baseline"))  # fmt: skip
         lossy, twin = av.CodecContext.create("h264", "r"), av.CodecContext.create("h264", "r")
         healed = None
         for i, img in enumerate(images):
@@ -228,7 +244,7 @@ def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> 
 
 
 def test_codec_string_matches_the_sps_the_decoder_uses(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder()
+    tc = MjpegTranscoder(TranscoderConfig(preset="veryfast", profile="baseline", refresh="idr"))
     assert tc.codec_string is None
     out = tc.transcode(jpegs[0])
     sps = annexb.find_sps(out.data)
@@ -245,7 +261,7 @@ def test_resolution_change_reopens_the_encoder_and_the_decoder_follows(
     jpegs: list[bytes], renderer: PtzRenderer
 ) -> None:
     small = encode_jpeg(renderer.render(0.0, -3.0, 1.0, 352, 288), 0)
-    tc = MjpegTranscoder()
+    tc = MjpegTranscoder(TranscoderConfig(preset="veryfast", profile="baseline", refresh="idr"))
     dec = H264Decoder()
     outs = [tc.transcode(j) for j in (jpegs[0], jpegs[1], small, small, jpegs[2])]
     assert [o.keyframe for o in outs] == [True, False, True, False, True]
@@ -261,7 +277,7 @@ def test_resolution_change_reopens_the_encoder_and_the_decoder_follows(
 
 
 def test_decoder_joining_mid_gop_waits_for_an_idr(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=600))
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr"))
     outs = []
     for i, j in enumerate(jpegs[:16]):
         if i == 10:
@@ -279,7 +295,7 @@ def test_decoder_joining_mid_gop_waits_for_an_idr(jpegs: list[bytes]) -> None:
 
 
 def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=8))
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=8, preset="veryfast", profile="baseline", refresh="idr"))
     outs = [tc.transcode(j).data for j in jpegs[:20]]
     dec = H264Decoder()
     got = []
@@ -321,7 +337,9 @@ def test_bad_encoder_parameters_are_refused(kwargs: dict[str, object], reason: s
 
 def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
     for jpeg_decoder in ("cv2", "pyav"):
-        tc = MjpegTranscoder(TranscoderConfig(jpeg_decoder=jpeg_decoder))  # type: ignore[arg-type]
+        tc = MjpegTranscoder(
+            TranscoderConfig(jpeg_decoder=jpeg_decoder, preset="veryfast", profile="baseline", refresh="idr")
+        )  # type: ignore[arg-type]
         first = tc.transcode(jpegs[0])
         for bad in (b"", b"not a jpeg", jpegs[1][:200]):
             with pytest.raises(TranscodeError):
@@ -329,7 +347,7 @@ def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
         nxt = tc.transcode(jpegs[1])
         assert (first.pts, nxt.pts, nxt.keyframe) == (0, 1, False)
         assert tc.bad_jpegs == 3
-    enc = H264Encoder(EncoderConfig(704, 576))
+    enc = H264Encoder(EncoderConfig(704, 576, preset="veryfast", profile="baseline", refresh="idr"))
     with pytest.raises(EncoderError, match="expected a 704x576"):
         enc.encode_bgr(np.zeros((288, 352, 3), np.uint8))
     with pytest.raises(EncoderError, match="bitrate"):
@@ -341,7 +359,7 @@ def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
 @pytest.fixture(scope="module")
 def short_stream(jpegs: list[bytes]) -> list[bytes]:
     """IDR, P, P, IDR, P, P with capture stamps."""
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=3))
+    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=3, preset="veryfast", profile="baseline", refresh="idr"))
     return [tc.transcode(j, capture_ns=i).data for i, j in enumerate(jpegs[:6])]
 
 

@@ -13,7 +13,8 @@ import numpy as np
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
-from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage, StagedFrame
+from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage
 from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.streaming.rtsp_source import (
     RtspH264Source,
@@ -58,7 +59,18 @@ def _timing(*, read_timeout_s: float, stall_timeout_s: float) -> ReaderConfig:
 
 
 def _stream(n: int) -> list[bytes]:
-    enc = H264Encoder(EncoderConfig(width=64, height=48, fps=15, bitrate_bps=200_000, keyframe_interval=100))
+    enc = H264Encoder(
+        EncoderConfig(
+            width=64,
+            height=48,
+            fps=15,
+            bitrate_bps=200_000,
+            keyframe_interval=100,
+            preset="veryfast",
+            profile="baseline",
+            refresh="idr",
+        )
+    )
     return [enc.encode_bgr(np.full((48, 64, 3), i * 7 % 255, np.uint8)).data for i in range(n)]
 
 
@@ -105,7 +117,7 @@ def test_plays_renews_reconnects_and_never_publishes_a_dead_sessions_frames() ->
     sessions = [Session(units, CameraTimeout("stall"), 1_000), Session(units[:5], CameraTimeout("stall"), 9_000)]
     made: list[Session] = []
     read_timeouts: list[float] = []
-    out: list[StagedFrame] = []
+    out: list[EncodedFrame] = []
     stage = H264Stage(lambda: H264Settings(), out.append)
     stage.set_active(True)
 
@@ -192,7 +204,7 @@ def test_a_bitrate_change_is_applied_live_and_a_camera_that_refuses_adjustable_i
         sessions.append(s)
         return s
 
-    out: list[StagedFrame] = []
+    out: list[EncodedFrame] = []
     bitrate = [1000]
     for opener in (adjustable_connect, connect):
         asked.clear()

@@ -23,7 +23,6 @@ from axis_ptz_ros2.streaming.h264 import (
     RATE_WINDOW,
     H264Settings,
     H264Stage,
-    StagedFrame,
 )
 from axis_ptz_ros2.streaming.h264_policy import IDR_LINK_S, h264_target_kbps, h264_vbv_kbit
 from axis_ptz_ros2.streaming.meter import BitrateMeter
@@ -65,7 +64,7 @@ class Harness:
     def __init__(self, settings: H264Settings | None = None) -> None:
         self.settings = settings or H264Settings(bitrate_kbps=1000, keyframe_interval=30, fps=10)
         self.clock = Clock()
-        self.out: list[StagedFrame] = []
+        self.out: list[EncodedFrame] = []
         self.made: list[TranscoderConfig] = []
         self.transcoders: list[MjpegTranscoder] = []
         self.problems: list[str] = []
@@ -83,7 +82,7 @@ class Harness:
             clock=self.clock,
         )
 
-    def feed(self, jpegs: list[bytes], start_ns: int = 1_000_000_000) -> list[StagedFrame | None]:
+    def feed(self, jpegs: list[bytes], start_ns: int = 1_000_000_000) -> list[EncodedFrame | None]:
         res = []
         for i, j in enumerate(jpegs):
             self.clock.t += 0.1
@@ -311,7 +310,9 @@ def test_bad_jpeg_is_dropped_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
 
 def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
     """An access-unit source (an RTSP reader) whose IDRs lack SPS/PPS after the first: the stage adds them."""
-    t = MjpegTranscoder(TranscoderConfig(fps=10, keyframe_interval=4))
+    t = MjpegTranscoder(
+        TranscoderConfig(fps=10, keyframe_interval=4, preset="veryfast", profile="baseline", refresh="idr")
+    )
     frames = [t.transcode(j) for j in jpegs[:9]]
     stripped = []
     for i, f in enumerate(frames):

@@ -37,7 +37,16 @@ W, H = 160, 96
 
 def _frames(n: int, gop: int = 10, refresh: str = "idr") -> list[EncodedFrame]:
     enc = H264Encoder(
-        EncoderConfig(W, H, fps=30, bitrate_bps=300_000, keyframe_interval=gop, preset="ultrafast", refresh=refresh)
+        EncoderConfig(
+            W,
+            H,
+            fps=30,
+            bitrate_bps=300_000,
+            keyframe_interval=gop,
+            preset="ultrafast",
+            refresh=refresh,
+            profile="baseline",
+        )
     )
     out = []
     for i in range(n):

@@ -49,6 +49,11 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_PRESET,
+    DEFAULT_PROFILE,
+    DEFAULT_REFRESH,
     MAX_BITRATE_BPS,
     MAX_DIMENSION,
     MAX_KEYFRAME_INTERVAL,
@@ -66,18 +71,19 @@ U8Array = npt.NDArray[np.uint8]
 
 @dataclass(frozen=True, slots=True)
 class EncoderConfig:
-    """Encoder parameters; every field is checked when the object is built."""
+    """Encoder parameters; every field is checked when the object is built. The defaults are the stream node's
+    (:mod:`.limits`); a camera-like stream (the simulator's) says ``profile="baseline"``, ``refresh="idr"``."""
 
     width: int
     height: int
     fps: int = 30
-    bitrate_bps: int = 1_000_000
-    keyframe_interval: int = 30  # frames between periodic IDRs
-    preset: str = "veryfast"
+    bitrate_bps: int = DEFAULT_BITRATE_KBPS * 1000
+    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames between periodic IDRs (intra: per refresh wave)
+    preset: str = DEFAULT_PRESET
     threads: int = 1  # 1: one slice per picture, lowest CPU; more: sliced threads (lower latency at 1080p)
     vbv_bits: int = 0  # the VBV buffer (bits; bounds the largest picture); 0 = bitrate × VBV_BUFFER_S
-    profile: str = "baseline"  # one of PROFILES
-    refresh: str = "idr"  # one of REFRESH_MODES: periodic IDRs, or x264's periodic intra refresh (IDRs on request)
+    profile: str = DEFAULT_PROFILE  # one of PROFILES
+    refresh: str = DEFAULT_REFRESH  # one of REFRESH_MODES: periodic IDRs, or x264's intra refresh (IDRs on request)
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):

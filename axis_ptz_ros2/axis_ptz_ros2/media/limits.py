@@ -1,10 +1,26 @@
-"""The x264 encoder's settings bounds (ROS-free, and free of PyAV so that settings can be checked, and the stream
-node can start, on a machine without PyAV; :mod:`.encoder` enforces them)."""
+"""The one table of H.264 bounds and defaults (ROS-free, PyAV-free, imports nothing).
+
+Everything that checks, describes or fills an H.264 setting reads it from here: the stream node's parameter
+descriptors and the README's generated table (``nodes/stream_params.py``), the codec check
+(:func:`~axis_ptz_ros2.streaming.h264_policy.check_h264`), the stage's settings
+(:class:`~axis_ptz_ros2.streaming.h264.H264Settings`), the transcoder and the encoder (:mod:`.encoder` enforces the
+encoder's bounds), the RTSP request to a camera (:func:`~axis_ptz_ros2.streaming.rtsp_source.media_request`), the
+simulated camera's encoder and the teleop keys' bitrate steps. PyAV-free so that settings can be checked, and the
+stream node can start, on a machine without PyAV.
+
+Two bitrate ranges, each defined once: what the encoder (and a camera's ``videomaxbitrate``, VAPIX) takes,
+:data:`ENCODER_BITRATE_RANGE_KBPS`, and the narrower one the stream node's ``h264_bitrate_kbps`` /
+``h264_max_bitrate_kbps`` may be set to, :data:`BITRATE_RANGE_KBPS` (inside the first: the stage never hands the
+encoder or the camera a bitrate they refuse).
+"""
 
 from __future__ import annotations
 
 from typing import Final
 
+#: ``codec``: the stream node's video codecs
+CODECS: Final = ("mjpeg", "h264")
+#: libx264 presets the encoder takes (``h264_preset``)
 PRESETS: Final = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium")
 #: H.264 profiles the encoder makes: ``baseline`` (x264's Constrained Baseline: CAVLC, 4x4 transform) and ``high``
 #: (CABAC, 8x8 transform; still no B-frames, so no reordering)
@@ -13,10 +29,33 @@ PROFILES: Final = ("baseline", "high")
 #: x264's periodic intra refresh (a column of intra blocks sweeps the picture once per keyframe interval, no IDR
 #: after the first: IDRs only on request)
 REFRESH_MODES: Final = ("idr", "intra")
-MIN_BITRATE_BPS: Final = 50_000
-MAX_BITRATE_BPS: Final = 50_000_000
+
+#: kbit/s: what the encoder takes, and what a camera's ``videomaxbitrate`` may be (VAPIX: 50-50000)
+ENCODER_BITRATE_RANGE_KBPS: Final = (50, 50_000)
+MIN_BITRATE_BPS: Final = ENCODER_BITRATE_RANGE_KBPS[0] * 1000
+MAX_BITRATE_BPS: Final = ENCODER_BITRATE_RANGE_KBPS[1] * 1000
+#: kbit/s: ``h264_bitrate_kbps`` and ``h264_max_bitrate_kbps`` (the parameters'; the budgets never go under its floor)
+BITRATE_RANGE_KBPS: Final = (100, 20_000)
 MAX_KEYFRAME_INTERVAL: Final = 600
+#: frames: ``h264_keyframe_interval`` (at most one second of frames applies)
+KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
 MAX_DIMENSION: Final = 4096
+
+# -- defaults: the stream node's parameters, the stage's settings, the transcoder's and the encoder's --
+#: kbit/s: ``h264_bitrate_kbps``, the bitrate without feedback (a budget lowers it)
+DEFAULT_BITRATE_KBPS: Final = 1000
+#: kbit/s: ``h264_max_bitrate_kbps``, the most a clear link may raise it to; at or below ``h264_bitrate_kbps`` never
+#: above it: on the thesis's link a probe past ~1000 kbit/s ended in a retransmission collapse (docs/weak-link.md)
+DEFAULT_MAX_BITRATE_KBPS: Final = 1000
+#: frames: ``h264_keyframe_interval``, per intra-refresh wave (between IDRs with refresh ``idr``)
+DEFAULT_KEYFRAME_INTERVAL: Final = 30
+#: ``h264_preset`` (why superfast: docs/nodes.md, "H.264 encoder settings")
+DEFAULT_PRESET: Final = "superfast"
+#: the profile the stream node encodes (every decoder a viewer uses here decodes High: docs/nodes.md)
+DEFAULT_PROFILE: Final = "high"
+#: the stream node's refresh: intra refresh, IDRs only on demand (issue 39)
+DEFAULT_REFRESH: Final = "intra"
+
 #: s: the VBV buffer in seconds of the bitrate. bitrate/10 (the issue's prototype) starved every IDR and the
 #: frames after it (PSNR 5th percentile 33.4 dB at 1000 kbit/s, 837 kbit/s used, against the simulated camera's
 #: still view before noise); 0.15 s: 34.8 dB, 871 kbit/s, largest IDR 15 kB. A live step down spends what is

@@ -32,6 +32,13 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder, check_bitrate, check_keyframe_interval, check_vbv
 from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
 from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_PRESET,
+    DEFAULT_PROFILE,
+    DEFAULT_REFRESH,
+)
 
 JpegDecoder = Literal["cv2", "pyav"]
 JPEG_DECODERS: Final = ("cv2", "pyav")
@@ -39,18 +46,19 @@ JPEG_DECODERS: Final = ("cv2", "pyav")
 
 @dataclass(frozen=True, slots=True)
 class TranscoderConfig:
-    """Encoder settings that do not depend on the picture size (that comes from each JPEG)."""
+    """Encoder settings that do not depend on the picture size (that comes from each JPEG); defaults from
+    :mod:`.limits`."""
 
     fps: int = 30
-    bitrate_bps: int = 1_000_000
-    keyframe_interval: int = 30
-    preset: str = "veryfast"
+    bitrate_bps: int = DEFAULT_BITRATE_KBPS * 1000
+    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL
+    preset: str = DEFAULT_PRESET
     threads: int = 1
     stamp_sei: bool = True  # put the capture time in each access unit (our user-data SEI)
     jpeg_decoder: JpegDecoder = "pyav"  # see the module docstring
     vbv_bits: int = 0  # the encoder's VBV buffer (bits); 0 = its default (see media.encoder)
-    profile: str = "baseline"  # H.264 profile (media.limits.PROFILES)
-    refresh: str = "idr"  # periodic IDRs or x264's intra refresh (media.limits.REFRESH_MODES)
+    profile: str = DEFAULT_PROFILE  # H.264 profile (media.limits.PROFILES)
+    refresh: str = DEFAULT_REFRESH  # periodic IDRs or x264's intra refresh (media.limits.REFRESH_MODES)
 
     def __post_init__(self) -> None:
         if self.jpeg_decoder not in JPEG_DECODERS:

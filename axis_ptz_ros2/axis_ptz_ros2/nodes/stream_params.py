@@ -3,7 +3,8 @@ ranges, descriptions; the README's table and ``config/*.yaml`` are checked again
 
 Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.video_types.VideoSettings` and the
 reader's timings from :class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`, field for field; ranges come from the
-VAPIX models, the H.264 stage and :mod:`~axis_ptz_ros2.streaming.limits` (the budget's, which the console's
+VAPIX models, the one table of H.264 bounds and defaults (:mod:`~axis_ptz_ros2.media.limits`) and
+:mod:`~axis_ptz_ros2.streaming.limits` (the budget's, which the console's
 API checks too).
 """
 
@@ -11,10 +12,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, KEYFRAME_RANGE, PRESETS
 from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
 from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
-from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
 from axis_ptz_ros2.streaming.h264_policy import H264_BUDGET_FRACTION
 from axis_ptz_ros2.streaming.limits import BUDGET_RANGE_KBPS
 from axis_ptz_ros2.streaming.video_types import VideoSettings
@@ -104,7 +105,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "frames",
         int_range=KEYFRAME_RANGE,
     ),
-    _live("h264_preset", "libx264 preset (CPU against quality)", choices=H264_PRESETS),
+    _live("h264_preset", "libx264 preset (CPU against quality)", choices=PRESETS),
     ParamSpec(
         "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
     ),

@@ -68,22 +68,23 @@ from typing import TYPE_CHECKING, Final, Protocol
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL, PRESETS
+from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_PRESET,
+    DEFAULT_PROFILE,
+    DEFAULT_REFRESH,
+)
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
 
 if TYPE_CHECKING:  # the transcoder needs PyAV, imported only when a stage first transcodes (media.pyav)
     from axis_ptz_ros2.media.transcoder import TranscoderConfig
 
-CODECS: Final = ("mjpeg", "h264")
-H264_PRESETS: Final = PRESETS
 #: s: on-demand IDRs at most this often (the periodic ones come every second anyway)
 IDR_MIN_INTERVAL_S: Final = 0.25
 #: s: a new subscriber's second IDR comes this long after its first (see the module docstring)
 NEW_SUBSCRIBER_IDR_AGAIN_S: Final = 0.4
-#: kbit/s: the encoder's bitrate range (the parameter's)
-BITRATE_RANGE_KBPS: Final = (100, 20_000)
-KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
 #: JPEG arrivals whose median interval gives the camera's own picture rate
 RATE_WINDOW: Final = 30
 #: pictures/s: the encoder re-opens at the measured rate only when it is this far from the one it runs at
@@ -95,16 +96,16 @@ FFMPEG_ENCODING: Final = "h264;yuv420p;bgr8;bgr8"
 
 @dataclass(frozen=True, slots=True)
 class H264Settings:
-    """What the encoder is to do now (from the video controller)."""
+    """What the encoder is to do now (from the video controller); defaults from :mod:`~axis_ptz_ros2.media.limits`."""
 
-    bitrate_kbps: int = 1000  # the target now (the budgets move it under the ceiling)
-    keyframe_interval: int = 30  # frames; capped at fps (one second)
-    preset: str = "superfast"
+    bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # the target now (the budgets move it under the ceiling)
+    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames; capped at fps (one second)
+    preset: str = DEFAULT_PRESET
     fps: int = 15
     ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
     vbv_kbit: int = 0  # the encoder's VBV buffer (bounds its largest picture, an IDR); 0 = its default
-    profile: str = "high"  # H.264 profile (media.limits.PROFILES; see the module docstring)
-    refresh: str = "intra"  # x264's periodic intra refresh, IDRs only on demand; or "idr" (media.limits.REFRESH_MODES)
+    profile: str = DEFAULT_PROFILE  # H.264 profile (media.limits.PROFILES; see the module docstring)
+    refresh: str = DEFAULT_REFRESH  # x264's periodic intra refresh, IDRs only on demand; or "idr" (REFRESH_MODES)
 
     def transcoder_config(self) -> TranscoderConfig:
         """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
@@ -133,18 +134,6 @@ class H264Settings:
         """The keyframe interval in frames (intra refresh: one wave; ``idr``: between periodic IDRs; a camera's
         own H.264: its GOP): the parameter, at most one second of frames."""
         return max(1, min(int(self.keyframe_interval), max(1, int(self.fps))))
-
-
-@dataclass(frozen=True, slots=True)
-class StagedFrame:
-    """An access unit ready to publish: the bytes, IDR or not, the stage's pts, size, capture stamp [ns]."""
-
-    data: bytes
-    keyframe: bool
-    pts: int
-    width: int
-    height: int
-    stamp_ns: int
 
 
 @dataclass(slots=True)
@@ -191,7 +180,7 @@ class H264Stage:
     def __init__(
         self,
         settings: Callable[[], H264Settings],
-        publish: Callable[[StagedFrame], None],
+        publish: Callable[[EncodedFrame], None],
         *,
         transcoder_factory: Callable[[TranscoderConfig], Transcoder] | None = None,
         on_problem: Callable[[str], None] | None = None,
@@ -298,7 +287,7 @@ class H264Stage:
             self._last_idr_request = -1e18
 
     # -- frames (the reader thread) ----------------------------------------------------------------------------
-    def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> StagedFrame | None:
+    def on_jpeg(self, jpeg: bytes, arrival_ns: int) -> EncodedFrame | None:
         """Transcode one JPEG of the camera and publish it; None while inactive or when it does not decode."""
         problem = unavailable = ""
         with self._lock:
@@ -331,7 +320,7 @@ class H264Stage:
             return None
         return self._emit(frame, arrival_ns)
 
-    def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame | None:
+    def on_access_unit(self, frame: EncodedFrame, stamp_ns: int) -> EncodedFrame | None:
         """Seam for sources that deliver H.264 (RTSP pass-through): publish one access unit as it came, with
         SPS/PPS put in front of an IDR that lacks them. None while inactive or when it is malformed.
 
@@ -409,13 +398,13 @@ class H264Stage:
             self.stats.idr_requests += 1
         return t
 
-    def _emit(self, frame: EncodedFrame, stamp_ns: int) -> StagedFrame:
+    def _emit(self, frame: EncodedFrame, stamp_ns: int) -> EncodedFrame:
         with self._lock:
             pts = self._pts
             self._pts += 1
             self.stats.frames += 1
             self.stats.idrs += int(frame.keyframe)
-        out = StagedFrame(frame.data, frame.keyframe, pts, frame.width, frame.height, stamp_ns)
+        out = replace(frame, pts=pts, capture_ns=stamp_ns)  # the stage's pts, the frame's capture stamp
         self._publish(out)
         return out
 

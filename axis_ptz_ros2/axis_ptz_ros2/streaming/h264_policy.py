@@ -16,9 +16,8 @@ from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.media.limits import VBV_BUFFER_S
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, KEYFRAME_RANGE, PRESETS, VBV_BUFFER_S
 from axis_ptz_ros2.streaming.budget import BudgetConfig
-from axis_ptz_ros2.streaming.h264 import BITRATE_RANGE_KBPS, CODECS, H264_PRESETS, KEYFRAME_RANGE
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
 #: the encoder's own fields (they do not change what the camera is asked for)
@@ -35,8 +34,8 @@ def check_h264(settings: VideoSettings) -> str | None:
     """The reason the codec settings cannot be used (None = fine)."""
     if settings.codec not in CODECS:
         return f"codec={settings.codec!r} is not one of {', '.join(CODECS)}"
-    if settings.h264_preset not in H264_PRESETS:
-        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(H264_PRESETS)}"
+    if settings.h264_preset not in PRESETS:
+        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(PRESETS)}"
     low, high = BITRATE_RANGE_KBPS
     if not low <= int(settings.h264_bitrate_kbps) <= high:
         return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"

@@ -11,7 +11,7 @@ H.264 stream to almost nothing and the keep-last queue replaced its IDRs before 
 frames gives an MJPEG subscriber the 5 pictures/s it needs next to the H.264 stream on that link. The same view at
 176x144 and compression 60 is about 4.5 kB: six a second are ~220 kbit/s. So while the codec is H.264 and someone
 subscribes to ``image_raw/compressed``, the node opens a second MJPEG stream of the camera for that topic
-(``nodes/stream_mjpeg.py``; an Axis camera serves several at once), and its parameters come from
+(the pipeline's second reader, :mod:`.pipeline`; an Axis camera serves several at once), and its parameters come from
 :class:`MjpegShare`:
 
 * the share: :data:`MJPEG_SHARE` of what the budget lets the video have as a whole (the H.264 target,

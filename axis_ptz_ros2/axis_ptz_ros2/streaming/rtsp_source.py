@@ -17,10 +17,11 @@ which puts SPS/PPS in front of every IDR and publishes on both H.264 topics.
   transcodes its MJPEG instead.
 * The request (:class:`~axis_ptz_ros2.vapix.rtsp.MediaStreamRequest`: size, fps, fixed GOP of at most one second,
   baseline, ``mbr`` at the bitrate in force, ``adjustablelivestream=1`` until the camera refuses it) is read from
-  ``request()`` on every access unit. A bitrate change is applied to the playing stream with
-  ``Adjustable-Stream-Configuration``; where the camera cannot (no ``adjustablelivestream``), it reconnects when
-  the bitrate moves by more than :data:`BITRATE_SLACK`, at most every :data:`BITRATE_HOLD_S` (a link budget that
-  moves a little must not cut the stream over and over). Any other change reconnects.
+  ``request()`` on every access unit: the stream node's is the request its pipeline last decided (it is pushed
+  there, :mod:`.pipeline`; reading it asks nothing of the controller). A bitrate change is applied to the playing
+  stream with ``Adjustable-Stream-Configuration``; where the camera cannot (no ``adjustablelivestream``), it
+  reconnects when the bitrate moves by more than :data:`BITRATE_SLACK`, at most every :data:`BITRATE_HOLD_S` (a
+  link budget that moves a little must not cut the stream over and over). Any other change reconnects.
 * An IDR wanted by the sink (a new subscriber, a consumer's loss report) → ``Renew-Stream``, then ``idr_sent()``.
 * Errors reconnect with :class:`~axis_ptz_ros2.streaming.meter.Backoff` counted from the start of the failed
   attempt; a read timeout (a stalled or rebooting camera) ends the session; a new session starts with an IDR (it
@@ -39,6 +40,7 @@ from typing import Final, Protocol
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.limits import ENCODER_BITRATE_RANGE_KBPS
 from axis_ptz_ros2.streaming.clock_sync import StreamClock
 from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
@@ -127,11 +129,12 @@ def media_request(params: VideoParams, h264: H264Settings) -> MediaStreamRequest
     """What to ask the camera's RTSP server for: the size and fps in effect, a fixed GOP of the stage's periodic
     IDR interval (at most one second), the bitrate in force as ``videomaxbitrate``."""
     res = params.resolution
+    low, high = ENCODER_BITRATE_RANGE_KBPS  # what a camera's videomaxbitrate takes
     return MediaStreamRequest(
         resolution=f"{res.width}x{res.height}",
         fps=max(1, int(params.fps)),
         keyframe_interval=h264.effective_keyframe_interval,
-        max_bitrate_kbps=max(50, min(50_000, int(h264.bitrate_kbps))),
+        max_bitrate_kbps=max(low, min(high, int(h264.bitrate_kbps))),
     )
 
 
@@ -388,8 +391,7 @@ def _size_of(access_unit: bytes, fallback: tuple[int, int]) -> tuple[int, int]:
 def passthrough_source(
     client: VapixClient,
     rtsp_port: int,
-    params: Callable[[], VideoParams],
-    h264: Callable[[], H264Settings],
+    request: Callable[[], MediaStreamRequest],
     sink: AccessUnitSink,
     timing: ReaderConfig,
     *,
@@ -397,10 +399,11 @@ def passthrough_source(
     on_event: Callable[[str], None],
 ) -> RtspH264Source:
     """The stream node's pass-through source: the camera of ``client`` (its host, credentials, auth mode) on
-    ``rtsp_port``, asked for what ``params()`` and ``h264()`` say, with the MJPEG reader's timing."""
+    ``rtsp_port``, asked for ``request()`` (the request last decided and pushed by the pipeline, :mod:`.pipeline`:
+    no decision is made per access unit), with the MJPEG reader's timing."""
     return RtspH264Source(
         rtsp_connector(client.config, rtsp_port),
-        lambda: media_request(params(), h264()),
+        request,
         sink,
         supports_h264=lambda: camera_streams_h264(client),
         on_supported=on_supported,

@@ -8,6 +8,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_MAX_BITRATE_KBPS,
+    DEFAULT_PRESET,
+)
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport
 from axis_ptz_ros2.streaming.meter import Rate
@@ -28,13 +34,11 @@ class VideoSettings:
     adapt_to_link: bool = True
     link_release: float = 30.0  # s
     codec: str = "mjpeg"  # mjpeg | h264 (see :mod:`.controller`)
-    h264_bitrate_kbps: int = 1000  # kbit/s: the encoder's bitrate without feedback (a budget lowers it)
-    # kbit/s: the most a clear link (consumers' feedback) may raise it to; at or below h264_bitrate_kbps (the
-    # default) never above it: on the thesis's link a probe past ~1000 kbit/s ended in a retransmission collapse
-    # (docs/weak-link.md)
-    h264_max_bitrate_kbps: int = 1000
-    h264_keyframe_interval: int = 30  # frames per intra-refresh wave (between IDRs with refresh "idr"); <= 1 s
-    h264_preset: str = "superfast"  # libx264 preset
+    # the H.264 settings: bounds and defaults in the one table, axis_ptz_ros2.media.limits
+    h264_bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # kbit/s: the encoder's bitrate without feedback
+    h264_max_bitrate_kbps: int = DEFAULT_MAX_BITRATE_KBPS  # kbit/s: the most a clear link may raise it to
+    h264_keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames per intra-refresh wave; <= 1 s applies
+    h264_preset: str = DEFAULT_PRESET  # libx264 preset
 
     def budget_config(self) -> BudgetConfig:
         """The budget ladder's shape."""

@@ -34,7 +34,7 @@ from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE  # R/F and Y
 FPS_STEP = 3  #: R/F change the frame rate by this many frames per second
 COMPRESSION_STEP = 10  #: Y/H change the JPEG compression by this much (MJPEG)
 #: kbit/s: Y/H walk the H.264 bitrates through these (H.264), a value between two moves to the next one; the ends
-#: are the stream node's range (``streaming.h264.BITRATE_RANGE_KBPS``, not imported: it would load FFmpeg here)
+#: are the stream node's range (:data:`~axis_ptz_ros2.media.limits.BITRATE_RANGE_KBPS`, checked by a test)
 BITRATE_STEPS_KBPS: tuple[int, ...] = (
     100, 150, 200, 300, 400, 500, 700, 1000, 1500, 2000, 3000, 4000, 5000, 7000, 10000, 15000, 20000
 )  # fmt: skip

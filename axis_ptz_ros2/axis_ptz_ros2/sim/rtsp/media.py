@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.limits import MAX_KEYFRAME_INTERVAL
+from axis_ptz_ros2.media.limits import ENCODER_BITRATE_RANGE_KBPS, MAX_KEYFRAME_INTERVAL
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
@@ -63,6 +63,8 @@ class MediaRequest:
             bitrate_bps=self.bitrate_kbps * 1000,
             keyframe_interval=min(self.keyframe_interval, MAX_KEYFRAME_INTERVAL),
             preset=preset,
+            profile="baseline",  # an Axis camera's (the request's h264profile is not honoured)
+            refresh="idr",  # a fixed GOP: an IDR every videokeyframeinterval
         )
 
 
@@ -105,8 +107,9 @@ def parse_media_args(cam: CameraView, args: list[tuple[str, str]]) -> MediaReque
     rate_given = any(k in a for k in ("videomaxbitrate", "videobitrate", "videobitratepriority"))
     if rate_given and mode is None:
         raise MediaError(400, "videobitratemode is required with a bitrate option")
-    kbps = integer("videomaxbitrate", 0, 50_000, 0)
-    if kbps and kbps < 50:
+    low, high = ENCODER_BITRATE_RANGE_KBPS
+    kbps = integer("videomaxbitrate", 0, high, 0)
+    if kbps and kbps < low:
         raise MediaError(400, f"Invalid videomaxbitrate: {a['videomaxbitrate']}")
     return MediaRequest(w, h, fps, kf, kbps or DEFAULT_BITRATE_KBPS, adjustable)
 
