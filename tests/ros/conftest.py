@@ -40,7 +40,23 @@ def pytest_pycollect_makemodule(module_path: Path, parent):  # noqa: ANN001, ANN
 
 
 if MISSING is None:
+    from axis_ptz_ros2.sim.camera import SimulatedCamera
     from tests.support.harness import RosHarness
+    from tests.support.sim import reset_camera
+
+    @pytest.fixture(scope="module")
+    def sim() -> Iterator[SimulatedCamera]:
+        """The simulated 214 (no auth), one per test module (a module may define its own: a persona, auth)."""
+        cam = SimulatedCamera(host="127.0.0.1", port=0).start()
+        try:
+            yield cam
+        finally:
+            cam.stop()
+
+    @pytest.fixture
+    def camera(sim: SimulatedCamera) -> SimulatedCamera:
+        """The module's simulated camera, reset to its start state for each test."""
+        return reset_camera(sim)
 
     @pytest.fixture
     def ros() -> Iterator[RosHarness]:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import http.client
 import json
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -30,7 +29,7 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 from tests.support.waiting import unchanged_for  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -41,18 +40,7 @@ VIDEO = {JPEG_TOPIC, H264_TOPIC}
 H264 = {"codec": "h264", "resolution": "352x288", "fps": 10}
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimulatedCamera]:
-    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
-    try:
-        yield cam
-    finally:
-        cam.stop()
-
-
-@pytest.fixture
-def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    return reset_camera(sim)
+# the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
 
 
 def stream_node(ros: RosHarness, camera: SimulatedCamera, **params: object) -> StreamNode:

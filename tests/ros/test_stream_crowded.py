@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 from urllib.parse import parse_qsl
 
 import pytest
@@ -30,25 +29,14 @@ from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: E402
 from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
 from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 H264 = {"codec": "h264", "resolution": "704x576", "fps": 25}
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimulatedCamera]:
-    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
-    try:
-        yield cam
-    finally:
-        cam.stop()
-
-
-@pytest.fixture
-def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    return reset_camera(sim)
+# the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
 
 
 def make_node(ros: RosHarness, camera: SimulatedCamera, **params: object) -> StreamNode:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl
 
@@ -32,25 +31,14 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.still import BUSY  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 FULL = (704, 576)  # the simulated 214's largest size (Properties.Image.Resolution)
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimulatedCamera]:
-    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
-    try:
-        yield cam
-    finally:
-        cam.stop()
-
-
-@pytest.fixture
-def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    return reset_camera(sim)
+# the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
 
 
 @dataclass
