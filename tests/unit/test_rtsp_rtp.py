@@ -63,7 +63,7 @@ def test_round_trip_of_many_access_units() -> None:
         for pkt in p.packetize(au, 3000 * i):
             out += d.push(pkt)
     assert [u.data for u in out] == aus
-    assert [u.timestamp for u in out] == [3000 * i for i in range(40)]
+    assert [u.rtp_timestamp for u in out] == [3000 * i for i in range(40)]
     assert d.dropped == 0
 
 
@@ -89,7 +89,7 @@ def test_without_the_first_sequence_number_the_first_access_unit_is_dropped() ->
     p = H264Packetizer(max_payload=200)
     packets = [pkt for i in range(2) for pkt in p.packetize(_au(30, 400), 3000 * i)]
     d = H264Depacketizer()
-    assert [u.timestamp for pkt in packets[1:] for u in d.push(pkt)] == [3000]
+    assert [u.rtp_timestamp for pkt in packets[1:] for u in d.push(pkt)] == [3000]
 
 
 def test_a_timestamp_change_without_a_gap_ends_an_access_unit_that_lacks_its_marker() -> None:
@@ -168,7 +168,7 @@ def test_lost_reordered_or_duplicated_packets_never_give_half_an_access_unit(edi
     out += [last] if last is not None else []
     for unit in out:
         assert unit.data in _AUS, "an access unit that is not one the camera sent"
-        assert unit.timestamp == 3000 * _AUS.index(unit.data)
+        assert unit.rtp_timestamp == 3000 * _AUS.index(unit.data)
     if not edits:
         assert [u.data for u in out] == _AUS
 

@@ -43,6 +43,7 @@ def test_without_rtp_info_the_first_idr_is_taken_when_whole() -> None:
     d = H264Depacketizer()
     out = [u for pkt in packets for u in d.push(pkt)]
     assert [u.data for u in out] == [IDR, P]
+    assert [u.keyframe for u in out] == [True, False]  # the IDR slice is seen, also in FU-A fragments
     assert d.dropped == 0
 
 
@@ -60,10 +61,10 @@ def test_a_lost_p_frame_fragment_is_no_lost_idr() -> None:
     d = H264Depacketizer(first_seq=p.seq)
     idr, pf, idr2 = p.packetize(IDR, 0), p.packetize(P, 3000), p.packetize(IDR, 6000)
     out = [u for pkt in idr + pf[:1] + pf[2:] + idr2 for u in d.push(pkt)]
-    assert [u.timestamp for u in out] == [0, 6000]
+    assert [u.rtp_timestamp for u in out] == [0, 6000]
     assert (d.dropped, d.dropped_idrs) == (1, 0)
     d2 = H264Depacketizer(first_seq=p.seq)
     idr, pf = p.packetize(IDR, 9000), p.packetize(P, 12000)
     out = [u for pkt in idr[:1] + idr[2:] + pf for u in d2.push(pkt)]
-    assert [u.timestamp for u in out] == [12000]
+    assert [u.rtp_timestamp for u in out] == [12000]
     assert (d2.dropped, d2.dropped_idrs) == (1, 1)

@@ -24,7 +24,7 @@ from axis_ptz_ros2.streaming.rtsp_source import (
 from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit
+from axis_ptz_ros2.vapix.rtsp_rtp import RtpAccessUnit
 from axis_ptz_ros2.vapix.rtsp_sdp import NoH264VideoError
 from tests.support.waiting import wait_until
 
@@ -92,7 +92,7 @@ class Session:
     def close(self) -> None:
         self.closed.set()
 
-    def read(self, timeout_s: float | None = None) -> ClientAccessUnit:
+    def read(self, timeout_s: float | None = None) -> RtpAccessUnit:
         if self.closed.is_set():
             raise CameraUnreachable("closed")
         if not self.units:
@@ -101,7 +101,7 @@ class Session:
         data = self.units.popleft()
         time.sleep(0.02)  # the scripted camera's frame pacing (50 access units a second)
         self.sent += 1
-        return ClientAccessUnit(data, annexb.is_idr(data), 0, self.t0_ns + self.sent)
+        return RtpAccessUnit(data, annexb.is_idr(data), 0, self.t0_ns + self.sent)
 
     def renew_stream(self) -> object:
         self.renews += 1

@@ -21,8 +21,8 @@ from axis_ptz_ros2.web.h264relay import (  # noqa: E402
     CONTENT_TYPE,
     MAX_CLIENT_QUEUE,
     MAX_GOP_FRAMES,
-    AccessUnit,
     H264Slot,
+    RelayRecord,
     decode_records,
     encode_record,
 )
@@ -71,8 +71,8 @@ def _decode(aus: list[bytes]) -> int:
 
 
 def test_record_round_trip(frames: list[EncodedFrame]) -> None:
-    au = AccessUnit(frames[0].data, True, 1764170000.123456, "avc1.42C00B")
-    rec = encode_record(au, catch_up=True) + encode_record(AccessUnit(frames[1].data, False, 2.5, "avc1.42C00B"))
+    au = RelayRecord(frames[0].data, True, 1764170000.123456, "avc1.42C00B")
+    rec = encode_record(au, catch_up=True) + encode_record(RelayRecord(frames[1].data, False, 2.5, "avc1.42C00B"))
     got, rest = decode_records(rec[:-3])
     assert len(got) == 1
     assert got[0] == (au, True)
@@ -243,7 +243,7 @@ def test_http_stream_delivers_decodable_access_units(
     t = threading.Thread(target=feed)
     t.start()
     buf = b""
-    got: list[tuple[AccessUnit, bool]] = []
+    got: list[tuple[RelayRecord, bool]] = []
     while len(got) < len(frames):
         chunk = res.read1(65536)
         assert chunk, "stream ended early"

@@ -39,7 +39,11 @@ TO_BGR: Final = Interpolation.BILINEAR | Interpolation.FULL_CHR_H_INT | Interpol
 
 @dataclass(frozen=True, slots=True)
 class DecodedPicture:
-    """One decoded picture: BGR, its size, whether it was an IDR and the capture time from our SEI."""
+    """One decoded picture: BGR, its size, whether it was an IDR and the capture time from our SEI.
+
+    Not an :class:`axis_ptz_ros2.media.frame.EncodedFrame`: it holds pixels (what a decoder gives), not the
+    bytes of an encoded frame, and goes to the raw republisher and the link monitor, not down the video path.
+    """
 
     image: U8Array
     keyframe: bool

@@ -51,7 +51,8 @@ from axis_ptz_ros2.vapix.client import VapixClient
 from axis_ptz_ros2.vapix.errors import AuthError, AxisPtzError, CommandRejected
 from axis_ptz_ros2.vapix.models import VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
-from axis_ptz_ros2.vapix.rtsp_client import ClientAccessUnit, RtspClient
+from axis_ptz_ros2.vapix.rtsp_client import RtspClient
+from axis_ptz_ros2.vapix.rtsp_rtp import RtpAccessUnit
 from axis_ptz_ros2.vapix.rtsp_sdp import RtspUnsupportedError
 
 #: a bitrate change smaller than this fraction of the one playing does not reconnect
@@ -88,7 +89,7 @@ class RtspSession(Protocol):
         """Tear down; from any thread."""
         ...
 
-    def read(self, timeout_s: float | None = None) -> ClientAccessUnit:
+    def read(self, timeout_s: float | None = None) -> RtpAccessUnit:
         """The next access unit (raises :class:`AxisPtzError` kinds)."""
         ...
 
@@ -353,7 +354,7 @@ class RtspH264Source:
             self._event(f"RTSP H.264 stream lost: {error}")
             self._wake.wait(self._backoff.next())
 
-    def _stamp(self, au: ClientAccessUnit) -> int:
+    def _stamp(self, au: RtpAccessUnit) -> int:
         """Host time of ``au`` (its RTP time through :class:`StreamClock`), the camera's offset in the stats."""
         arrival = au.arrival_ns if au.arrival_ns is not None else time.time_ns()
         if au.report_rtp is not None and au.report_arrival_ns is not None:

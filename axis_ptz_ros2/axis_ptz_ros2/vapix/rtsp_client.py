@@ -37,7 +37,6 @@ import socket
 import threading
 import time
 import urllib.parse
-from dataclasses import dataclass
 from typing import Final
 
 import httpx
@@ -61,7 +60,13 @@ from axis_ptz_ros2.vapix.rtsp import (
 )
 from axis_ptz_ros2.vapix.rtsp_auth import RtspDigestAuth
 from axis_ptz_ros2.vapix.rtsp_connection import RtspConnection
-from axis_ptz_ros2.vapix.rtsp_rtp import H264Depacketizer, RtpPacketError, SenderReportClock, parse_sender_report
+from axis_ptz_ros2.vapix.rtsp_rtp import (
+    H264Depacketizer,
+    RtpAccessUnit,
+    RtpPacketError,
+    SenderReportClock,
+    parse_sender_report,
+)
 from axis_ptz_ros2.vapix.rtsp_sdp import (
     UDP_TRANSPORT,
     UdpTransportError,
@@ -74,20 +79,6 @@ from axis_ptz_ros2.vapix.rtsp_sdp import (
 
 MAX_QUEUE: Final = 8  #: access units held for a slow consumer (then the oldest is dropped)
 IDR_REQUEST_INTERVAL_S: Final = 1.0  #: Renew-Stream after a lost IDR at most this often
-
-
-@dataclass(frozen=True, slots=True)
-class ClientAccessUnit:
-    """One access unit: Annex B (SPS/PPS in front of an IDR), RTP time, capture time on the camera's wall clock
-    (None before an SR), arrival time on the host's wall clock (:func:`time.time_ns` when its last packet came)."""
-
-    data: bytes
-    keyframe: bool
-    rtp_timestamp: int
-    capture_ns: int | None
-    arrival_ns: int | None = None
-    report_rtp: int | None = None  #: the RTP time of the latest RTCP sender report (None before one)
-    report_arrival_ns: int | None = None  #: … and when it arrived (host clock)
 
 
 class RtspClient(RtspConnection):
@@ -113,7 +104,7 @@ class RtspClient(RtspConnection):
         self._auth = RtspDigestAuth(username, password, auth)
         self._open_timeout_s, self._read_timeout_s = open_timeout_s, read_timeout_s
         self._sign_lock = threading.Lock()  # signing (Digest nc) and sending in one order
-        self._queue: collections.deque[ClientAccessUnit] = collections.deque(maxlen=max_queue)
+        self._queue: collections.deque[RtpAccessUnit] = collections.deque(maxlen=max_queue)
         self._error: AxisPtzError | None = None
         self._reader: threading.Thread | None = None
         self._closing = threading.Event()
@@ -209,7 +200,7 @@ class RtspClient(RtspConnection):
         self.close()
 
     # ---- the stream ---------------------------------------------------------------------------------------------
-    def read(self, timeout_s: float | None = None) -> ClientAccessUnit:
+    def read(self, timeout_s: float | None = None) -> RtpAccessUnit:
         """The next access unit; :class:`CameraTimeout` if none within ``timeout_s`` (default: the read timeout),
         the reader's error (:class:`CameraUnreachable` …) once the connection is gone."""
         deadline = time.monotonic() + (self._read_timeout_s if timeout_s is None else timeout_s)
@@ -333,8 +324,8 @@ class RtspClient(RtspConnection):
                 continue
             self._await_idr = False
             rtp, arrival = self._report if self._report is not None else (None, None)
-            au = ClientAccessUnit(
-                data, key, unit.timestamp, self._clock.unix_ns(unit.timestamp), self._rx_ns, rtp, arrival
+            au = RtpAccessUnit(
+                data, key, unit.rtp_timestamp, self._clock.unix_ns(unit.rtp_timestamp), self._rx_ns, rtp, arrival
             )
             with self._cond:
                 if len(self._queue) == self._queue.maxlen:

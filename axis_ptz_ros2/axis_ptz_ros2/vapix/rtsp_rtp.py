@@ -26,7 +26,8 @@ MAX_NAL_UNITS: Final = 1024
 _START: Final = b"\x00\x00\x00\x01"
 _STAP_A: Final = 24
 _FU_A: Final = 28
-_KEY_KINDS: Final = frozenset({5, 7, 8})  # IDR slice, SPS, PPS
+_IDR: Final = 5  # IDR slice
+_KEY_KINDS: Final = frozenset({_IDR, 7, 8})  # IDR slice, SPS, PPS
 _UNIT_START_KINDS: Final = frozenset({6, 7, 8, 9})  # SEI, SPS, PPS, access unit delimiter
 
 
@@ -89,11 +90,25 @@ def parse_rtp(packet: bytes) -> RtpPacket:
 
 
 @dataclass(frozen=True, slots=True)
-class DepacketizedAccessUnit:
-    """One access unit: Annex B bytes and its RTP timestamp."""
+class RtpAccessUnit:
+    """One access unit off RTP: Annex B bytes, whether it holds an IDR slice, its RTP time, and what the RTSP client
+    learnt about its timing: capture time on the camera's wall clock (None before an RTCP sender report), arrival
+    on the host's wall clock (:func:`time.time_ns` when its last packet came), and the latest sender report's RTP
+    time and arrival (None before one).
+
+    :class:`H264Depacketizer` fills the first three; :class:`~axis_ptz_ros2.vapix.rtsp_client.RtspClient` gives
+    the whole record (SPS/PPS put in front of an IDR). Not :class:`axis_ptz_ros2.media.frame.EncodedFrame`: it
+    carries the RTP timing that ``streaming/rtsp_source.py`` turns into one capture stamp when it converts it to an
+    ``EncodedFrame``; the rest of the video path never sees RTP time.
+    """
 
     data: bytes
-    timestamp: int
+    keyframe: bool
+    rtp_timestamp: int
+    capture_ns: int | None = None
+    arrival_ns: int | None = None
+    report_rtp: int | None = None  #: the RTP time of the latest RTCP sender report (None before one)
+    report_arrival_ns: int | None = None  #: … and when it arrived (host clock)
 
 
 class H264Depacketizer:
@@ -117,7 +132,7 @@ class H264Depacketizer:
         self._bad = False
         self._unsure_start = first_seq is None
 
-    def push(self, packet: bytes) -> list[DepacketizedAccessUnit]:
+    def push(self, packet: bytes) -> list[RtpAccessUnit]:
         """Add one RTP packet; return the access units it completes (0, 1 or 2)."""
         try:
             rtp = parse_rtp(packet)
@@ -128,7 +143,7 @@ class H264Depacketizer:
         if self.payload_type is not None and rtp.payload_type != self.payload_type:
             self.errors += 1
             raise RtpPacketError(f"RTP payload type {rtp.payload_type}, expected {self.payload_type}")
-        out: list[DepacketizedAccessUnit] = []
+        out: list[RtpAccessUnit] = []
         # A lost, reordered or repeated packet: the access unit it falls in cannot be trusted. At a timestamp
         # change nobody can tell whether the missing packets were the old unit's end or the new one's start:
         # both are dropped (never half an access unit).
@@ -151,7 +166,7 @@ class H264Depacketizer:
                 out.append(done)
         return out
 
-    def flush(self) -> DepacketizedAccessUnit | None:
+    def flush(self) -> RtpAccessUnit | None:
         """The access unit in progress, if complete and sound (at the end of a stream)."""
         return self._finish()
 
@@ -216,7 +231,7 @@ class H264Depacketizer:
             return
         self._nals.append(nal)
 
-    def _finish(self) -> DepacketizedAccessUnit | None:
+    def _finish(self) -> RtpAccessUnit | None:
         nals, bad, ts, kinds = self._nals, self._bad or self._fu is not None, self._ts, self._kinds
         self._nals, self._fu, self._size, self._bad, self._ts, self._kinds = [], None, 0, False, None, set()
         if bad or not nals or ts is None:
@@ -224,7 +239,7 @@ class H264Depacketizer:
                 self.dropped += 1
                 self.dropped_idrs += bool(kinds & _KEY_KINDS)
             return None
-        return DepacketizedAccessUnit(b"".join(_START + n for n in nals), ts)
+        return RtpAccessUnit(b"".join(_START + n for n in nals), _IDR in kinds, ts)
 
 
 @dataclass(frozen=True, slots=True)

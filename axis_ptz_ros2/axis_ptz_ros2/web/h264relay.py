@@ -46,8 +46,15 @@ MAX_GOP_FRAMES = 60
 
 
 @dataclass(frozen=True)
-class AccessUnit:
-    """One access unit as relayed: Annex B bytes, key flag, capture stamp (s) and the stream's codec string."""
+class RelayRecord:
+    """One access unit as relayed, the fields of its wire record: Annex B bytes, key flag, capture stamp (s, as
+    the record's f64 carries it) and the codec string of the SPS in force when it arrived.
+
+    Not :class:`axis_ptz_ros2.media.frame.EncodedFrame`: the codec string belongs to each record, not only to the
+    stream, because a client's queue can hold the tail of one GOP and the start of the next after an SPS change,
+    and the browser must not configure the new codec for an old frame; the stamp is the ROS header's seconds as
+    sent; the frame's pts and size are not known here (it comes off the ``image_raw/ffmpeg`` topic).
+    """
 
     data: bytes
     key: bool
@@ -55,7 +62,7 @@ class AccessUnit:
     codec: str
 
 
-def encode_record(au: AccessUnit, catch_up: bool = False) -> bytes:
+def encode_record(au: RelayRecord, catch_up: bool = False) -> bytes:
     """The wire record of ``au`` (see the module docstring)."""
     codec = au.codec.encode("ascii")
     if len(codec) > 255:
@@ -65,16 +72,16 @@ def encode_record(au: AccessUnit, catch_up: bool = False) -> bytes:
     return _HEAD.pack(length, flags, len(codec), au.stamp_s) + codec + au.data
 
 
-def decode_records(buf: bytes) -> tuple[list[tuple[AccessUnit, bool]], bytes]:
+def decode_records(buf: bytes) -> tuple[list[tuple[RelayRecord, bool]], bytes]:
     """Parse complete records from ``buf``: ([(access unit, catch-up)], the incomplete rest). For tests and tools."""
-    out: list[tuple[AccessUnit, bool]] = []
+    out: list[tuple[RelayRecord, bool]] = []
     while len(buf) >= _HEAD.size:
         length, flags, clen, stamp = _HEAD.unpack_from(buf)
         end = 4 + length
         if len(buf) < end:
             break
         codec = buf[_HEAD.size : _HEAD.size + clen].decode("ascii")
-        out.append((AccessUnit(buf[_HEAD.size + clen : end], bool(flags & FLAG_KEY), stamp, codec),
+        out.append((RelayRecord(buf[_HEAD.size + clen : end], bool(flags & FLAG_KEY), stamp, codec),
                     bool(flags & FLAG_CATCH_UP)))  # fmt: skip
         buf = buf[end:]
     return out, buf
@@ -84,7 +91,7 @@ class Client:
     """One watching HTTP client: its queue of (access unit, catch-up) records."""
 
     def __init__(self) -> None:
-        self.queue: deque[tuple[AccessUnit, bool]] = deque()
+        self.queue: deque[tuple[RelayRecord, bool]] = deque()
         self.synced = False  # False: waiting for a key frame
         self.dropped = 0  # access units this client lost by falling behind
 
@@ -107,7 +114,7 @@ class H264Slot:
         self.on_need_idr = on_need_idr
         self._cond = threading.Condition()
         self._clients: set[Client] = set()
-        self._gop: list[AccessUnit] = []
+        self._gop: list[RelayRecord] = []
         self._codec = ""
         self._closed = False
         self.received = 0
@@ -164,7 +171,7 @@ class H264Slot:
             if key:
                 self.keys += 1
                 self._codec = codec
-            au = AccessUnit(data, key, stamp_s, self._codec)
+            au = RelayRecord(data, key, stamp_s, self._codec)
             if key:
                 self._gop = [au]
             elif self._gop:
@@ -214,7 +221,7 @@ class H264Slot:
             if n == 0 and self.on_watchers:
                 self.on_watchers(self.name, n)
 
-    def next(self, client: Client, timeout: float) -> tuple[AccessUnit, bool] | None:
+    def next(self, client: Client, timeout: float) -> tuple[RelayRecord, bool] | None:
         """The client's next record (waits up to ``timeout``; None on timeout or close)."""
         with self._cond:
             if not client.queue and not self._closed:
