@@ -32,12 +32,14 @@ import cv2
 import httpx
 import numpy as np
 
-from axis_ptz_ros2.optics import AXIS_214_ZOOM
+from axis_ptz_ros2.config import CONFIG_DIR, load_camera_model
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.camera_model import THESIS_TABLES, thesis_kbit_s
 from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.ptz import ros_to_vapix
 from axis_ptz_ros2.sim.world import load_world
+
+AXIS_214_ZOOM = load_camera_model(CONFIG_DIR / "axis214.yaml").zoom  # the 214's optics, from its model file
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # tests.support

@@ -210,9 +210,3 @@ class ZoomModel:
             fx = (width / 2.0) / half
             fy = fx * (height / width) * self.image_aspect
         return Intrinsics(width, height, fx, fy, (width - 1) / 2.0, (height - 1) / 2.0)
-
-
-#: The Axis 214's optics as config/axis214.yaml gives them, for the simulator's world loader (its fallback when a
-#: world file has no ``ptz.zoom_model``). The driver, the calibration and the nodes read config/axis214.yaml;
-#: tests/unit/test_camera_facts.py keeps this copy equal to it.
-AXIS_214_ZOOM = ZoomModel(hfov_wide_deg=47.98, max_magnification=18.88)

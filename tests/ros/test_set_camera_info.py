@@ -24,9 +24,9 @@ from axis_ptz_interfaces.msg import PtzState  # noqa: E402
 from axis_ptz_ros2.camera_info_store import ZOOM_COMMENT  # noqa: E402
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
-from axis_ptz_ros2.optics import AXIS_214_ZOOM  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.models import AXIS_214_ZOOM  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

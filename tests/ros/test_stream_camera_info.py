@@ -23,8 +23,8 @@ from axis_ptz_ros2.camera_info import save_camera_info  # noqa: E402
 from axis_ptz_ros2.config import default_config_path  # noqa: E402
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
-from axis_ptz_ros2.optics import AXIS_214_ZOOM  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
+from tests.support.models import AXIS_214_ZOOM  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -29,9 +29,9 @@ from axis_ptz_interfaces.msg import PtzState, VideoParams  # noqa: E402
 from axis_ptz_interfaces.srv import SetVideoParams  # noqa: E402
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
-from axis_ptz_ros2.optics import AXIS_214_ZOOM  # noqa: E402
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
+from tests.support.models import AXIS_214_ZOOM  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
 from tests.support.stamps import sim_stamp  # noqa: E402
 from tests.support.waiting import unchanged_for

@@ -22,8 +22,8 @@ from axis_ptz_ros2.camera_info import (
     undistort_pixels,
 )
 from axis_ptz_ros2.config import CameraModelError, default_config_path, load_camera_model
-from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.strict_yaml import YamlError, loads_strict
+from tests.support.models import AXIS_214_ZOOM
 
 pytestmark = pytest.mark.unit
 

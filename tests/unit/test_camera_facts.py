@@ -21,9 +21,9 @@ from axis_ptz_ros2.config import (
     load_camera_model,
 )
 from axis_ptz_ros2.geometry import PtzKinematics
-from axis_ptz_ros2.optics import AXIS_214_ZOOM, ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim.persona import AXIS_Q6075
-from axis_ptz_ros2.sim.world import load_world
+from axis_ptz_ros2.sim.world import SimWorld, load_world, world_from_dict
 
 pytestmark = pytest.mark.unit
 
@@ -112,8 +112,9 @@ def test_the_214_users_get_the_figures_they_had() -> None:
     assert (m.head.h_tilt, m.head.d_opt) == (0.0687, (0.03, 0.0, 0.0))
     assert dataclasses.astuple(m.limits) == (-170.0, 170.0, -30.0, 90.0, 1, 9999)
     assert (m.max_pan_speed_dps, m.max_tilt_speed_dps) == (100.0, 90.0)
-    # the copy the simulator's world loader falls back on is the file's
-    assert dataclasses.replace(m.zoom, image_aspect=AXIS_214_ZOOM.image_aspect) == AXIS_214_ZOOM
+    # a world without ptz.zoom_model takes the file's, exactly (its image_aspect 1.3333333333 too: no copy in code)
+    assert world_from_dict({}).zoom_model == m.zoom
+    assert SimWorld().zoom_model == m.zoom
     # the simulated 214's head and optics (config/sim_world.yaml) are the file's
     world = load_world()
     assert world.kinematics == m.head

@@ -6,8 +6,9 @@ import pytest
 
 from axis_ptz_ros2.camera_models import Optics, find_model_file, generic_model, select_camera_model
 from axis_ptz_ros2.config import default_config_path, load_camera_model
-from axis_ptz_ros2.optics import AXIS_214_ZOOM, ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.vapix import PtzLimits, Resolution
+from tests.support.models import AXIS_214_ZOOM
 
 Q = load_camera_model(default_config_path("q6075.yaml")).zoom
 

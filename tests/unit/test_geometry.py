@@ -7,6 +7,7 @@ import pytest
 
 from axis_ptz_ros2 import geometry as g
 from axis_ptz_ros2 import optics, transforms
+from tests.support.models import AXIS_214_ZOOM
 
 pytestmark = pytest.mark.unit
 
@@ -38,7 +39,7 @@ def test_ceiling_mount_mirrors_both_axes():
 
 
 def test_zoom_model_matches_axis_214_lens_calculator():
-    z = optics.AXIS_214_ZOOM
+    z = AXIS_214_ZOOM
     assert z.intrinsics(1, 704, 576).fx == pytest.approx(791, abs=1.0)
     assert z.intrinsics(9999, 704, 576).fx == pytest.approx(14937, rel=2e-3)
     assert math.degrees(z.hfov(9999)) == pytest.approx(2.70, abs=0.01)
@@ -87,7 +88,7 @@ def test_look_at_puts_point_on_optical_axis(d_opt):
 
 @pytest.mark.parametrize("tilt_deg", [-40.0, 0.0, 40.0, 80.0])
 def test_center_on_pixel_is_exact_at_any_tilt(tilt_deg):
-    intr = optics.AXIS_214_ZOOM.intrinsics(1, 704, 576)
+    intr = AXIS_214_ZOOM.intrinsics(1, 704, 576)
     kin = g.PtzKinematics(h_tilt=0.0, d_opt=(0.0, 0.0, 0.0))
     pan, tilt = math.radians(20.0), math.radians(tilt_deg)
     u, v = 600.0, 100.0

@@ -8,8 +8,8 @@ import pytest
 from axis_ptz_ros2 import pointing as pt
 from axis_ptz_ros2.config import load_robot
 from axis_ptz_ros2.geometry import PtzKinematics, direction_to_equirect
-from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.transforms import Transform
+from tests.support.models import AXIS_214_ZOOM
 
 pytestmark = pytest.mark.unit
 

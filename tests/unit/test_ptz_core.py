@@ -18,7 +18,6 @@ import pytest
 
 from axis_ptz_ros2.config import CameraModel, load_camera_model
 from axis_ptz_ros2.geometry import Mount, PanDirection, PtzKinematics, VapixConvention
-from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.ptz.axis_backend import AxisBackend, speed_to_vapix
 from axis_ptz_ros2.ptz.backend import PresetInfo, PtzBackend, PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, Outcome
@@ -39,6 +38,7 @@ from axis_ptz_ros2.ptz.preemption import Preemption
 from axis_ptz_ros2.ptz.state import StatePoller
 from axis_ptz_ros2.transforms import Transform
 from axis_ptz_ros2.vapix import CameraConfig, VapixClient
+from tests.support.models import AXIS_214_ZOOM
 from tests.support.waiting import wait_until
 from tests.unit.fixtures_vapix import LIMITS_RESPONSE, POSITION_RESPONSE
 

@@ -13,7 +13,6 @@ from typing import Any
 import pytest
 
 from axis_ptz_ros2.geometry import PtzKinematics
-from axis_ptz_ros2.optics import AXIS_214_ZOOM
 from axis_ptz_ros2.ptz.backend import PtzBackendError, PtzLimitsRos, PtzReading
 from axis_ptz_ros2.ptz.command_slot import CommandSlot, SlotStats
 from axis_ptz_ros2.ptz.commander import Commander
@@ -35,6 +34,7 @@ from axis_ptz_ros2.ptz.requests import GoalKind, MoveGoal, Requests
 from axis_ptz_ros2.ptz.state import PollStats, StatePoller, StateSample
 from axis_ptz_ros2.ptz.state_loop import LIMITS_REFRESH_POLLS, StateLoop
 from axis_ptz_ros2.transforms import Transform
+from tests.support.models import AXIS_214_ZOOM
 from tests.unit.test_ptz_core import LIM, FakeClock, MemoryHead, RosFreeWait, _done
 
 pytestmark = pytest.mark.unit

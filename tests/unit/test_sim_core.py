@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from axis_ptz_ros2 import geometry as g
-from axis_ptz_ros2 import optics
 from axis_ptz_ros2.sim import ptz as sp
 from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.ptz_args import PtzCommandError
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg, insert_comment
 from axis_ptz_ros2.sim.scene import HIT_GROUND, HIT_SKY, Scene, shared_scene
 from axis_ptz_ros2.sim.world import PtzLimits, load_world
+from tests.support.models import AXIS_214_ZOOM
 
 pytestmark = pytest.mark.unit
 
@@ -285,7 +285,7 @@ def test_center_and_areazoom_are_exact_at_high_tilt(head):
     st, clock = head
     st.handle([("pan", "20"), ("tilt", "40"), ("zoom", "1")])
     clock.t = 2.0
-    intr = optics.AXIS_214_ZOOM.intrinsics(1, 704, 576)
+    intr = AXIS_214_ZOOM.intrinsics(1, 704, 576)
     u, v = 600.0, 100.0
     d = g.pixel_direction_in_ptz_base(*sp.vapix_to_ros(20, 40), u, v, intr)
     st.handle([("center", f"{u:g},{v:g}")])
@@ -297,7 +297,7 @@ def test_center_and_areazoom_are_exact_at_high_tilt(head):
     assert tilt > 40
     st.handle([("areazoom", "352,288,300"), ("imagewidth", "704"), ("imageheight", "576")])
     clock.t = 10.0
-    assert optics.AXIS_214_ZOOM.magnification(st.position()[2]) == pytest.approx(3.0, rel=1e-3)
+    assert AXIS_214_ZOOM.magnification(st.position()[2]) == pytest.approx(3.0, rel=1e-3)
 
 
 def test_scene_constructor_loads_default_world():

@@ -1,7 +1,7 @@
 """Renders what the simulated Axis 214 sees at a VAPIX pose and zoom (ROS-free, numpy + OpenCV).
 
-Optics: :data:`axis_ptz_ros2.optics.AXIS_214_ZOOM` (or the world's zoom model) gives the pinhole intrinsics
-of the requested stream size (PAL 704×576: ``fy = fx·12/11``). Pose: the world's *true* mount
+Optics: the world's zoom model (``config/sim_world.yaml``, else the camera-model file's) gives the pinhole
+intrinsics of the requested stream size (PAL 704×576: ``fy = fx·12/11``). Pose: the world's *true* mount
 ``T_base_ptz`` ∘ :meth:`PtzKinematics.optical_in_ptz_base`. Fast path (geometry-and-calibration.md §5):
 
 * background: the precomputed target-free equirectangular panorama of :class:`Scene` (traced from the

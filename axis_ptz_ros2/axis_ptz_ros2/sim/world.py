@@ -18,14 +18,15 @@ import hashlib
 import math
 import os
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from axis_ptz_ros2.config import default_config_path
+from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.geometry import PtzKinematics
-from axis_ptz_ros2.optics import AXIS_214_ZOOM, ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim import textures
 from axis_ptz_ros2.strict_yaml import load_strict
 from axis_ptz_ros2.transforms import FloatArray, Transform
@@ -100,6 +101,19 @@ def target_frame(
     return n, right, np.cross(n, right)
 
 
+#: the camera-model file whose zoom model a world without ``ptz.zoom_model`` takes (config/, or the installed
+#: share/axis_ptz_ros2/config): the simulated camera's default persona, the Axis 214
+DEFAULT_CAMERA_MODEL_FILE = "axis214.yaml"
+
+
+@cache
+def default_zoom_model() -> ZoomModel:
+    """The zoom model of :data:`DEFAULT_CAMERA_MODEL_FILE`, through the camera-model loader (the camera's facts
+    live in its YAML file only); read once. Raises :class:`~axis_ptz_ros2.config.CameraModelError` (a
+    ``ValueError``) naming the file when it cannot be read."""
+    return load_camera_model(default_config_path(DEFAULT_CAMERA_MODEL_FILE)).zoom
+
+
 @dataclass(frozen=True)
 class SimWorld:
     """Everything the simulator knows about the robot and its surroundings."""
@@ -111,7 +125,7 @@ class SimWorld:
     )
     kinematics: PtzKinematics = field(default_factory=lambda: PtzKinematics(0.0687, (0.03, 0.0, 0.0)))
     limits: PtzLimits = field(default_factory=PtzLimits)
-    zoom_model: ZoomModel = AXIS_214_ZOOM
+    zoom_model: ZoomModel = field(default_factory=default_zoom_model)
     T_base_pano: Transform = field(default_factory=lambda: Transform.from_xyz_rpy(0.216, -0.044, 0.75, 0, 0, 0))
     T_base_laser: Transform = field(default_factory=lambda: Transform.from_xyz_rpy(0.25, 0.0, 0.40, 0, 0, 0))
     targets: tuple[TargetSpec, ...] = ()
@@ -377,7 +391,7 @@ def world_from_dict(cfg: dict[str, Any], source: str = "<world>", base_dir: Path
     )
     if limits.min_pan > limits.max_pan or limits.min_tilt > limits.max_tilt or limits.min_zoom >= limits.max_zoom:
         raise WorldError(f"{w}: each minimum must be below its maximum, got {limits}")
-    zm = _zoom_model(ptz["zoom_model"], f"{source}: ptz.zoom_model") if "zoom_model" in ptz else AXIS_214_ZOOM
+    zm = _zoom_model(ptz["zoom_model"], f"{source}: ptz.zoom_model") if "zoom_model" in ptz else default.zoom_model
     d_opt = _numbers(ptz.get("d_opt", [0.03, 0.0, 0.0]), 3, f"{source}: ptz.d_opt", -10.0, 10.0)
     kinematics = PtzKinematics(
         _number(ptz.get("h_tilt", 0.0687), f"{source}: ptz.h_tilt", -10.0, 10.0), (d_opt[0], d_opt[1], d_opt[2])
