@@ -547,12 +547,13 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     assert video_args(camera.request_counts.video_log[-1].query)["compression"] == "0"  # the camera's ask: as is
 
 
-def test_access_units_lost_on_the_way_lower_the_bitrate_although_delay_and_bytes_read_clear(
+def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one_hold_it(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
     """A consumer whose running ``lost`` count grows (access units that never arrived: the writer dropped them from
-    its history before their repair finished, i.e. a queue on the link) is congested even while its delay and the
-    bytes it receives look clean: the encoder's bitrate comes down at once, and a steady count lets it climb again."""
+    its history before their repair finished) while a queue stands (p95 250 ms over its minimum, under the 500 ms
+    that is congestion by itself) is congested: the encoder's bitrate comes down at once. The same losses with no
+    queue are the link's random loss: the bitrate is held (steady), not cut; a steady count lets it climb."""
     node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=600)
     probe = ros.probe()
     rec, _ = subscribe(probe)  # the consumer's image subscription, discovered by the stream node
@@ -560,12 +561,12 @@ def test_access_units_lost_on_the_way_lower_the_bitrate_although_delay_and_bytes
     pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
     consumer = probe.get_fully_qualified_name()
 
-    def report(lost: int) -> None:
-        sent = node._video._h264_meter.rate(time.monotonic())  # what the node sent: every byte arrived, no queue
+    def report(lost: int, queue_s: float = 0.01) -> None:
+        sent = node._video._h264_meter.rate(time.monotonic())  # what the node sent: every byte arrived
         pub.publish(
             LinkFeedback(
                 consumer=consumer, window_s=1.0, frames=max(int(sent.fps), 10), fps=sent.fps, kbps=sent.kbps,
-                delay_p95_s=0.02, delay_min_s=0.01, gap_s=0.02, lost=lost,
+                delay_p95_s=0.01 + queue_s, delay_min_s=0.01, gap_s=0.02, lost=lost,
             )
         )  # fmt: skip
 
@@ -577,9 +578,12 @@ def test_access_units_lost_on_the_way_lower_the_bitrate_although_delay_and_bytes
         return seen[-1] > 400
 
     ros.wait_for(climbed, timeout=20, period=0.3)
-    high = node._video.h264_settings().bitrate_kbps
     assert node._video.state().link_state == "clear"
-    report(5)  # two more lost
+    high = node._video.h264_settings().bitrate_kbps
+    report(5)  # two more lost, no queue: random loss
+    ros.wait_for(lambda: node._video.state().link_state == "steady", timeout=3)
+    assert node._video.h264_settings().bitrate_kbps == high  # held where it had climbed to: no cut
+    report(7, queue_s=0.3)  # two more lost behind a queue
     ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps < high, timeout=3)
     assert node._video.state().link_state == "congested"
 

@@ -381,15 +381,16 @@ def test_h264_adapter_takes_repair_tails_for_no_congestion_but_a_byte_shortfall_
     assert h264.report(40.0, _report(fps=30.0, kbps=860.0, queue=0.1, frames=60), 30, 860).state == "clear"
 
 
-def test_h264_adapter_takes_access_units_lost_on_the_way_for_congestion_and_returns_to_the_clean_rate():
+def test_h264_adapter_takes_access_units_lost_behind_a_queue_for_congestion_and_returns_to_the_clean_rate():
     """A reliable writer repairs every packet a lossy link drops unless a queue delays the repair past its history:
-    an access unit that never arrived (the consumer's running ``lost`` count grew) means the last step up was
-    too far, even while delay and delivery still read clear. Its growth is judged, not the count: a consumer that
-    joined with losses behind it, or whose count restarted, is no congestion."""
+    an access unit that never arrived (the consumer's running ``lost`` count grew) while a queue stands (p95 at
+    250 ms or more, under the 500 ms that is congestion by itself) means the last step up was too far. Its growth
+    is judged, not the count: a consumer that joined with losses behind it, or whose count restarted, is no
+    congestion."""
     from axis_ptz_ros2.streaming.feedback import h264_adapter_config
 
-    def rep(lost: int, kbps: float = 1000.0, who: str = "op") -> FeedbackReport:
-        r = _report(fps=25.0, kbps=kbps, queue=0.05, frames=50, who=who)
+    def rep(lost: int, kbps: float = 1000.0, who: str = "op", queue: float = 0.05) -> FeedbackReport:
+        r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50, who=who)
         return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
 
     a = LinkAdapter(h264_adapter_config())
@@ -397,10 +398,10 @@ def test_h264_adapter_takes_access_units_lost_on_the_way_for_congestion_and_retu
     assert a.budget_kbps == pytest.approx(1200.0)  # the first report's 7 are its join, not news: the budget climbs
     assert a.report(12.5, rep(7, 1200), 25, 1200, 1667, 1000).state == "clear"  # nothing new lost
     assert a.budget_kbps == pytest.approx(1440.0)
-    d = a.report(15.0, rep(8, 1430), 25, 1440, 1667, 1000)  # one more lost: the step to 1440 was too far
-    assert d.state == "congested"  # by the loss alone:
+    d = a.report(15.0, rep(8, 1430, queue=0.3), 25, 1440, 1667, 1000)  # one more lost behind a queue: too far
+    assert d.state == "congested"  # by the loss: the queue alone (< 0.5 s) and delivery read no congestion
     assert d.delivery > 0.99
-    assert d.queue_delay_s < 0.25
+    assert 0.25 <= d.queue_delay_s < 0.5
     # back to a rate received cleanly (1.15 x the 1000 sent at 10 s; 1200 is not under 0.8 x the 1440 that lost)
     assert a.budget_kbps == pytest.approx(1.15 * 1000.0)
     # a steady count is no news; a count that went down (the consumer restarted) is none either
@@ -412,6 +413,40 @@ def test_h264_adapter_takes_access_units_lost_on_the_way_for_congestion_and_retu
     assert jpeg.report(11.0, rep(50), 25, 1000).state != "congested"
     with pytest.raises(ValueError, match="lost_congested"):
         AdapterConfig(lost_congested=-1)
+
+
+def test_h264_adapter_takes_random_loss_without_a_queue_for_no_congestion():
+    """2 % random loss on the weak link: now and then a repair takes longer than the writer's history and an
+    access unit is lost with no queue standing (p95 under 250 ms: 62-190 ms in the current-Axis persona's debug
+    log at d82297c, where each such loss cut the budget and 11-22 of them took it from 429 to 105 kbit/s in 19 s).
+    Such a report neither cuts the budget nor grows it; the clear reports between them grow it as usual."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    def rep(lost: int, kbps: float, queue: float) -> FeedbackReport:
+        r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
+        return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
+
+    a = LinkAdapter(h264_adapter_config())
+    a.report(10.0, rep(0, 1000, 0.05), 25, 1000, 1667, 1000)
+    budget = a.budget_kbps
+    assert budget == pytest.approx(1200.0)
+    lost, now, sent = 0, 12.5, 1000.0
+    for k in range(12):  # every other report brings a random loss at a short queue
+        lost += k % 2
+        d = a.report(now, rep(lost, sent, 0.19 if k % 2 else 0.06), 25, sent, 1667, 1000)
+        if k % 2:
+            assert d.state == "steady"
+            assert a.budget_kbps == budget  # held: no cut, no growth
+        else:
+            assert d.state == "clear"
+            assert a.budget_kbps >= budget
+        budget = a.budget_kbps
+        sent = min(0.9 * budget, 1500.0)
+        now += 2.5
+    assert a.budget_kbps > 1.6 * 1000.0  # climbed through the random losses
+    # the same loss with a queue standing is congestion
+    assert a.report(now, rep(lost + 1, sent, 0.3), 25, sent, 1667, 1000).state == "congested"
+    assert a.budget_kbps < budget
 
 
 def test_h264_probe_past_the_start_that_congests_returns_to_the_start_not_to_what_the_swamped_link_delivered():
@@ -454,7 +489,7 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     a = LinkAdapter(h264_adapter_config())
     assert a.report(10.0, rep(860), 25, 860, step_up_kbps=1000).state == "clear"
     assert a.budget_kbps == 0.0  # at the start with the ceiling there: no budget on a clear link
-    d = a.report(20.0, rep(725, lost=3, queue=0.2), 25, 860, 1000)
+    d = a.report(20.0, rep(725, lost=3, queue=0.3), 25, 860, 1000)  # the queue past the history: losses
     assert d.state == "congested"
     assert a.budget_kbps == pytest.approx(0.8 * 725)
     now, sent = 22.5, 500.0
@@ -497,7 +532,7 @@ def test_h264_reports_that_still_hold_the_congestion_neither_grow_the_budget_nor
 
     a = LinkAdapter(h264_adapter_config())
     a.report(10.0, rep(860), 25, 860, 1000)
-    assert a.report(11.0, rep(742, lost=2, queue=0.214), 25, 856, 1000).state == "congested"
+    assert a.report(11.0, rep(742, lost=2, queue=0.26), 25, 856, 1000).state == "congested"
     cut = a.budget_kbps
     assert cut == pytest.approx(0.8 * 742)
     d = a.report(11.03, rep(726, queue=0.214), 25, 894, 1000)  # sent still reads the old rate

@@ -41,12 +41,19 @@ _C = TypeVar("_C")
 #: Images and state: reliable (so default subscribers match), keep only the newest sample: a slow link drops
 #: old frames instead of queueing them. Best-effort subscribers match it too.
 STREAM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-#: H.264 access units (image_raw/ffmpeg, image_raw/foxglove): reliable, and four deep on both sides. Unlike a
-#: JPEG, an access unit replaced before its repair finished costs every picture up to the next IDR; with depth 1
-#: on 2 Mbit/s + 2 % loss the weak-link bench showed 832 kbit/s arriving but 11.8 of 30 pictures/s shown; depth 2
-#: still lost access units 6-27 times in 20 s. Depth 4 with the weak-link profile's 50 ms heartbeat on these
-#: topics leaves time for the repair (config/fastdds_weak_link.xml).
-VIDEO_QOS = QoSProfile(depth=4, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+#: pictures the video writers and readers keep (see VIDEO_QOS): 0.33 s at 30 fps, 0.4 s at 25, more below
+VIDEO_HISTORY = 10
+#: H.264 access units (image_raw/ffmpeg, image_raw/foxglove): reliable, with a history of ten pictures on both
+#: sides. Unlike a JPEG, an access unit replaced before its repair finished costs every picture up to the next IDR
+#: (or intra-refresh wave); with depth 1 on 2 Mbit/s + 2 % loss the weak-link bench showed 832 kbit/s arriving but
+#: 11.8 of 30 pictures/s shown; depth 2 still lost access units 6-27 times in 20 s. Depth 4 (133 ms at 30 fps)
+#: was shorter than the 100-190 ms a repair takes on that link: 1080p30 passed through lost 11-22 access units in
+#: 30 s (at d82297c; 1080p15, 267 ms of history, none). A history by time is what matters; a publisher's depth
+#: is a count fixed when it is made, so it is the count that holds ~0.3 s at the fastest rate the stream node
+#: asks for (30 fps). The weak-link profile's 50 ms heartbeat on these topics asks for repairs in time
+#: (config/fastdds_weak_link.xml). A queue can grow to the history before anything is dropped: 0.33-0.4 s, which
+#: the link adapter reads as congestion (streaming/feedback.py). qos_overrides change it per topic.
+VIDEO_QOS = QoSProfile(depth=VIDEO_HISTORY, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Commands: the newest wins; a small queue absorbs bursts.
 COMMAND_QOS = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Relative commands: each one is an offset, so none may be dropped: a queue deep enough for ~3 s of 30 Hz

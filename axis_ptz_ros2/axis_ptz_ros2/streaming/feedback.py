@@ -147,7 +147,9 @@ class AdapterConfig:
     release_s: float = 30.0
     delivery_by_bytes: bool = False  # delivery = kbit/s received / sent (H.264) instead of frames
     climb_hold_s: float = 2.0  # past ``grow_from_kbps`` the budget grows at most once per this (a report window)
-    lost_congested: int = 0  # this many access units newly lost (since that consumer's last report): congested
+    # this many access units newly lost (since that consumer's last report) with the queue at ``delay_low_s`` or
+    # more: congested; with a shorter queue: steady (the link's random loss, see :func:`h264_adapter_config`)
+    lost_congested: int = 0
     # from ``decrease`` x the rate that last congested on, grow by this instead of ``increase``, once per
     # ``climb_hold_s`` (0: ``increase``, no different growth there)
     probe_increase: float = 0.0
@@ -253,7 +255,10 @@ class LinkAdapter:
         queue = self._queue_delay(worst)
         delivery = self._judge_delivery(worst, sent_fps, sent_kbps)
         received = min(r.kbps for _t, r in self._reports.values())
-        lossy = cfg.lost_congested > 0 and lost >= cfg.lost_congested
+        # an access unit lost with a queue standing: the queue outlasted the writer's history (congestion); lost
+        # with none (under what reads clear), it is the link's random loss repaired too late: no cut, no growth
+        lost_news = cfg.lost_congested > 0 and lost >= cfg.lost_congested
+        lossy = lost_news and queue >= cfg.delay_low_s
         if queue > cfg.delay_high_s or delivery < cfg.delivery_low or lossy:
             state = "congested"
             if now - self._last_decrease >= cfg.decrease_hold_s:
@@ -358,10 +363,15 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
     """The adapter's tuning for H.264 (see the module docstring): delivery by bytes, a queue only when the
     delay's p95 stands 500 ms over its minimum (clear under 250 ms: on 2 Mbit/s with 2 % loss and a loaded
     2-core robot the repair tails alone read 100-190 ms at 100-250 kbit/s, where no queue can stand), and an
-    access unit that never arrived is congestion (``lost_congested`` 1; a probe past the start that congests goes
-    back towards the start, and the next decrease waits for a report window of its own): on a lossy link a
-    reliable writer repairs every lost packet unless a queue delays the repair past its history
-    (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`, four frames). Weak-link bench at 1111e73, 2 Mbit/s + 2 %:
+    access unit that never arrived while a queue stands (its p95 at 250 ms or more) is congestion
+    (``lost_congested`` 1; a probe past the start that congests goes back towards the start, and the next decrease
+    waits for a report window of its own): on a lossy link a reliable writer repairs every lost packet unless a
+    queue delays the repair past its history (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`). A loss with a
+    shorter queue is the link's random loss repaired too late, not congestion: it holds the budget for that
+    report (no growth) and never cuts it. With a history of four pictures (133 ms at 30 fps, shorter than the
+    100-190 ms a repair took) the current-Axis persona at 1080p30 over 2 Mbit/s + 2 % lost 11-22 access units in
+    30 s at queues of 62-190 ms, and each cut the budget: 429 -> 105 kbit/s in 19 s, its pictures flat grey
+    (debug log at d82297c; at 15 fps, 267 ms of history, none lost). Weak-link bench at 1111e73, 2 Mbit/s + 2 %:
     no access unit lost in 30 s at a fixed 1000 kbit/s; climbing on delay alone, the budget reached 1300-1400
     kbit/s, lost 45 access units in 21 losses (each costing the pictures to the next IDR) and fell to 280-500
     kbit/s before climbing again. After a congestion it waits 10 s (then 20, 40 s) before it tries the rate that
