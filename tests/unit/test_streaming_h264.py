@@ -10,6 +10,7 @@ import pytest
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.annexb import NalType
 from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.limits import DEFAULT_REFRESH
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
 from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
@@ -542,13 +543,17 @@ def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: 
     assert len(h.made) == 2
 
 
-def test_vbv_buffer_follows_the_bitrate_and_at_most_a_slice_of_the_link_budget() -> None:
-    """Without a link budget: 0.15 s of the bitrate now (1000 kbit/s: 150 kbit, what the encoder always had); under
-    one, at most IDR_LINK_S of it, so an IDR crosses the link in about that long."""
-    assert h264_vbv_kbit(1000, 0.0) == 150
-    assert h264_vbv_kbit(600, 0.0) == 90  # a lowered bitrate lowers the buffer too
-    assert h264_vbv_kbit(850, 900.0) == round(900 * IDR_LINK_S)  # 1 Mbit/s link: 54 kbit, not 128
-    assert h264_vbv_kbit(1000, 5000.0) == 150  # a wide link: the bitrate's buffer
+def test_vbv_buffer_follows_the_bitrate_and_with_periodic_idrs_at_most_a_slice_of_the_link_budget() -> None:
+    """Without a link budget: 0.15 s of the bitrate now (1000 kbit/s: 150 kbit, what the encoder always had); with
+    periodic IDRs under one, at most IDR_LINK_S of it, so an IDR crosses the link in about that long; with intra
+    refresh (no periodic IDR) the bitrate's buffer whatever the budget."""
+    assert h264_vbv_kbit(1000, 0.0, "idr") == 150
+    assert h264_vbv_kbit(600, 0.0, "idr") == 90  # a lowered bitrate lowers the buffer too
+    assert h264_vbv_kbit(850, 900.0, "idr") == round(900 * IDR_LINK_S)  # 1 Mbit/s link: 54 kbit, not 128
+    assert h264_vbv_kbit(1000, 5000.0, "idr") == 150  # a wide link: the bitrate's buffer
+    assert h264_vbv_kbit(1080, 1200.0, "intra") == 162  # not 72: the buffer x264 keeps until the next IDR
+    assert h264_vbv_kbit(600, 0.0, "intra") == 90
+    assert h264_vbv_kbit(1080, 1200.0) == h264_vbv_kbit(1080, 1200.0, DEFAULT_REFRESH)
     c, _ = controller(codec="h264", max_bitrate_kbps=400)
     assert c.h264_settings().vbv_kbit == 60  # a hand-set budget is no link measure: 0.15 s of 400 kbit/s
 

@@ -8,15 +8,22 @@ The video controller (:mod:`.controller`) holds the budgets; these functions tur
   to the ceiling ``h264_max_bitrate_kbps`` (at most :data:`H264_BUDGET_FRACTION` of the budget: a margin under
   what the link was measured to carry). A ceiling equal to ``h264_bitrate_kbps`` never raises it
   (:func:`h264_target_kbps`);
-* the encoder's VBV buffer, which bounds its IDRs, follows the bitrate and, under a link budget, is at most
-  :data:`IDR_LINK_S` of the budget (:func:`h264_vbv_kbit`).
+* the encoder's VBV buffer, which bounds its largest picture, follows the bitrate; with periodic IDRs and a link
+  budget it is at most :data:`IDR_LINK_S` of the budget (:func:`h264_vbv_kbit`).
 """
 
 from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, KEYFRAME_RANGE, PRESETS, VBV_BUFFER_S
+from axis_ptz_ros2.media.limits import (
+    BITRATE_RANGE_KBPS,
+    CODECS,
+    DEFAULT_REFRESH,
+    KEYFRAME_RANGE,
+    PRESETS,
+    VBV_BUFFER_S,
+)
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
@@ -25,7 +32,8 @@ H264_FIELDS: Final = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h
 #: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
 #: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
 H264_BUDGET_FRACTION: Final = BudgetConfig().down_fraction
-#: s: with a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this long on the link
+#: s: with periodic IDRs and a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this
+#: long on the link
 #: (:func:`h264_vbv_kbit`)
 IDR_LINK_S: Final = 0.06
 
@@ -68,13 +76,22 @@ def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: floa
     return kbps, max(top, kbps)
 
 
-def h264_vbv_kbit(kbps: int, link_kbps: float) -> int:
-    """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.encoder.VBV_BUFFER_S` of the bitrate ``kbps``
-    targeted now, and where the link adapter keeps a budget ``link_kbps`` (0 = none), at most
-    :data:`IDR_LINK_S` of it. The buffer bounds the largest picture, an IDR, and the pictures behind an IDR wait
-    for it to cross the link: on 1 Mbit/s with 2 % loss, IDRs of ~114 kbit (a buffer opened at 1000 kbit/s and
-    kept while the bitrate followed the link down) reached the operator 125-216 ms after capture, every second."""
+def h264_vbv_kbit(kbps: int, link_kbps: float, refresh: str = DEFAULT_REFRESH) -> int:
+    """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.limits.VBV_BUFFER_S` of the bitrate ``kbps``
+    targeted now; with periodic IDRs (``refresh`` ``"idr"``) and a link budget ``link_kbps`` (0 = none), at most
+    :data:`IDR_LINK_S` of it.
+
+    The buffer bounds the largest picture. With an IDR every second the pictures behind each IDR waited for it to
+    cross the link: on 1 Mbit/s with 2 % loss, IDRs of ~114 kbit (a buffer opened at 1000 kbit/s and kept while the
+    bitrate followed the link down) reached the operator 125-216 ms after capture, every second; hence the cap.
+    With x264's intra refresh (the default) there is no periodic IDR to bound, and the cap only starved the
+    encoder: x264 cannot change the buffer on an open encoder, so the buffer chosen when it re-opened at its
+    ceiling (the first step past ``h264_bitrate_kbps``, budget ~1200 kbit/s: 72 kbit) stayed, and the encoder
+    made 929 kbit/s of a 1500 kbit/s target (35.75 dB; 1235 kbit/s and 36.68 dB with 0.15 s of the bitrate:
+    ``python bench/encoder_tradeoff.py --only node --kbps 1500 --link-kbps 1200`` / ``4000`` at 7b0f370). An IDR
+    on demand still re-opens the encoder with the buffer wanted then (:meth:`~axis_ptz_ros2.media.encoder.
+    H264Encoder.set_vbv`): 0.15 s of a bitrate that is at most 0.9 x the budget."""
     vbv = kbps * VBV_BUFFER_S
-    if link_kbps > 0:
+    if link_kbps > 0 and refresh == "idr":
         vbv = min(vbv, link_kbps * IDR_LINK_S)
     return max(1, round(vbv))
