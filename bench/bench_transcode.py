@@ -10,7 +10,7 @@ threads) as % of one core at 30 fps, the JPEG decode and encode parts, and the w
 call (what transcoding adds to a frame's age). The machine's load average is printed with the figures: on a shared
 machine the wall times carry other processes' load, the CPU figures much less.
 
-    .venv/bin/python bench/bench_transcode.py [--seconds 10] [--bitrate BPS] [--preset NAME] [--fps 30]
+    .venv/bin/python bench/bench_transcode.py [--seconds 10] [--bitrate KBPS] [--preset NAME] [--fps 30]
         [--profile baseline|high] [--refresh idr|intra]
 """
 
@@ -27,10 +27,10 @@ import numpy as np
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.encoder import H264Encoder
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.media.limits import PROFILES, REFRESH_MODES
-from axis_ptz_ros2.media.transcoder import JPEG_DECODERS, MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.media.transcoder import DEFAULT_JPEG_DECODER, JPEG_DECODERS, JpegDecoder, MjpegTranscoder
 from axis_ptz_ros2.sim.camera import SimulatedCamera
-from axis_ptz_ros2.streaming.h264 import H264Settings
 
 FPS = 30
 W, H = 704, 576
@@ -51,10 +51,10 @@ def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q))
 
 
-def run(jpegs: list[bytes], cfg: TranscoderConfig, seconds: float) -> dict[str, float]:
-    fps = cfg.fps
+def run(jpegs: list[bytes], cfg: H264Settings, jpeg_decoder: JpegDecoder, seconds: float) -> dict[str, float]:
     """Transcode paced at FPS for ``seconds``; CPU % of one core and wall-time percentiles (ms)."""
-    tc = MjpegTranscoder(cfg)
+    fps = cfg.fps
+    tc = MjpegTranscoder(cfg, jpeg_decoder=jpeg_decoder)
     for j in jpegs[:10]:  # warm-up: encoder open, first IDR, caches
         tc.transcode(j, time.time_ns())
     n = int(seconds * fps)
@@ -83,13 +83,13 @@ def run(jpegs: list[bytes], cfg: TranscoderConfig, seconds: float) -> dict[str, 
     }
 
 
-def parts(jpegs: list[bytes], cfg: TranscoderConfig, n: int = 150) -> dict[str, float]:
+def parts(jpegs: list[bytes], cfg: H264Settings, n: int = 150) -> dict[str, float]:
     """CPU ms per frame of the parts, unpaced: cv2 JPEG decode + I420, and the encoder alone."""
     bufs = [np.frombuffer(j, np.uint8) for j in jpegs]
     c0 = cpu_s()
     i420 = [cv2.cvtColor(cv2.imdecode(bufs[k % len(bufs)], cv2.IMREAD_COLOR), cv2.COLOR_BGR2YUV_I420) for k in range(n)]
     decode_ms = 1e3 * (cpu_s() - c0) / n
-    enc = H264Encoder(cfg.encoder_config(W, H))
+    enc = H264Encoder(cfg, W, H)
     frames = [av.VideoFrame.from_ndarray(y, format="yuv420p") for y in i420[: len(bufs)]]
     for f in frames[:10]:
         enc.encode(f)
@@ -111,7 +111,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=10.0)
     defaults = H264Settings()
-    ap.add_argument("--bitrate", type=int, default=defaults.bitrate_kbps * 1000)
+    ap.add_argument("--bitrate", type=int, default=defaults.bitrate_kbps, help="kbit/s")
     ap.add_argument("--preset", default=defaults.preset)
     ap.add_argument("--profile", default=defaults.profile, choices=PROFILES)
     ap.add_argument("--refresh", default=defaults.refresh, choices=REFRESH_MODES)
@@ -134,42 +134,39 @@ def main() -> None:
         jpegs.append(camera.frame_jpeg(W, H, 0))
     print(
         f"{len(jpegs)} JPEGs of the simulated 214 (softness, sensor noise), {W}x{H} at compression 0, "
-        f"mean {statistics.mean(map(len, jpegs)) / 1e3:.0f} kB; preset {args.preset}, {args.bitrate // 1000} kbit/s, "
+        f"mean {statistics.mean(map(len, jpegs)) / 1e3:.0f} kB; preset {args.preset}, {args.bitrate} kbit/s, "
         f"{args.profile} profile, refresh {args.refresh}, keyframe interval "
         f"{min(defaults.keyframe_interval, fps)} frames, {fps} fps"
     )
     results = {}
-    results_cfg: dict[str, TranscoderConfig] = {}
+    cfg = H264Settings(
+        fps=fps,
+        bitrate_kbps=args.bitrate,
+        keyframe_interval=min(defaults.keyframe_interval, fps),  # the stage's cap: one second
+        preset=args.preset,
+        profile=args.profile,
+        refresh=args.refresh,
+    )
     for dec in JPEG_DECODERS:
-        cfg = TranscoderConfig(
-            fps=fps,
-            bitrate_bps=args.bitrate,
-            keyframe_interval=min(defaults.keyframe_interval, fps),  # the stage's cap: one second
-            preset=args.preset,
-            profile=args.profile,
-            refresh=args.refresh,
-            jpeg_decoder=dec,
-        )
-        r = run(jpegs, cfg, args.seconds)
+        r = run(jpegs, cfg, dec, args.seconds)
         results[dec] = r
-        results_cfg[dec] = cfg
         print(
             f"jpeg_decoder={dec:5} preset={args.preset}: CPU {r['cpu_ms']:.2f} ms/frame = {r['cpu_pct']:.1f} % "
             f"of one core at {fps} fps; transcode() wall p50 {r['wall_p50']:.1f} ms p95 {r['wall_p95']:.1f} ms; "
             f"{r['kbps']:.0f} kbit/s at {r['fps']:.1f} fps; load {loadavg()}"
         )
-    p = parts(jpegs, results_cfg[TranscoderConfig().jpeg_decoder])
+    p = parts(jpegs, cfg)
     print(
         f"parts (cv2): JPEG decode + I420 {p['decode_ms']:.2f} ms CPU/frame; encode {p['encode_ms']:.2f} ms "
         f"CPU/frame, encode() wall p50 {p['encode_wall_p50']:.1f} ms p95 {p['encode_wall_p95']:.1f} ms"
     )
     print(f"load average after: {loadavg()}")
-    node = TranscoderConfig().jpeg_decoder  # the decoder the stream node uses
+    node = DEFAULT_JPEG_DECODER  # the decoder the stream node uses
     b = results[node]
     target = 25.0 if fps >= 30 else 30.0  # issue 21 at 30 fps; issue 39 at 25
     row(
         f"Transcoding MJPEG → H.264 704×576 @ {fps} ({args.preset}, {args.profile}, refresh {args.refresh}, "
-        f"{args.bitrate // 1000} kbit/s), CPU",
+        f"{args.bitrate} kbit/s), CPU",
         f"{b['cpu_pct']:.1f} % of a core ({node}, the node's decoder; "
         + ", ".join(f"{d} {results[d]['cpu_pct']:.1f} %" for d in results)
         + ")",

@@ -46,9 +46,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from link_h264_roles import psnr_db  # noqa: E402  (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig  # noqa: E402
+from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
-from axis_ptz_ros2.streaming.h264 import H264Settings  # noqa: E402
 from axis_ptz_ros2.streaming.h264_policy import h264_vbv_kbit  # noqa: E402
 
 W, H, FPS = 704, 576, 25
@@ -93,18 +93,18 @@ def loadavg() -> str:
 
 
 def run(s: Setting, jpegs: list[bytes], view: np.ndarray, kbps: int, link_kbps: float) -> dict[str, float]:
-    vbv_bits = h264_vbv_kbit(kbps, link_kbps) * 1000 if s.link_vbv else 0
+    vbv_kbit = h264_vbv_kbit(kbps, link_kbps) if s.link_vbv else 0
     tc = MjpegTranscoder(
-        TranscoderConfig(
+        H264Settings(
             fps=FPS,
-            bitrate_bps=kbps * 1000,
+            bitrate_kbps=kbps,
             keyframe_interval=s.keyframe_interval,
             preset=s.preset,
             profile=s.profile,
             refresh=s.refresh,
-            vbv_bits=vbv_bits,
-            stamp_sei=False,
-        )
+            vbv_kbit=vbv_kbit,
+        ),
+        stamp_sei=False,
     )
     dec = H264Decoder()
     plain = av.VideoCodecContext.create("h264", "r")  # the lossy viewer's decoder, and its loss-free twin
@@ -154,7 +154,7 @@ def run(s: Setting, jpegs: list[bytes], view: np.ndarray, kbps: int, link_kbps: 
         "cpu_ms": ms,
         "cpu_pct": ms * FPS / 10.0,
         "idrs": idrs,
-        "vbv_kbit": (vbv_bits or int(kbps * 1000 * 0.15)) / 1e3,
+        "vbv_kbit": vbv_kbit or kbps * 0.15,
         "codec": tc.codec_string or "",
         "healed": healed_at - LOSS if healed_at > 0 else math.inf,
     }

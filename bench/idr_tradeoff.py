@@ -30,7 +30,8 @@ from link_h264_roles import psnr_db as psnr  # noqa: E402  (bench/ is on sys.pat
 
 import axis_ptz_ros2.media.encoder as encoder  # noqa: E402
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig  # noqa: E402
+from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 W, H, FPS = 704, 576, 25
@@ -94,9 +95,9 @@ def main() -> None:
         for gop in (FPS, 2 * FPS):
             encoder.VBV_BUFFER_S = vbv  # read when the encoder opens
             tc = MjpegTranscoder(
-                TranscoderConfig(
+                H264Settings(
                     preset="superfast",
-                    bitrate_bps=a.kbps * 1000,
+                    bitrate_kbps=a.kbps,
                     fps=FPS,
                     keyframe_interval=gop,
                     profile="baseline",

@@ -28,7 +28,8 @@ import acuity  # noqa: E402
 from report import inputs, row  # noqa: E402  (bench/report.py)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
+from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: E402
+from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 SIZES = ((1920, 1080), (1280, 720), (1024, 576), (800, 450), (640, 360), (480, 270))
@@ -89,16 +90,16 @@ def main(argv: list[str] | None = None) -> int:
             soft, noise, H = views[(w, h)]
             t0 = time.perf_counter()
             enc = H264Encoder(
-                EncoderConfig(
-                    w,
-                    h,
+                H264Settings(
                     fps=fps,
-                    bitrate_bps=kbps * 1000,
+                    bitrate_kbps=kbps,
                     keyframe_interval=gop,
                     preset=args.preset,
                     profile="baseline",
                     refresh="idr",  # a camera's own H.264: an IDR every GOP
-                )  # fmt: skip
+                ),
+                w,
+                h,
             )
             dec = H264Decoder()
             rows: list[int] = []

@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from link_h264_roles import psnr_db  # noqa: E402  (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
+from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: E402
+from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 SIZES = ((1920, 1080), (1280, 720), (800, 450), (640, 360))
@@ -54,17 +55,15 @@ def main() -> None:
         for w, h in SIZES:
             soft = views[(w, h)]
             noise = model.noise_field(w, h) if model.noisy else None
-            cfg = EncoderConfig(
-                w,
-                h,
+            cfg = H264Settings(
                 fps=FPS,
-                bitrate_bps=kbps * 1000,
+                bitrate_kbps=kbps,
                 keyframe_interval=FPS,
                 preset=a.preset,
                 profile="baseline",
                 refresh="idr",  # a camera's own H.264: an IDR every second
             )
-            enc = H264Encoder(cfg)
+            enc = H264Encoder(cfg, w, h)
             dec = H264Decoder()
             scores: list[float] = []
             bits = 0

@@ -11,6 +11,7 @@ from dataclasses import replace
 import pytest
 
 from axis_ptz_ros2.media.frame import H264, JPEG, EncodedFrame
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.streaming.pipeline import Outlet, VideoPipeline
 from axis_ptz_ros2.streaming.reader import ReaderConfig
@@ -93,7 +94,9 @@ def test_passed_through_h264_is_decided_once_not_per_access_unit(running: list[V
     cam = SimulatedCamera(model="q6075", https=False, auth="none").start()
     try:
         out = Out()
-        settings = VideoSettings(fps=10, resolution="", codec="h264", h264_bitrate_kbps=400, h264_max_bitrate_kbps=400)
+        settings = VideoSettings(
+            fps=10, resolution="", codec="h264", h264=H264Settings(bitrate_kbps=400, max_bitrate_kbps=400)
+        )
         p = _pipeline(cam, settings, out)
         running.append(p)
         calls = [0]
@@ -122,7 +125,8 @@ def test_passed_through_h264_is_decided_once_not_per_access_unit(running: list[V
         playing = cam.rtsp.sessions if cam.rtsp is not None else []
         assert any(s.request.width == p.size.size.width for s in playing)
         # a decision flows down at once: a new bitrate reaches the request the RTSP source reads, no frame needed
-        p.apply(replace(settings, h264_bitrate_kbps=800, h264_max_bitrate_kbps=800), {"h264_bitrate_kbps"}, "t", True)
+        h264 = H264Settings(bitrate_kbps=800, max_bitrate_kbps=800)
+        p.apply(replace(settings, h264=h264), {"h264_bitrate_kbps"}, "t", True)
         assert p.rtsp._request().max_bitrate_kbps == 800  # noqa: SLF001 - the request it reads is the point
         assert p.h264_settings().bitrate_kbps == 800
     finally:

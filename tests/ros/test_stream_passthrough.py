@@ -203,7 +203,7 @@ def test_a_bitrate_change_reaches_the_playing_stream_without_a_new_session(
     assert all(r.successful for r in set_params(ros, probe, h264_bitrate_kbps=600))
     # the encoder's bitrate in effect (the session's pending value lives only until its next frame: a test that
     # polled it passed only when it looked inside that ~66 ms window)
-    ros.wait_for(lambda: session.bitrate_bps == 600_000, timeout=5)
+    ros.wait_for(lambda: session.bitrate_kbps == 600, timeout=5)
     n = rec.count()
     ros.wait_for(lambda: rec.count() >= n + 10, timeout=5)
     assert camera.rtsp.sessions == [session]
@@ -231,11 +231,11 @@ def test_a_clear_link_raises_the_cameras_bitrate_past_the_start_on_the_playing_s
     seen: list[int] = []
 
     def at_ceiling() -> bool:
-        seen.append(session.bitrate_bps)
-        return seen[-1] == 600_000
+        seen.append(session.bitrate_kbps)
+        return seen[-1] == 600
 
     wait_for_climb(ros, node, at_ceiling, timeout=30)
-    assert max(seen) == 600_000, sorted(set(seen))  # never past the ceiling
+    assert max(seen) == 600, sorted(set(seen))  # never past the ceiling
     assert len(set(seen)) >= 3, sorted(set(seen))  # climbed in steps
     assert camera.rtsp.sessions == [session]
     assert node._rtsp.stats.adjustments >= 1  # noqa: SLF001

@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from axis_ptz_ros2.media import limits
+from axis_ptz_ros2.media.errors import EncoderError
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.nodes.stream_params import SPECS
-from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.h264_policy import check_h264, h264_target_kbps
 from axis_ptz_ros2.streaming.rtsp_source import media_request
 from axis_ptz_ros2.streaming.video_types import VideoSettings
@@ -37,48 +38,72 @@ def test_parameter_descriptors_read_the_table() -> None:
     assert SPECS["h264_preset"].default == limits.DEFAULT_PRESET
 
 
-def test_every_settings_type_takes_its_defaults_from_the_table() -> None:
-    pytest.importorskip("av")
-    from axis_ptz_ros2.media.encoder import EncoderConfig  # noqa: PLC0415 - PyAV
-    from axis_ptz_ros2.media.transcoder import TranscoderConfig  # noqa: PLC0415 - PyAV
-
-    stage = _defaults(H264Settings)
-    assert (stage["bitrate_kbps"], stage["keyframe_interval"], stage["preset"]) == (
+def test_the_one_settings_type_takes_its_defaults_from_the_table() -> None:
+    d = _defaults(H264Settings)
+    assert (d["bitrate_kbps"], d["max_bitrate_kbps"], d["keyframe_interval"], d["preset"]) == (
         limits.DEFAULT_BITRATE_KBPS,
+        limits.DEFAULT_MAX_BITRATE_KBPS,
         limits.DEFAULT_KEYFRAME_INTERVAL,
         limits.DEFAULT_PRESET,
     )
-    assert (stage["profile"], stage["refresh"]) == (limits.DEFAULT_PROFILE, limits.DEFAULT_REFRESH)
-    for cls in (TranscoderConfig, EncoderConfig):
-        d = _defaults(cls)
-        assert d["bitrate_bps"] == limits.DEFAULT_BITRATE_KBPS * 1000, cls
-        assert d["keyframe_interval"] == limits.DEFAULT_KEYFRAME_INTERVAL, cls
-        assert (d["preset"], d["profile"], d["refresh"]) == (
-            limits.DEFAULT_PRESET,
-            limits.DEFAULT_PROFILE,
-            limits.DEFAULT_REFRESH,
-        ), cls
-    # the stage's default settings open an encoder (the encoder accepts what the stream node asks for)
-    TranscoderConfig(**{k: v for k, v in dataclasses.asdict(H264Settings().transcoder_config()).items()})
+    assert (d["profile"], d["refresh"], d["fps"]) == (
+        limits.DEFAULT_PROFILE,
+        limits.DEFAULT_REFRESH,
+        limits.DEFAULT_FPS,
+    )
+    # the request carries the same type, filled by the h264_* parameters (their defaults are its defaults)
+    assert VideoSettings().h264 == H264Settings()
+    h264_params = {name for name in SPECS if name.startswith("h264_")}
+    assert {SPECS[n].field for n in h264_params} == {f"h264.{n[len('h264_') :]}" for n in h264_params}
+    assert {SPECS[n].field.split(".")[1] for n in h264_params} <= set(d)
+
+
+def test_bitrates_are_kbit_and_become_bits_in_one_place() -> None:
+    s = H264Settings(bitrate_kbps=1234, vbv_kbit=56)
+    assert (s.bitrate_bps, s.vbv_bits) == (1_234_000, 56_000)
+    assert H264Settings().vbv_bits == 0  # 0: the encoder's default buffer
+
+
+def test_the_encoder_opens_with_what_the_settings_say() -> None:
+    """What the stage opens an encoder with (:meth:`H264Settings.opening`): at the ceiling, the VBV buffer asked
+    for, the keyframe interval at most one second of frames; and libx264 gets exactly that, in its units."""
+    pytest.importorskip("av")
+    from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: PLC0415 - PyAV
+
+    target = H264Settings(bitrate_kbps=700, max_bitrate_kbps=1500, keyframe_interval=600, fps=25, vbv_kbit=90)
+    opening = target.opening()
+    assert (opening.bitrate_kbps, opening.keyframe_interval, opening.vbv_kbit) == (1500, 25, 90)
+    assert H264Settings(bitrate_kbps=700, max_bitrate_kbps=300).opening().bitrate_kbps == 700  # a ceiling under it
+    enc = H264Encoder(opening, 64, 64)
+    assert (enc.opened_max_bitrate_bps, enc.opened_vbv_bits) == (1_500_000, 90_000)
+    assert enc.settings == opening
+    default = H264Encoder(H264Settings(bitrate_kbps=1000), 64, 64)  # the default buffer: VBV_BUFFER_S of it
+    assert default.opened_vbv_bits == int(1_000_000 * limits.VBV_BUFFER_S)
 
 
 def test_the_parameter_range_lies_inside_the_encoders_and_the_policy_keeps_to_it() -> None:
     low, high = limits.BITRATE_RANGE_KBPS
     elow, ehigh = limits.ENCODER_BITRATE_RANGE_KBPS
     assert elow <= low < high <= ehigh
-    assert (elow * 1000, ehigh * 1000) == (limits.MIN_BITRATE_BPS, limits.MAX_BITRATE_BPS)
     # the budgets never take the target under the parameter's floor, nor the ceiling above its top
     assert h264_target_kbps(low, low, 1.0, 1.0)[0] == low
     assert h264_target_kbps(high, high, 1e9)[1] == high
     # the check refuses just outside, with the table's bounds in the reason
-    reason = check_h264(dataclasses.replace(VideoSettings(), h264_bitrate_kbps=low - 1))
+    below = VideoSettings(h264=H264Settings(bitrate_kbps=low - 1))
+    reason = check_h264(below)
     assert reason is not None
     assert f"{low}…{high}" in reason
-    assert check_h264(dataclasses.replace(VideoSettings(), h264_bitrate_kbps=high)) is None
-    # a camera is asked for no bitrate its videomaxbitrate refuses
+    assert check_h264(VideoSettings(h264=H264Settings(bitrate_kbps=high))) is None
+    # the settings refuse what the encoder (and a camera's videomaxbitrate) refuses, with the table's bounds ...
+    for bad in (elow - 1, ehigh + 1):
+        with pytest.raises(EncoderError, match=f"bitrate must be {elow}…{ehigh} kbit/s"):
+            H264Settings(bitrate_kbps=bad)
+    # ... so a camera is asked for the bitrate in force as it is
     params = VideoParams(Resolution(704, 576), 25, 0)
-    assert media_request(params, H264Settings(bitrate_kbps=1)).max_bitrate_kbps == elow
-    assert media_request(params, H264Settings(bitrate_kbps=10**9)).max_bitrate_kbps == ehigh
+    assert media_request(params, H264Settings(bitrate_kbps=elow)).max_bitrate_kbps == elow
+    assert media_request(params, H264Settings(bitrate_kbps=ehigh)).max_bitrate_kbps == ehigh
+    request = media_request(params, H264Settings(keyframe_interval=600, fps=25))
+    assert request.keyframe_interval == 25  # at most one second of frames
 
 
 @pytest.mark.parametrize(
@@ -91,6 +116,7 @@ def test_the_parameter_range_lies_inside_the_encoders_and_the_policy_keeps_to_it
 )
 def test_no_settings_module_writes_a_bound_or_default_again(pattern: str) -> None:
     modules = [
+        "media/h264_settings.py",
         "media/encoder.py",
         "media/transcoder.py",
         "streaming/h264.py",

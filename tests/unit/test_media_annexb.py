@@ -19,7 +19,8 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.annexb import NalType
 from axis_ptz_ros2.media.decoder import H264Decoder
 from axis_ptz_ros2.media.errors import BitstreamError
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
@@ -37,7 +38,7 @@ def renderer() -> PtzRenderer:
 def stream(renderer: PtzRenderer) -> list[bytes]:
     """Eight access units (IDR + 7 P) of the simulated camera panning, from libx264 via the transcoder."""
     tc = MjpegTranscoder(
-        TranscoderConfig(bitrate_bps=1_500_000, stamp_sei=False, preset="veryfast", profile="baseline", refresh="idr")
+        H264Settings(bitrate_kbps=1500, fps=30, preset="veryfast", profile="baseline", refresh="idr"), stamp_sei=False
     )
     return [tc.transcode(encode_jpeg(renderer.render(20.0 + 1.0 * i, -4.0, 1.0, 704, 576), 0)).data for i in range(8)]
 

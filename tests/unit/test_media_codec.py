@@ -13,10 +13,11 @@ from hypothesis import strategies as st
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.annexb import NalType
 from axis_ptz_ros2.media.decoder import H264Decoder
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder
 from axis_ptz_ros2.sim.camera_model import PicturePool
 from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
@@ -70,10 +71,9 @@ def check_idr_headers(frame: EncodedFrame) -> None:
 def test_round_trip_psnr_at_1500_kbits(jpegs: list[bytes], jpeg_decoder: str, motion: str, median_db: float) -> None:
     """Against the camera's own compression-0 JPEG, decoded: ≥ 35 dB camera still, ≥ 33 dB panning (issue 21)."""
     tc = MjpegTranscoder(
-        TranscoderConfig(
-            bitrate_bps=1_500_000, jpeg_decoder=jpeg_decoder, preset="veryfast", profile="baseline", refresh="idr"
-        )
-    )  # type: ignore[arg-type]
+        H264Settings(bitrate_kbps=1500, fps=30, preset="veryfast", profile="baseline", refresh="idr"),
+        jpeg_decoder=jpeg_decoder,  # type: ignore[arg-type]
+    )
     dec = H264Decoder()
     psnr = []
     sizes = []
@@ -102,12 +102,14 @@ def test_round_trip_psnr_at_1500_kbits(jpegs: list[bytes], jpeg_decoder: str, mo
 def test_live_bitrate_change_changes_the_output_size(fast_pan: list[bytes]) -> None:
     images = [bgr(j) for j in fast_pan]
     enc = H264Encoder(
-        EncoderConfig(
-            704, 576, bitrate_bps=2_000_000, keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr"
-        )
+        H264Settings(
+            bitrate_kbps=2000, fps=30, keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr"
+        ),
+        704,
+        576,
     )
     high = [len(enc.encode_bgr(img).data) for img in images[:15]]
-    enc.set_bitrate(300_000)
+    enc.set_bitrate(300)
     low = [len(enc.encode_bgr(img).data) for img in images[15:]]
     assert enc.reopens == 0  # lowering is live, no new IDR
     # the low rate judged once the VBV buffer of the high one (VBV_BUFFER_S of 2000 kbit/s) is spent: ~8 frames
@@ -116,7 +118,7 @@ def test_live_bitrate_change_changes_the_output_size(fast_pan: list[bytes]) -> N
     assert mean_high > 2 * mean_low
     assert mean_low * 8 * 30 <= 300_000 * 1.5
     # above the rate it opened with: re-opened (x264 keeps its VBV maxrate), the next frame is an IDR
-    enc.set_bitrate(3_000_000)
+    enc.set_bitrate(3000)
     out = enc.encode_bgr(images[0])
     assert enc.reopens == 1
     assert out.keyframe
@@ -129,19 +131,21 @@ def test_a_new_vbv_buffer_waits_for_the_next_idr_and_bounds_it(fast_pan: list[by
     keyframe), keeps the opened maxrate, and a change within VBV_REOPEN_SLACK is no re-open at all."""
     images = [bgr(j) for j in fast_pan]
     enc = H264Encoder(
-        EncoderConfig(
-            704, 576, bitrate_bps=1_000_000, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr"
-        )
+        H264Settings(
+            bitrate_kbps=1000, fps=30, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr"
+        ),
+        704,
+        576,
     )
     assert enc.opened_vbv_bits == 150_000  # VBV_BUFFER_S of the bitrate
     keys, sizes = [], []
     for i, img in enumerate(images):
         if i == 3:
-            enc.set_bitrate(600_000)
-            enc.set_vbv(40_000)
+            enc.set_bitrate(600)
+            enc.set_vbv(40)
             assert enc.reopens == 0  # not yet: waits for the IDR at frame 10
         if i == 22:
-            enc.set_vbv(44_000)  # within the slack of 40 kbit: nothing to do
+            enc.set_vbv(44)  # within the slack of 40 kbit: nothing to do
         out = enc.encode_bgr(img)
         check_idr_headers(out)
         keys.append(out.keyframe)
@@ -155,15 +159,15 @@ def test_a_new_vbv_buffer_waits_for_the_next_idr_and_bounds_it(fast_pan: list[by
     assert sizes[10] <= 40_000 * 1.1  # ... and then the 40 kbit one bounds it
     assert sizes[20] <= 40_000 * 1.1
     with pytest.raises(EncoderError, match="VBV buffer"):
-        enc.set_vbv(10)
+        enc.set_vbv(-1)
     with pytest.raises(EncoderError, match="VBV buffer"):
-        EncoderConfig(64, 64, vbv_bits=-1)
+        H264Settings(vbv_kbit=60_000)
 
 
 def test_idr_on_demand_periodic_keyframes_and_headers(jpegs: list[bytes]) -> None:
     images = [bgr(j) for j in jpegs[:30]]
     enc = H264Encoder(
-        EncoderConfig(704, 576, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr")
+        H264Settings(fps=30, keyframe_interval=10, preset="veryfast", profile="baseline", refresh="idr"), 704, 576
     )
     keys = []
     for i, img in enumerate(images):
@@ -186,7 +190,7 @@ def test_intra_refresh_makes_idrs_only_on_demand_and_every_picture_decodes(jpegs
     not passed on as a key frame (no decoder can start there); a new wave length re-opens x264 with an IDR."""
     images = [bgr(j) for j in jpegs[:40]]
     enc = H264Encoder(
-        EncoderConfig(704, 576, fps=25, keyframe_interval=8, refresh="intra", profile="high", preset="veryfast")
+        H264Settings(fps=25, keyframe_interval=8, refresh="intra", profile="high", preset="veryfast"), 704, 576
     )
     dec = H264Decoder()
     keys, recovery_points = [], []
@@ -222,8 +226,8 @@ def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> 
     images = [bgr(j) for j in jpegs[:40]]
 
     def healed_after(refresh: str) -> int | None:
-        enc = H264Encoder(EncoderConfig(704, 576, fps=25, keyframe_interval=10 if refresh == "intra" else 600,
-                                        refresh=refresh, preset="veryfast", profile="baseline"))  # fmt: skip
+        enc = H264Encoder(H264Settings(fps=25, keyframe_interval=10 if refresh == "intra" else 600,
+                                       refresh=refresh, preset="veryfast", profile="baseline"), 704, 576)  # fmt: skip
         lossy, twin = av.CodecContext.create("h264", "r"), av.CodecContext.create("h264", "r")
         healed = None
         for i, img in enumerate(images):
@@ -244,7 +248,7 @@ def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> 
 
 
 def test_codec_string_matches_the_sps_the_decoder_uses(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder(TranscoderConfig(preset="veryfast", profile="baseline", refresh="idr"))
+    tc = MjpegTranscoder(H264Settings(fps=30, preset="veryfast", profile="baseline", refresh="idr"))
     assert tc.codec_string is None
     out = tc.transcode(jpegs[0])
     sps = annexb.find_sps(out.data)
@@ -261,7 +265,7 @@ def test_resolution_change_reopens_the_encoder_and_the_decoder_follows(
     jpegs: list[bytes], renderer: PtzRenderer
 ) -> None:
     small = encode_jpeg(renderer.render(0.0, -3.0, 1.0, 352, 288), 0)
-    tc = MjpegTranscoder(TranscoderConfig(preset="veryfast", profile="baseline", refresh="idr"))
+    tc = MjpegTranscoder(H264Settings(fps=30, preset="veryfast", profile="baseline", refresh="idr"))
     dec = H264Decoder()
     outs = [tc.transcode(j) for j in (jpegs[0], jpegs[1], small, small, jpegs[2])]
     assert [o.keyframe for o in outs] == [True, False, True, False, True]
@@ -277,7 +281,9 @@ def test_resolution_change_reopens_the_encoder_and_the_decoder_follows(
 
 
 def test_decoder_joining_mid_gop_waits_for_an_idr(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr"))
+    tc = MjpegTranscoder(
+        H264Settings(fps=30, keyframe_interval=600, preset="veryfast", profile="baseline", refresh="idr")
+    )
     outs = []
     for i, j in enumerate(jpegs[:16]):
         if i == 10:
@@ -295,7 +301,9 @@ def test_decoder_joining_mid_gop_waits_for_an_idr(jpegs: list[bytes]) -> None:
 
 
 def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None:
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=8, preset="veryfast", profile="baseline", refresh="idr"))
+    tc = MjpegTranscoder(
+        H264Settings(fps=30, keyframe_interval=8, preset="veryfast", profile="baseline", refresh="idr")
+    )
     outs = [tc.transcode(j).data for j in jpegs[:20]]
     dec = H264Decoder()
     got = []
@@ -319,8 +327,14 @@ def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None
     [
         ({"width": 703}, "width must be an even"),
         ({"height": 0}, "height must be an even"),
-        ({"bitrate_bps": 10}, "bitrate must be"),
-        ({"bitrate_bps": True}, "bitrate must be"),
+        ({"width": True}, "width must be an even"),
+        ({"bitrate_kbps": 10}, "bitrate must be 50…50000 kbit/s"),
+        ({"bitrate_kbps": True}, "bitrate must be"),
+        ({"bitrate_kbps": 1000.0}, "bitrate must be"),
+        ({"max_bitrate_kbps": 60_000}, "max bitrate must be"),
+        ({"keyframe_interval": 601}, "keyframe interval"),
+        ({"vbv_kbit": -1}, "VBV buffer"),
+        ({"vbv_kbit": 0.0}, "VBV buffer"),
         ({"keyframe_interval": 0}, "keyframe interval"),
         ({"preset": "placebo"}, "preset must be one of"),
         ({"fps": 0}, "fps must be"),
@@ -330,16 +344,19 @@ def test_decoder_recovers_after_corrupt_access_units(jpegs: list[bytes]) -> None
     ],
 )
 def test_bad_encoder_parameters_are_refused(kwargs: dict[str, object], reason: str) -> None:
-    base: dict[str, object] = {"width": 704, "height": 576}
+    size = {"width": 704, "height": 576}
+    settings = {k: v for k, v in kwargs.items() if k not in size}
+    width, height = (kwargs.get(k, v) for k, v in size.items())
     with pytest.raises(EncoderError, match=reason):
-        EncoderConfig(**(base | kwargs))  # type: ignore[arg-type]
+        H264Encoder(H264Settings(**settings), width, height)  # type: ignore[arg-type]
 
 
 def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
     for jpeg_decoder in ("cv2", "pyav"):
         tc = MjpegTranscoder(
-            TranscoderConfig(jpeg_decoder=jpeg_decoder, preset="veryfast", profile="baseline", refresh="idr")
-        )  # type: ignore[arg-type]
+            H264Settings(fps=30, preset="veryfast", profile="baseline", refresh="idr"),
+            jpeg_decoder=jpeg_decoder,  # type: ignore[arg-type]
+        )
         first = tc.transcode(jpegs[0])
         for bad in (b"", b"not a jpeg", jpegs[1][:200]):
             with pytest.raises(TranscodeError):
@@ -347,19 +364,21 @@ def test_bad_jpeg_is_refused_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
         nxt = tc.transcode(jpegs[1])
         assert (first.pts, nxt.pts, nxt.keyframe) == (0, 1, False)
         assert tc.bad_jpegs == 3
-    enc = H264Encoder(EncoderConfig(704, 576, preset="veryfast", profile="baseline", refresh="idr"))
+    enc = H264Encoder(H264Settings(fps=30, preset="veryfast", profile="baseline", refresh="idr"), 704, 576)
     with pytest.raises(EncoderError, match="expected a 704x576"):
         enc.encode_bgr(np.zeros((288, 352, 3), np.uint8))
     with pytest.raises(EncoderError, match="bitrate"):
         enc.set_bitrate(1)
     with pytest.raises(EncoderError, match="jpeg_decoder"):
-        TranscoderConfig(jpeg_decoder="libjpeg")  # type: ignore[arg-type]
+        MjpegTranscoder(jpeg_decoder="libjpeg")  # type: ignore[arg-type]
 
 
 @pytest.fixture(scope="module")
 def short_stream(jpegs: list[bytes]) -> list[bytes]:
     """IDR, P, P, IDR, P, P with capture stamps."""
-    tc = MjpegTranscoder(TranscoderConfig(keyframe_interval=3, preset="veryfast", profile="baseline", refresh="idr"))
+    tc = MjpegTranscoder(
+        H264Settings(fps=30, keyframe_interval=3, preset="veryfast", profile="baseline", refresh="idr")
+    )
     return [tc.transcode(j, capture_ns=i).data for i, j in enumerate(jpegs[:6])]
 
 

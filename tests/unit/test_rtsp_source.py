@@ -12,9 +12,10 @@ from collections import deque
 import numpy as np
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder
+from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage
+from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.streaming.h264 import H264Stage
 from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.streaming.rtsp_source import (
     RtspH264Source,
@@ -30,7 +31,10 @@ from tests.support.waiting import wait_until
 
 
 def test_media_request_follows_the_params_and_caps_the_gop_at_one_second() -> None:
-    req = media_request(VideoParams(Resolution(1920, 1080), 30, 0), H264Settings(800, 300, "superfast", 30, 1500))
+    req = media_request(
+        VideoParams(Resolution(1920, 1080), 30, 0),
+        H264Settings(bitrate_kbps=800, max_bitrate_kbps=1500, keyframe_interval=300, fps=30),
+    )
     assert req == MediaStreamRequest(resolution="1920x1080", fps=30, keyframe_interval=30, max_bitrate_kbps=800)
     q = dict(req.query())
     assert q["videozgopmode"] == "fixed"
@@ -60,16 +64,11 @@ def _timing(*, read_timeout_s: float, stall_timeout_s: float) -> ReaderConfig:
 
 def _stream(n: int) -> list[bytes]:
     enc = H264Encoder(
-        EncoderConfig(
-            width=64,
-            height=48,
-            fps=15,
-            bitrate_bps=200_000,
-            keyframe_interval=100,
-            preset="veryfast",
-            profile="baseline",
-            refresh="idr",
-        )
+        H264Settings(
+            fps=15, bitrate_kbps=200, keyframe_interval=100, preset="veryfast", profile="baseline", refresh="idr"
+        ),
+        64,
+        48,
     )
     return [enc.encode_bgr(np.full((48, 64, 3), i * 7 % 255, np.uint8)).data for i in range(n)]
 

@@ -9,9 +9,11 @@ import pytest
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.annexb import NalType
+from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import EncodedFrame
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.media.limits import DEFAULT_REFRESH
-from axis_ptz_ros2.media.transcoder import MjpegTranscoder, TranscoderConfig
+from axis_ptz_ros2.media.transcoder import MjpegTranscoder
 from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
@@ -22,7 +24,6 @@ from axis_ptz_ros2.streaming.h264 import (
     IDR_MIN_INTERVAL_S,
     NEW_SUBSCRIBER_IDR_AGAIN_S,
     RATE_WINDOW,
-    H264Settings,
     H264Stage,
 )
 from axis_ptz_ros2.streaming.h264_policy import IDR_LINK_S, h264_target_kbps, h264_vbv_kbit
@@ -66,11 +67,11 @@ class Harness:
         self.settings = settings or H264Settings(bitrate_kbps=1000, keyframe_interval=30, fps=10)
         self.clock = Clock()
         self.out: list[EncodedFrame] = []
-        self.made: list[TranscoderConfig] = []
+        self.made: list[H264Settings] = []  # what each transcoder was opened with
         self.transcoders: list[MjpegTranscoder] = []
         self.problems: list[str] = []
 
-        def factory(cfg: TranscoderConfig) -> MjpegTranscoder:
+        def factory(cfg: H264Settings) -> MjpegTranscoder:
             self.made.append(cfg)
             self.transcoders.append(MjpegTranscoder(cfg))
             return self.transcoders[-1]
@@ -268,17 +269,17 @@ def test_bitrate_live_preset_and_fps_reopen(jpegs: list[bytes]) -> None:
 
 def test_encoder_opens_at_the_ceiling_so_the_budget_moves_the_bitrate_live(jpegs: list[bytes]) -> None:
     """The budget holds the target under the request and lets it grow back: no re-open, no IDR, for either."""
-    h = Harness(H264Settings(bitrate_kbps=300, fps=30, ceiling_kbps=1500))
+    h = Harness(H264Settings(bitrate_kbps=300, fps=30, max_bitrate_kbps=1500))
     h.stage.set_active(True)
     h.feed(jpegs[:3])
-    assert h.made[0].bitrate_bps == 1_500_000  # VBV maxrate = the request ...
+    assert h.made[0].bitrate_kbps == 1500  # VBV maxrate = the request ...
     t = h.transcoders[0]
-    assert t.config.bitrate_bps == 300_000  # ... the target the budget's, from the second frame on
+    assert t.settings.bitrate_kbps == 300  # ... the target the budget's, from the second frame on
     for kbps in (600, 1200, 1500, 400):
-        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, ceiling_kbps=1500)
+        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, max_bitrate_kbps=1500)
         out = h.feed(jpegs[3:5])
         assert not any(f is not None and f.keyframe for f in out)
-        assert t.config.bitrate_bps == kbps * 1000
+        assert t.settings.bitrate_kbps == kbps
     assert len(h.made) == 1
     assert t._encoder is not None
     assert t._encoder.reopens == 0
@@ -311,9 +312,7 @@ def test_bad_jpeg_is_dropped_and_the_stream_goes_on(jpegs: list[bytes]) -> None:
 
 def test_pass_through_seam_prepends_parameter_sets(jpegs: list[bytes]) -> None:
     """An access-unit source (an RTSP reader) whose IDRs lack SPS/PPS after the first: the stage adds them."""
-    t = MjpegTranscoder(
-        TranscoderConfig(fps=10, keyframe_interval=4, preset="veryfast", profile="baseline", refresh="idr")
-    )
+    t = MjpegTranscoder(H264Settings(fps=10, keyframe_interval=4, preset="veryfast", profile="baseline", refresh="idr"))
     frames = [t.transcode(j) for j in jpegs[:9]]
     stripped = []
     for i, f in enumerate(frames):
@@ -389,8 +388,11 @@ def test_h264_mode_asks_the_camera_for_compression_0_and_keeps_the_ladder_still(
 def test_codec_values_are_checked_with_the_list() -> None:
     c, _ = controller()
     assert c.check(VideoSettings(codec="h265"), {"codec"}) == "codec='h265' is not one of mjpeg, h264"
-    assert "h264_preset" in (c.check(VideoSettings(h264_preset="placebo"), {"h264_preset"}) or "")
-    assert "h264_bitrate_kbps" in (c.check(VideoSettings(h264_bitrate_kbps=10), {"h264_bitrate_kbps"}) or "")
+    with pytest.raises(EncoderError, match="preset must be one of"):  # the settings check their own fields
+        H264Settings(preset="placebo")
+    # the parameters' bitrate range is narrower than the encoder's: the check names the parameter
+    below = VideoSettings(h264=H264Settings(bitrate_kbps=60))
+    assert "h264_bitrate_kbps=60 is outside" in (c.check(below, {"h264_bitrate_kbps"}) or "")
     assert c.check(VideoSettings(codec="h264"), {"codec"}) is None
     with pytest.raises(ValueError, match="codec"):
         VideoController(VideoSettings(codec="vp9"), BitrateMeter(2.0))
@@ -405,7 +407,7 @@ def test_switching_codec_changes_the_request() -> None:
 
 
 def test_link_budget_lowers_the_h264_bitrate_judged_against_h264_bytes() -> None:
-    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1500)
+    c, clock = controller(codec="h264", fps=30, h264=H264Settings(bitrate_kbps=1500))
     # 4 s of 30 fps at ~1500 kbit/s sent as H.264 (6250 B/frame)
     for _i in range(120):
         clock.t += 1 / 30
@@ -454,18 +456,20 @@ def test_ceiling_equal_to_start_keeps_the_old_rule() -> None:
 def test_a_ceiling_at_or_below_the_start_is_accepted_and_never_raises_the_bitrate() -> None:
     """The default ceiling is the start (no probing: README, weak link); a start set above the ceiling alone is
     accepted, and the ceiling then means "never above the start", as a ceiling equal to it does."""
-    assert VideoSettings().h264_max_bitrate_kbps == VideoSettings().h264_bitrate_kbps
+    assert VideoSettings().h264.max_bitrate_kbps == VideoSettings().h264.bitrate_kbps
     c, _ = controller(codec="h264")
-    assert c.check(VideoSettings(codec="h264", h264_max_bitrate_kbps=800), {"h264_max_bitrate_kbps"}) is None
-    assert c.check(VideoSettings(h264_bitrate_kbps=2000), {"h264_bitrate_kbps"}) is None
-    VideoController(VideoSettings(h264_bitrate_kbps=3000), BitrateMeter(2.0))  # starts
+    assert (
+        c.check(VideoSettings(codec="h264", h264=H264Settings(max_bitrate_kbps=800)), {"h264_max_bitrate_kbps"}) is None
+    )
+    assert c.check(VideoSettings(h264=H264Settings(bitrate_kbps=2000)), {"h264_bitrate_kbps"}) is None
+    VideoController(VideoSettings(h264=H264Settings(bitrate_kbps=3000)), BitrateMeter(2.0))  # starts
     for link in (0.0, 300.0, 2000.0, 4000.0, 10_000.0):
         assert h264_target_kbps(2000, 800, link)[0] == h264_target_kbps(2000, 2000, link)[0], link
         assert h264_target_kbps(2000, 800, link)[0] <= 2000
     assert "outside 100…20000" in (
-        c.check(VideoSettings(h264_max_bitrate_kbps=30_000), {"h264_max_bitrate_kbps"}) or ""
+        c.check(VideoSettings(h264=H264Settings(max_bitrate_kbps=30_000)), {"h264_max_bitrate_kbps"}) or ""
     )
-    both = VideoSettings(h264_bitrate_kbps=2000, h264_max_bitrate_kbps=3000)
+    both = VideoSettings(h264=H264Settings(bitrate_kbps=2000, max_bitrate_kbps=3000))
     assert c.check(both, {"h264_bitrate_kbps", "h264_max_bitrate_kbps"}) is None
 
 
@@ -487,27 +491,27 @@ def _clear_reports(c: VideoController, clock: Clock, seconds: float, *, report: 
 
 
 def test_clear_link_raises_the_bitrate_to_the_ceiling_and_no_feedback_keeps_the_start() -> None:
-    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1000, h264_max_bitrate_kbps=1500)
+    c, clock = controller(codec="h264", fps=30, h264=H264Settings(bitrate_kbps=1000, max_bitrate_kbps=1500))
     assert _clear_reports(c, clock, 4.0, report=False)[-1] == 1000  # nobody reports: the safe default
     targets = _clear_reports(c, clock, 10.0)
     assert targets[-1] == 1500, targets
     assert all(b >= a for a, b in zip(targets, targets[1:], strict=False)), targets  # one way, step by step
     assert targets.index(1500) >= 3, targets  # climbed in steps, each judged, not in one jump
     s = c.h264_settings()
-    assert s.ceiling_kbps == 1500
+    assert s.max_bitrate_kbps == 1500
     assert c.state().link_state == "clear"
     # the reports stop: held through the silence, released after link_release, back to the start
     clock.t += 31.0
     c.tick()
     assert c.h264_settings().bitrate_kbps == 1000
     # a ceiling equal to the start: the same clear reports never raise it
-    c2, clock2 = controller(codec="h264", h264_bitrate_kbps=1000, h264_max_bitrate_kbps=1000)
+    c2, clock2 = controller(codec="h264", h264=H264Settings(bitrate_kbps=1000, max_bitrate_kbps=1000))
     assert set(_clear_reports(c2, clock2, 6.0)) == {1000}
     assert c2.state().link_budget_kbps == 0.0
 
 
 def test_congestion_after_the_climb_brings_the_bitrate_back_down() -> None:
-    c, clock = controller(codec="h264", fps=30, h264_bitrate_kbps=1000, h264_max_bitrate_kbps=2000)
+    c, clock = controller(codec="h264", fps=30, h264=H264Settings(bitrate_kbps=1000, max_bitrate_kbps=2000))
     _clear_reports(c, clock, 8.0)
     high = c.h264_settings().bitrate_kbps
     assert high > 1300
@@ -525,21 +529,21 @@ def test_congestion_after_the_climb_brings_the_bitrate_back_down() -> None:
 def test_encoder_reopens_once_at_the_ceiling_when_the_link_lets_it_climb(jpegs: list[bytes]) -> None:
     """Without feedback the encoder opens at the start; the climb past it re-opens it once, at the ceiling (one
     IDR), and every later step up or down is live."""
-    h = Harness(H264Settings(bitrate_kbps=1000, fps=30, ceiling_kbps=1000))
+    h = Harness(H264Settings(bitrate_kbps=1000, fps=30, max_bitrate_kbps=1000))
     h.stage.set_active(True)
     h.feed(jpegs[:3])
-    assert [m.bitrate_bps for m in h.made] == [1_000_000]
-    h.settings = H264Settings(bitrate_kbps=1080, fps=30, ceiling_kbps=1500)
+    assert [m.bitrate_kbps for m in h.made] == [1000]
+    h.settings = H264Settings(bitrate_kbps=1080, fps=30, max_bitrate_kbps=1500)
     out = h.feed(jpegs[3:5])
-    assert [m.bitrate_bps for m in h.made] == [1_000_000, 1_500_000]
+    assert [m.bitrate_kbps for m in h.made] == [1000, 1500]
     assert h.stage.stats.fps_reopens == 0  # re-made for the ceiling, not for a new picture rate
     assert out[0] is not None
     assert out[0].keyframe
     for kbps, top in ((1200, 1500), (1500, 1500), (800, 1000), (1300, 1500)):
-        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, ceiling_kbps=top)
+        h.settings = H264Settings(bitrate_kbps=kbps, fps=30, max_bitrate_kbps=top)
         out = h.feed(jpegs[5:7])
         assert not any(f is not None and f.keyframe for f in out)
-        assert h.transcoders[-1].config.bitrate_bps == kbps * 1000
+        assert h.transcoders[-1].settings.bitrate_kbps == kbps
     assert len(h.made) == 2
 
 
@@ -559,22 +563,22 @@ def test_vbv_buffer_follows_the_bitrate_and_with_periodic_idrs_at_most_a_slice_o
 
 
 def test_stage_hands_a_new_vbv_buffer_to_the_encoder_and_no_extra_idr(jpegs: list[bytes]) -> None:
-    kw = {"keyframe_interval": 10, "fps": 30, "ceiling_kbps": 1000, "refresh": "idr"}
+    kw = {"keyframe_interval": 10, "fps": 30, "max_bitrate_kbps": 1000, "refresh": "idr"}
     h = Harness(H264Settings(bitrate_kbps=1000, vbv_kbit=150, **kw))  # type: ignore[arg-type]
     h.stage.set_active(True)
     h.feed(jpegs[:3])
-    assert [m.vbv_bits for m in h.made] == [150_000]
+    assert [m.vbv_kbit for m in h.made] == [150]
     h.settings = H264Settings(bitrate_kbps=800, vbv_kbit=50, **kw)  # type: ignore[arg-type]
     out = h.feed(jpegs[3:14])
     assert len(h.made) == 1  # the same transcoder ...
-    assert h.transcoders[0].config.vbv_bits == 50_000  # ... told the new buffer
+    assert h.transcoders[0].settings.vbv_kbit == 50  # ... told the new buffer
     assert [i + 3 for i, f in enumerate(out) if f is not None and f.keyframe] == [10]  # the periodic IDR only
 
 
 def test_with_intra_refresh_a_new_vbv_buffer_waits_for_the_next_idr_asked_for(jpegs: list[bytes]) -> None:
     """No periodic IDR: the buffer (which bounds an IDR) is in force from the next IDR on demand, the picture it
     matters for, and costs no IDR of its own."""
-    kw = {"keyframe_interval": 10, "fps": 30, "ceiling_kbps": 1000}
+    kw = {"keyframe_interval": 10, "fps": 30, "max_bitrate_kbps": 1000}
     h = Harness(H264Settings(bitrate_kbps=1000, vbv_kbit=150, **kw))  # type: ignore[arg-type]
     h.stage.set_active(True)
     h.feed(jpegs[:3])

@@ -14,8 +14,9 @@ import pytest
 
 av = pytest.importorskip("av")
 
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder  # noqa: E402
+from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: E402
 from axis_ptz_ros2.media.frame import EncodedFrame  # noqa: E402
+from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
 from axis_ptz_ros2.web.backend import CommandResult  # noqa: E402
 from axis_ptz_ros2.web.h264relay import (  # noqa: E402
     CONTENT_TYPE,
@@ -37,16 +38,11 @@ W, H = 160, 96
 
 def _frames(n: int, gop: int = 10, refresh: str = "idr") -> list[EncodedFrame]:
     enc = H264Encoder(
-        EncoderConfig(
-            W,
-            H,
-            fps=30,
-            bitrate_bps=300_000,
-            keyframe_interval=gop,
-            preset="ultrafast",
-            refresh=refresh,
-            profile="baseline",
-        )
+        H264Settings(
+            fps=30, bitrate_kbps=300, keyframe_interval=gop, preset="ultrafast", refresh=refresh, profile="baseline"
+        ),
+        W,
+        H,
     )
     out = []
     for i in range(n):

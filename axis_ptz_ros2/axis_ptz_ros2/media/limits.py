@@ -2,8 +2,8 @@
 
 Everything that checks, describes or fills an H.264 setting reads it from here: the stream node's parameter
 descriptors and the README's generated table (``nodes/stream_params.py``), the codec check
-(:func:`~axis_ptz_ros2.streaming.h264_policy.check_h264`), the stage's settings
-(:class:`~axis_ptz_ros2.streaming.h264.H264Settings`), the transcoder and the encoder (:mod:`.encoder` enforces the
+(:func:`~axis_ptz_ros2.streaming.h264_policy.check_h264`), the one settings
+type from the request to the encoder (:class:`~axis_ptz_ros2.media.h264_settings.H264Settings`, which enforces the
 encoder's bounds), the RTSP request to a camera (:func:`~axis_ptz_ros2.streaming.rtsp_source.media_request`), the
 simulated camera's encoder and the teleop keys' bitrate steps. PyAV-free so that settings can be checked, and the
 stream node can start, on a machine without PyAV.
@@ -32,16 +32,18 @@ REFRESH_MODES: Final = ("idr", "intra")
 
 #: kbit/s: what the encoder takes, and what a camera's ``videomaxbitrate`` may be (VAPIX: 50-50000)
 ENCODER_BITRATE_RANGE_KBPS: Final = (50, 50_000)
-MIN_BITRATE_BPS: Final = ENCODER_BITRATE_RANGE_KBPS[0] * 1000
-MAX_BITRATE_BPS: Final = ENCODER_BITRATE_RANGE_KBPS[1] * 1000
 #: kbit/s: ``h264_bitrate_kbps`` and ``h264_max_bitrate_kbps`` (the parameters'; the budgets never go under its floor)
 BITRATE_RANGE_KBPS: Final = (100, 20_000)
 MAX_KEYFRAME_INTERVAL: Final = 600
 #: frames: ``h264_keyframe_interval`` (at most one second of frames applies)
 KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
 MAX_DIMENSION: Final = 4096
+#: pictures/s the encoder runs at
+ENCODER_FPS_RANGE: Final = (1, 120)
+#: libx264 threads (1: one slice per picture, lowest CPU; more: sliced threads, lower latency at 1080p)
+THREADS_RANGE: Final = (1, 16)
 
-# -- defaults: the stream node's parameters, the stage's settings, the transcoder's and the encoder's --
+# -- defaults: the stream node's parameters and H264Settings' --
 #: kbit/s: ``h264_bitrate_kbps``, the bitrate without feedback (a budget lowers it)
 DEFAULT_BITRATE_KBPS: Final = 1000
 #: kbit/s: ``h264_max_bitrate_kbps``, the most a clear link may raise it to; at or below ``h264_bitrate_kbps`` never
@@ -49,6 +51,9 @@ DEFAULT_BITRATE_KBPS: Final = 1000
 DEFAULT_MAX_BITRATE_KBPS: Final = 1000
 #: frames: ``h264_keyframe_interval``, per intra-refresh wave (between IDRs with refresh ``idr``)
 DEFAULT_KEYFRAME_INTERVAL: Final = 30
+#: pictures/s the encoder runs at until told otherwise (the stream node's ``fps``; the stage runs it at the rate in
+#: effect, measured at the camera)
+DEFAULT_FPS: Final = 15
 #: ``h264_preset`` (why superfast: docs/nodes.md, "H.264 encoder settings")
 DEFAULT_PRESET: Final = "superfast"
 #: the profile the stream node encodes (every decoder a viewer uses here decodes High: docs/nodes.md)
@@ -63,4 +68,5 @@ DEFAULT_REFRESH: Final = "intra"
 VBV_BUFFER_S: Final = 0.15
 #: a VBV buffer asked for live that differs from the open one by less than this fraction is not worth a re-open
 VBV_REOPEN_SLACK: Final = 0.2
-MIN_VBV_BITS: Final = 1000
+#: kbit: the smallest VBV buffer the encoder is given (0 asks for its default, :data:`VBV_BUFFER_S` of the bitrate)
+MIN_VBV_KBIT: Final = 1

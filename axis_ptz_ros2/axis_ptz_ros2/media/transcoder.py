@@ -16,7 +16,7 @@ at 39.0 dB (``H264Decoder``'s conversion; the JPEG itself is 39.3 dB), and trans
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Final, Literal
 
 from axis_ptz_ros2.media import pyav
@@ -29,62 +29,34 @@ import cv2
 import numpy as np
 
 from axis_ptz_ros2.media import annexb
-from axis_ptz_ros2.media.encoder import EncoderConfig, H264Encoder, check_bitrate, check_keyframe_interval, check_vbv
+from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.errors import EncoderError, TranscodeError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.limits import (
-    DEFAULT_BITRATE_KBPS,
-    DEFAULT_KEYFRAME_INTERVAL,
-    DEFAULT_PRESET,
-    DEFAULT_PROFILE,
-    DEFAULT_REFRESH,
-)
+from axis_ptz_ros2.media.h264_settings import H264Settings
 
 JpegDecoder = Literal["cv2", "pyav"]
 JPEG_DECODERS: Final = ("cv2", "pyav")
-
-
-@dataclass(frozen=True, slots=True)
-class TranscoderConfig:
-    """Encoder settings that do not depend on the picture size (that comes from each JPEG); defaults from
-    :mod:`.limits`."""
-
-    fps: int = 30
-    bitrate_bps: int = DEFAULT_BITRATE_KBPS * 1000
-    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL
-    preset: str = DEFAULT_PRESET
-    threads: int = 1
-    stamp_sei: bool = True  # put the capture time in each access unit (our user-data SEI)
-    jpeg_decoder: JpegDecoder = "pyav"  # see the module docstring
-    vbv_bits: int = 0  # the encoder's VBV buffer (bits); 0 = its default (see media.encoder)
-    profile: str = DEFAULT_PROFILE  # H.264 profile (media.limits.PROFILES)
-    refresh: str = DEFAULT_REFRESH  # periodic IDRs or x264's intra refresh (media.limits.REFRESH_MODES)
-
-    def __post_init__(self) -> None:
-        if self.jpeg_decoder not in JPEG_DECODERS:
-            raise EncoderError(f"jpeg_decoder must be one of {', '.join(JPEG_DECODERS)}; got {self.jpeg_decoder!r}")
-        self.encoder_config(64, 64)  # validates the rest
-
-    def encoder_config(self, width: int, height: int) -> EncoderConfig:
-        return EncoderConfig(
-            width=width,
-            height=height,
-            fps=self.fps,
-            bitrate_bps=self.bitrate_bps,
-            keyframe_interval=self.keyframe_interval,
-            preset=self.preset,
-            threads=self.threads,
-            vbv_bits=self.vbv_bits,
-            profile=self.profile,
-            refresh=self.refresh,
-        )
+#: the JPEG decoder the stream node uses (see the module docstring)
+DEFAULT_JPEG_DECODER: Final[JpegDecoder] = "pyav"
 
 
 class MjpegTranscoder:
-    """JPEG bytes → H.264 access units, one encoder re-opened only when the picture size changes."""
+    """JPEG bytes → H.264 access units, one encoder re-opened only when the picture size changes (the size comes
+    from each JPEG; everything else from the :class:`~.h264_settings.H264Settings`). ``jpeg_decoder``: see the
+    module docstring; ``stamp_sei``: put the capture time in each access unit (our user-data SEI)."""
 
-    def __init__(self, config: TranscoderConfig | None = None) -> None:
-        self._config = config or TranscoderConfig()
+    def __init__(
+        self,
+        settings: H264Settings | None = None,
+        *,
+        jpeg_decoder: JpegDecoder = DEFAULT_JPEG_DECODER,
+        stamp_sei: bool = True,
+    ) -> None:
+        if jpeg_decoder not in JPEG_DECODERS:
+            raise EncoderError(f"jpeg_decoder must be one of {', '.join(JPEG_DECODERS)}; got {jpeg_decoder!r}")
+        self._settings = settings or H264Settings()
+        self.jpeg_decoder: Final = jpeg_decoder
+        self.stamp_sei: Final = stamp_sei
         self._encoder: H264Encoder | None = None
         self._mjpeg: av.VideoCodecContext | None = None
         self.frames = 0
@@ -92,32 +64,35 @@ class MjpegTranscoder:
         self.encoder_opens = 0
 
     @property
-    def config(self) -> TranscoderConfig:
-        return self._config
+    def settings(self) -> H264Settings:
+        """The settings in force (the live changes included)."""
+        return self._settings
 
     @property
     def size(self) -> tuple[int, int] | None:
         """(width, height) the encoder is open for; None before the first frame."""
-        return None if self._encoder is None else (self._encoder.config.width, self._encoder.config.height)
+        return None if self._encoder is None else (self._encoder.width, self._encoder.height)
 
     @property
     def codec_string(self) -> str | None:
         """``avc1.PPCCLL`` of the current stream (from its last IDR); None before the first frame."""
         return None if self._encoder is None else self._encoder.codec_string
 
-    def set_bitrate(self, bps: int) -> None:
-        self._config = replace(self._config, bitrate_bps=check_bitrate(bps))
+    def set_bitrate(self, kbps: int) -> None:
+        """The target bitrate (kbit/s) from the next frame on (:meth:`H264Encoder.set_bitrate`)."""
+        self._settings = replace(self._settings, bitrate_kbps=kbps)
         if self._encoder is not None:
-            self._encoder.set_bitrate(bps)
+            self._encoder.set_bitrate(kbps)
 
-    def set_vbv(self, bits: int) -> None:
-        """The encoder's VBV buffer (bits, 0 = default), from its next IDR on (:meth:`H264Encoder.set_vbv`)."""
-        self._config = replace(self._config, vbv_bits=check_vbv(bits))
+    def set_vbv(self, kbit: int) -> None:
+        """The encoder's VBV buffer (kbit, 0 = default), from its next IDR on (:meth:`H264Encoder.set_vbv`)."""
+        self._settings = replace(self._settings, vbv_kbit=kbit)
         if self._encoder is not None:
-            self._encoder.set_vbv(bits)
+            self._encoder.set_vbv(kbit)
 
     def set_keyframe_interval(self, frames: int) -> None:
-        self._config = replace(self._config, keyframe_interval=check_keyframe_interval(frames))
+        """The keyframe interval (frames) from now on (:meth:`H264Encoder.set_keyframe_interval`)."""
+        self._settings = replace(self._settings, keyframe_interval=frames)
         if self._encoder is not None:
             self._encoder.set_keyframe_interval(frames)
 
@@ -134,18 +109,18 @@ class MjpegTranscoder:
             self.bad_jpegs += 1
             raise TranscodeError(f"JPEG of odd size {w}x{h}: H.264 4:2:0 needs even sizes")
         enc = self._encoder
-        if enc is None or (enc.config.width, enc.config.height) != (w, h):
-            enc = H264Encoder(self._config.encoder_config(w, h))
+        if enc is None or (enc.width, enc.height) != (w, h):
+            enc = H264Encoder(self._settings, w, h)
             self._encoder = enc
             self.encoder_opens += 1
         out = enc.encode(frame, capture_ns)
         self.frames += 1
-        if self._config.stamp_sei and capture_ns is not None:
+        if self.stamp_sei and capture_ns is not None:
             out = replace(out, data=annexb.insert_capture_stamp(out.data, capture_ns))
         return out
 
     def _decode_jpeg(self, jpeg: bytes) -> av.VideoFrame:
-        if self._config.jpeg_decoder == "cv2":
+        if self.jpeg_decoder == "cv2":
             bgr = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR) if jpeg else None
             if bgr is None:
                 self.bad_jpegs += 1

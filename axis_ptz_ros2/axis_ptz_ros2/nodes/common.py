@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import typing
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -217,14 +218,41 @@ class ParamSpec:
 
 def field_spec(config: type, field: str, description: str, unit: str = "", *, name: str = "", **kw: Any) -> ParamSpec:
     """The parameter ``name`` (default: ``field``) that fills ``config.field``; its default is that field's
-    (one source for defaults: the ROS-free config class)."""
-    default = next(f.default for f in dataclasses.fields(config) if f.name == field)
+    (one source for defaults: the ROS-free config class). A dotted ``field`` ("h264.bitrate_kbps") is a field of a
+    nested config class (a field of ``config`` whose type is one)."""
+    *outer, last = field.split(".")
+    owner = config
+    for part in outer:
+        owner = _nested_type(owner, part)
+    default = next(f.default for f in dataclasses.fields(owner) if f.name == last)
     return ParamSpec(name or field, default, description, unit, config=config, field=field, **kw)
 
 
 def snapshot(config: type[_C], specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> _C:
-    """A frozen ``config`` from the parameter ``values`` of the specs that fill it (the others keep defaults)."""
-    return config(**{s.field or s.name: values[s.name] for s in specs if s.config is config})
+    """A frozen ``config`` from the parameter ``values`` of the specs that fill it (the others keep defaults);
+    dotted fields fill nested config classes (:func:`field_spec`)."""
+    return _build(config, {s.field or s.name: values[s.name] for s in specs if s.config is config})
+
+
+def _build(config: type[_C], values: Mapping[str, Any]) -> _C:
+    """``config(**values)``, a dotted key filling the nested config class of its first part."""
+    direct: dict[str, Any] = {k: v for k, v in values.items() if "." not in k}
+    nested: dict[str, dict[str, Any]] = {}
+    for key, value in values.items():
+        if "." in key:
+            head, rest = key.split(".", 1)
+            nested.setdefault(head, {})[rest] = value
+    for head, sub in nested.items():
+        direct[head] = _build(_nested_type(config, head), sub)
+    return config(**direct)
+
+
+def _nested_type(config: type, field: str) -> type:
+    """The type of ``config.field``, a nested frozen config class."""
+    nested = typing.get_type_hints(config)[field]
+    if not (isinstance(nested, type) and dataclasses.is_dataclass(nested)):
+        raise TypeError(f"{config.__name__}.{field} is not a nested config class")
+    return nested
 
 
 #: Parameter names someone may try for camera credentials. None is declared: a parameter is readable by anyone on

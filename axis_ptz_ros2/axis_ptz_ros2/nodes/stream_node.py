@@ -52,6 +52,7 @@ from axis_ptz_interfaces.msg import VideoParams as VideoParamsMsg
 from axis_ptz_interfaces.srv import SetVideoParams
 from axis_ptz_ros2.camera_models import CameraProfile, load_generic_base
 from axis_ptz_ros2.config import CameraModel, load_camera_model
+from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import H264, EncodedFrame
 from axis_ptz_ros2.nodes.common import (
     FEEDBACK_QOS,
@@ -173,7 +174,11 @@ class StreamNode(Node):
     def _validate_params(self, candidate: Params, names: frozenset[str]) -> str | None:
         """on-set, the candidate as a whole: what rclpy's descriptors cannot check (the H.264 settings together,
         the resolution against the camera's list)."""
-        return self._pipeline.check(self._live.config(VideoSettings, candidate), names)
+        try:
+            settings = self._live.config(VideoSettings, candidate)
+        except EncoderError as err:  # H264Settings checks its fields when made
+            return str(err)
+        return self._pipeline.check(settings, names)
 
     def _apply_params(self, names: frozenset[str]) -> None:
         """post-set (the snapshot swapped): the pipeline takes the new settings (its readers follow), the node its
@@ -226,8 +231,8 @@ class StreamNode(Node):
         msg.available_resolutions = [str(r) for r in state.resolutions]
         settings = self._video.settings
         msg.codec = str(settings.codec)
-        msg.h264_bitrate_kbps = int(settings.h264_bitrate_kbps)
-        msg.h264_max_bitrate_kbps = int(settings.h264_max_bitrate_kbps)
+        msg.h264_bitrate_kbps = settings.h264.bitrate_kbps
+        msg.h264_max_bitrate_kbps = settings.h264.max_bitrate_kbps
         return msg
 
     def _publish_params(self) -> None:

@@ -1,7 +1,8 @@
 """The stream node's parameters: one :class:`~axis_ptz_ros2.nodes.common.ParamSpec` table (names, defaults,
 ranges, descriptions; the README's table and ``config/*.yaml`` are checked against it).
 
-Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.video_types.VideoSettings` and the
+Live video parameters take their defaults from :class:`~axis_ptz_ros2.streaming.video_types.VideoSettings` (the
+``h264_*`` ones from its :class:`~axis_ptz_ros2.media.h264_settings.H264Settings`) and the
 reader's timings from :class:`~axis_ptz_ros2.streaming.reader.ReaderConfig`, field for field; ranges come from the
 VAPIX models, the one table of H.264 bounds and defaults (:mod:`~axis_ptz_ros2.media.limits`) and
 :mod:`~axis_ptz_ros2.streaming.limits` (the budget's, which the console's
@@ -25,6 +26,11 @@ from axis_ptz_ros2.vapix.models import COMPRESSION_RANGE, FPS_RANGE
 def _live(field: str, description: str, unit: str = "", **kw: Any) -> ParamSpec:
     """A live video parameter: fills ``VideoSettings.<field>``, its default from there."""
     return field_spec(VideoSettings, field, description, unit, **kw)
+
+
+def _h264(field: str, description: str, unit: str = "", **kw: Any) -> ParamSpec:
+    """A live H.264 parameter ``h264_<field>``: fills ``VideoSettings.h264.<field>``, its default from there."""
+    return field_spec(VideoSettings, f"h264.{field}", description, unit, name=f"h264_{field}", **kw)
 
 
 def _timing(name: str, description: str, low: float, high: float) -> ParamSpec:
@@ -83,29 +89,29 @@ PARAMS: tuple[ParamSpec, ...] = (
         "instead of the MJPEG ladder",
         choices=CODECS,
     ),
-    _live(
-        "h264_bitrate_kbps",
+    _h264(
+        "bitrate_kbps",
         "H.264 bitrate; applies as is without feedback (the safe default), a lower budget (link or "
         "max_bitrate_kbps) lowers it",
         "kbit/s",
         int_range=BITRATE_RANGE_KBPS,
     ),
-    _live(
-        "h264_max_bitrate_kbps",
+    _h264(
+        "max_bitrate_kbps",
         "H.264 bitrate ceiling: consumers' feedback of a clear link (adapt_to_link) may raise the bitrate up to "
         f"this, at most {H264_BUDGET_FRACTION:g} × the link's budget; at or below h264_bitrate_kbps (the default) "
         "never above it",
         "kbit/s",
         int_range=BITRATE_RANGE_KBPS,
     ),
-    _live(
-        "h264_keyframe_interval",
+    _h264(
+        "keyframe_interval",
         "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand), or between a camera's "
         "own IDRs when passed through (at most fps, one second, applies)",
         "frames",
         int_range=KEYFRAME_RANGE,
     ),
-    _live("h264_preset", "libx264 preset (CPU against quality)", choices=PRESETS),
+    _h264("preset", "libx264 preset (CPU against quality)", choices=PRESETS),
     ParamSpec(
         "zoom", 1.0, "zoom for camera_info until ptz/state is received", "VAPIX units", float_range=(1.0, 99999.0)
     ),

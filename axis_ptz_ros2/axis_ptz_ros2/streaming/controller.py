@@ -34,9 +34,9 @@ import time
 from collections.abc import Callable, Collection
 from dataclasses import replace
 
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
-from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.h264_policy import (
     H264_BUDGET_FRACTION,
     H264_FIELDS,
@@ -163,9 +163,7 @@ class VideoController:
         lock-free: one read of the link's budget)."""
         s = self._settings
         link = self._link.budget_kbps if s.adapt_to_link else 0.0
-        return h264_target_kbps(
-            int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
-        )[0]
+        return h264_target_kbps(s.h264.bitrate_kbps, s.h264.max_bitrate_kbps, link, float(s.max_bitrate_kbps))[0]
 
     def h264_settings(self) -> H264Settings:
         """What the H.264 encoder (or the camera, passed through) is to do now: :func:`h264_target_kbps` of the
@@ -174,17 +172,14 @@ class VideoController:
         s = self._settings
         with self._lock:
             link = self._link.budget_kbps if s.adapt_to_link else 0.0
-        kbps, ceiling = h264_target_kbps(
-            int(s.h264_bitrate_kbps), int(s.h264_max_bitrate_kbps), link, float(s.max_bitrate_kbps)
-        )
+        kbps, ceiling = h264_target_kbps(s.h264.bitrate_kbps, s.h264.max_bitrate_kbps, link, float(s.max_bitrate_kbps))
         kbps = split_kbps(kbps, self.mjpeg.active)[0]
-        return H264Settings(
-            kbps,
-            int(s.h264_keyframe_interval),
-            str(s.h264_preset),
-            self._current.fps,
-            ceiling,
-            h264_vbv_kbit(kbps, link),
+        return replace(
+            s.h264,
+            bitrate_kbps=kbps,
+            max_bitrate_kbps=ceiling,
+            fps=self._current.fps,
+            vbv_kbit=h264_vbv_kbit(kbps, link, s.h264.refresh),
         )
 
     def state(self) -> VideoState:
@@ -326,7 +321,7 @@ class VideoController:
             level = self._budget.level
             grow_from = 0.0
             if self.h264:  # room to grow to the ceiling (back to the start bitrate when that is the ceiling)
-                start, top = float(self._settings.h264_bitrate_kbps), float(self._settings.h264_max_bitrate_kbps)
+                start, top = float(self._settings.h264.bitrate_kbps), float(self._settings.h264.max_bitrate_kbps)
                 step_up = start
                 if top > start:  # the budget at which the encoder reaches the ceiling; a clear link starts one
                     step_up, grow_from = top / H264_BUDGET_FRACTION, start

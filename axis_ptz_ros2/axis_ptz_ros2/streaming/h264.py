@@ -21,8 +21,8 @@ Policy that lives here:
   encoder) is dropped; the next activation starts with an IDR;
 * bitrate, keyframe interval, preset and fps are read from ``settings()`` (the video controller) on every frame;
   the bitrate changes live, a new preset or fps re-opens the encoder (an IDR follows), and so does a ceiling
-  (:attr:`H264Settings.ceiling_kbps`) above the rate it was opened with: once, at that ceiling, when the link lets
-  the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb); a new VBV buffer
+  (:attr:`H264Settings.max_bitrate_kbps`) above the rate it was opened with: once, at that ceiling, when the link
+  lets the bitrate climb past ``h264_bitrate_kbps`` (not at every step of the climb); a new VBV buffer
   (:attr:`H264Settings.vbv_kbit`, which follows the link's budget) takes effect at the encoder's next IDR, costing
   none of its own;
 * the keyframe interval is at most one second of frames (``fps``). The encoder's refresh
@@ -63,23 +63,14 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import Final, Protocol
 
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError, MediaError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.limits import (
-    DEFAULT_BITRATE_KBPS,
-    DEFAULT_KEYFRAME_INTERVAL,
-    DEFAULT_PRESET,
-    DEFAULT_PROFILE,
-    DEFAULT_REFRESH,
-)
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.media.pyav import PyAvUnavailableError
 from axis_ptz_ros2.streaming.meter import ConsumerCounts
-
-if TYPE_CHECKING:  # the transcoder needs PyAV, imported only when a stage first transcodes (media.pyav)
-    from axis_ptz_ros2.media.transcoder import TranscoderConfig
 
 #: s: on-demand IDRs at most this often (the periodic ones come every second anyway)
 IDR_MIN_INTERVAL_S: Final = 0.25
@@ -92,48 +83,6 @@ RATE_REOPEN_FPS: Final = 2
 #: ``encoding`` of every FFMPEGPacket: codec; the pixel format it was encoded from; what a decoder hands
 #: cv_bridge; the ROS image encoding (what ffmpeg_image_transport's decoder parses)
 FFMPEG_ENCODING: Final = "h264;yuv420p;bgr8;bgr8"
-
-
-@dataclass(frozen=True, slots=True)
-class H264Settings:
-    """What the encoder is to do now (from the video controller); defaults from :mod:`~axis_ptz_ros2.media.limits`."""
-
-    bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # the target now (the budgets move it under the ceiling)
-    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames; capped at fps (one second)
-    preset: str = DEFAULT_PRESET
-    fps: int = 15
-    ceiling_kbps: int = 0  # the highest target to expect: the encoder opens with it as VBV maxrate
-    vbv_kbit: int = 0  # the encoder's VBV buffer (bounds its largest picture, an IDR); 0 = its default
-    profile: str = DEFAULT_PROFILE  # H.264 profile (media.limits.PROFILES; see the module docstring)
-    refresh: str = DEFAULT_REFRESH  # x264's periodic intra refresh, IDRs only on demand; or "idr" (REFRESH_MODES)
-
-    def transcoder_config(self) -> TranscoderConfig:
-        """The transcoder configuration for these settings: opened at the ceiling, so a budget that moves under
-        it changes the bitrate live (x264 cannot raise VBV maxrate on an open encoder: that would re-open it,
-        with an IDR, on every step up)."""
-        from axis_ptz_ros2.media.transcoder import TranscoderConfig  # noqa: PLC0415 - PyAV, on first use
-
-        fps = max(1, int(self.fps))
-        return TranscoderConfig(
-            fps=fps,
-            bitrate_bps=max(int(self.bitrate_kbps), int(self.ceiling_kbps)) * 1000,
-            keyframe_interval=self.effective_keyframe_interval,
-            preset=self.preset,
-            vbv_bits=self.vbv_bits,
-            profile=self.profile,
-            refresh=self.refresh,
-        )
-
-    @property
-    def vbv_bits(self) -> int:
-        """The VBV buffer in bits, as the encoder takes it (0 = its default)."""
-        return max(0, int(self.vbv_kbit)) * 1000
-
-    @property
-    def effective_keyframe_interval(self) -> int:
-        """The keyframe interval in frames (intra refresh: one wave; ``idr``: between periodic IDRs; a camera's
-        own H.264: its GOP): the parameter, at most one second of frames."""
-        return max(1, min(int(self.keyframe_interval), max(1, int(self.fps))))
 
 
 @dataclass(slots=True)
@@ -156,16 +105,16 @@ class Transcoder(Protocol):
         """One JPEG in, one access unit out (raises MediaError for a JPEG that does not decode)."""
         ...
 
-    def set_bitrate(self, bps: int) -> None:
-        """Live bitrate."""
+    def set_bitrate(self, kbps: int) -> None:
+        """Live bitrate (kbit/s)."""
         ...
 
     def set_keyframe_interval(self, frames: int) -> None:
         """Live periodic IDR interval."""
         ...
 
-    def set_vbv(self, bits: int) -> None:
-        """A new VBV buffer (bits, 0 = default), in force from the next IDR."""
+    def set_vbv(self, kbit: int) -> None:
+        """A new VBV buffer (kbit, 0 = default), in force from the next IDR."""
         ...
 
     def request_idr(self) -> None:
@@ -182,7 +131,7 @@ class H264Stage:
         settings: Callable[[], H264Settings],
         publish: Callable[[EncodedFrame], None],
         *,
-        transcoder_factory: Callable[[TranscoderConfig], Transcoder] | None = None,
+        transcoder_factory: Callable[[H264Settings], Transcoder] | None = None,
         on_problem: Callable[[str], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -304,10 +253,10 @@ class H264Stage:
                     frame = transcoder.transcode(jpeg, arrival_ns)  # stamped as the JPEG: its arrival
                     want = self._opened_with
                     if want is not None and want.bitrate_kbps != self._applied_kbps:  # the encoder is open now
-                        transcoder.set_bitrate(int(want.bitrate_kbps) * 1000)
+                        transcoder.set_bitrate(want.bitrate_kbps)
                         self._applied_kbps = want.bitrate_kbps
                     if want is not None and want.vbv_kbit != self._applied_vbv:
-                        transcoder.set_vbv(want.vbv_bits)
+                        transcoder.set_vbv(want.vbv_kbit)
                         self._applied_vbv = want.vbv_kbit
                 except MediaError as err:
                     self.stats.bad_inputs += 1
@@ -355,7 +304,7 @@ class H264Stage:
     # -- internals ---------------------------------------------------------------------------------------------
     def _at_input_rate(self, want: H264Settings) -> H264Settings:
         """``want`` with the fps the encoder is to run at (see the module docstring); call with the lock held."""
-        asked = max(1, int(want.fps))
+        asked = want.fps
         measured = self.input_fps
         fps = asked if measured is None else max(1, min(asked, round(measured)))
         have = self._opened_with
@@ -372,14 +321,14 @@ class H264Stage:
             or have is None
             or (have.preset, have.fps, have.profile, have.refresh)
             != (want.preset, want.fps, want.profile, want.refresh)
-            or want.ceiling_kbps > self._opened_kbps  # (a target above the VBV maxrate: re-opened once, at the ceiling)
+            or want.max_bitrate_kbps > self._opened_kbps  # (a ceiling above the VBV maxrate: re-opened once, at it)
         ):
             for_fps = t is not None and have is not None and have.preset == want.preset and have.fps != want.fps
-            config = want.transcoder_config()
-            t = self._factory(config)
+            opening = want.opening()
+            t = self._factory(opening)
             self._transcoder = t
-            self._applied_kbps = config.bitrate_bps // 1000  # opened at the ceiling; lowered after the first frame
-            self._applied_vbv = config.vbv_bits // 1000
+            self._applied_kbps = opening.bitrate_kbps  # opened at the ceiling; lowered after the first frame
+            self._applied_vbv = opening.vbv_kbit
             self._opened_kbps = self._applied_kbps
             self.stats.encoder_opens += 1
             self.stats.fps_reopens += int(for_fps)
@@ -413,8 +362,8 @@ class H264Stage:
             self._on_problem(text)
 
 
-def _mjpeg_transcoder(config: TranscoderConfig) -> Transcoder:
+def _mjpeg_transcoder(settings: H264Settings) -> Transcoder:
     """The default transcoder, imported on first use (it needs PyAV: :mod:`axis_ptz_ros2.media.pyav`)."""
     from axis_ptz_ros2.media.transcoder import MjpegTranscoder  # noqa: PLC0415 - raises PyAvUnavailableError
 
-    return MjpegTranscoder(config)
+    return MjpegTranscoder(settings)

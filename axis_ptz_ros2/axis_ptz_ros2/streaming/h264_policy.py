@@ -1,7 +1,7 @@
 """How the budgets in force become the H.264 encoder's settings, and which codec settings are valid. ROS-free.
 
 The video controller (:mod:`.controller`) holds the budgets; these functions turn them into an
-:class:`~.h264.H264Settings` target:
+:class:`~axis_ptz_ros2.media.h264_settings.H264Settings` target:
 
 * without any feedback ``h264_bitrate_kbps`` applies, so a viewer that reports nothing still gets the full
   picture; a budget lowers it; and where consumers report a clear link, the link adapter's budget may raise it up
@@ -16,42 +16,32 @@ from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.media.limits import (
-    BITRATE_RANGE_KBPS,
-    CODECS,
-    DEFAULT_REFRESH,
-    KEYFRAME_RANGE,
-    PRESETS,
-    VBV_BUFFER_S,
-)
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, DEFAULT_REFRESH, VBV_BUFFER_S
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
-#: the encoder's own fields (they do not change what the camera is asked for)
+#: the encoder's own parameters, which fill ``VideoSettings.h264`` (they do not change what the camera is asked for)
 H264_FIELDS: Final = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
 #: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
 #: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
 H264_BUDGET_FRACTION: Final = BudgetConfig().down_fraction
 #: s: with periodic IDRs and a link budget, the encoder's VBV buffer (its largest picture, an IDR) is at most this
-#: long on the link
-#: (:func:`h264_vbv_kbit`)
+#: long on the link (:func:`h264_vbv_kbit`)
 IDR_LINK_S: Final = 0.06
 
 
 def check_h264(settings: VideoSettings) -> str | None:
-    """The reason the codec settings cannot be used (None = fine)."""
+    """The reason the codec settings cannot be used (None = fine): the codec, and the bitrates against the
+    parameters' range (narrower than the encoder's, which :class:`~axis_ptz_ros2.media.h264_settings.H264Settings`
+    checks with the preset and the keyframe interval when it is made)."""
     if settings.codec not in CODECS:
         return f"codec={settings.codec!r} is not one of {', '.join(CODECS)}"
-    if settings.h264_preset not in PRESETS:
-        return f"h264_preset={settings.h264_preset!r} is not one of {', '.join(PRESETS)}"
     low, high = BITRATE_RANGE_KBPS
-    if not low <= int(settings.h264_bitrate_kbps) <= high:
-        return f"h264_bitrate_kbps={settings.h264_bitrate_kbps} is outside {low}…{high} kbit/s"
-    if not low <= int(settings.h264_max_bitrate_kbps) <= high:
-        return f"h264_max_bitrate_kbps={settings.h264_max_bitrate_kbps} is outside {low}…{high} kbit/s"
-    low, high = KEYFRAME_RANGE
-    if not low <= int(settings.h264_keyframe_interval) <= high:
-        return f"h264_keyframe_interval={settings.h264_keyframe_interval} is outside {low}…{high} frames"
+    h264 = settings.h264
+    if not low <= h264.bitrate_kbps <= high:
+        return f"h264_bitrate_kbps={h264.bitrate_kbps} is outside {low}…{high} kbit/s"
+    if not low <= h264.max_bitrate_kbps <= high:
+        return f"h264_max_bitrate_kbps={h264.max_bitrate_kbps} is outside {low}…{high} kbit/s"
     return None
 
 

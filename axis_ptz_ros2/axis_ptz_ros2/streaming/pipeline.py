@@ -16,10 +16,10 @@ says so. Decisions flow down, frames flow up:
   subscriber;
 * :class:`~.h264.H264Stage` makes the H.264 stream, from the JPEGs (a camera that cannot stream H.264, the 214) or
   from :class:`~.rtsp_source.RtspH264Source` (the camera's own, passed through);
-* what the encoder and the camera's RTSP stream are to do (:class:`~.h264.H264Settings`, the RTSP request with the
-  size :class:`~.passthrough_size.PassthroughSize` picks with ``resolution`` auto) is decided here whenever
-  something it depends on changes (a parameter, a report, a budget step, the 1 Hz tick) and pushed down: neither
-  the stage nor the RTSP source asks the controller per frame;
+* what the encoder and the camera's RTSP stream are to do (:class:`~axis_ptz_ros2.media.h264_settings.H264Settings`,
+  the RTSP request with the size :class:`~.passthrough_size.PassthroughSize` picks with ``resolution`` auto) is
+  decided here whenever something it depends on changes (a parameter, a report, a budget step, the 1 Hz tick)
+  and pushed down: neither the stage nor the RTSP source asks the controller per frame;
 * a new H.264 viewer gets start points (:class:`~.start_points.StartPoints`).
 """
 
@@ -34,10 +34,11 @@ from typing import Any
 
 from axis_ptz_ros2.camera_models import CameraProfile
 from axis_ptz_ros2.media.frame import JPEG, EncodedFrame
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.controller import VideoController
 from axis_ptz_ros2.streaming.discovery import CameraDiscovery
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
-from axis_ptz_ros2.streaming.h264 import H264Settings, H264Stage
+from axis_ptz_ros2.streaming.h264 import H264Stage
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.passthrough_size import PassthroughSize
@@ -337,8 +338,8 @@ class VideoPipeline:
             self.stage.stats,
             self.rtsp.stats,
             self.rtsp.supported,
-            int(s.h264_bitrate_kbps),
-            int(s.h264_max_bitrate_kbps),
+            s.h264.bitrate_kbps,
+            s.h264.max_bitrate_kbps,
         )
         share = self.video.mjpeg
         if not share.active:

@@ -40,9 +40,8 @@ from typing import Final, Protocol
 from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.media.errors import BitstreamError
 from axis_ptz_ros2.media.frame import EncodedFrame
-from axis_ptz_ros2.media.limits import ENCODER_BITRATE_RANGE_KBPS
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.clock_sync import StreamClock
-from axis_ptz_ros2.streaming.h264 import H264Settings
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import ReaderConfig
 from axis_ptz_ros2.streaming.worker import Worker
@@ -128,14 +127,14 @@ def camera_streams_h264(client: VapixClient) -> bool:
 
 def media_request(params: VideoParams, h264: H264Settings) -> MediaStreamRequest:
     """What to ask the camera's RTSP server for: the size and fps in effect, a fixed GOP of the stage's periodic
-    IDR interval (at most one second), the bitrate in force as ``videomaxbitrate``."""
+    IDR interval (at most one second), the bitrate in force as ``videomaxbitrate`` (in the encoder's range, which
+    is what a camera's ``videomaxbitrate`` takes: :class:`H264Settings` holds it to it)."""
     res = params.resolution
-    low, high = ENCODER_BITRATE_RANGE_KBPS  # what a camera's videomaxbitrate takes
     return MediaStreamRequest(
         resolution=f"{res.width}x{res.height}",
         fps=max(1, int(params.fps)),
         keyframe_interval=h264.effective_keyframe_interval,
-        max_bitrate_kbps=max(low, min(high, int(h264.bitrate_kbps))),
+        max_bitrate_kbps=h264.bitrate_kbps,
     )
 
 

@@ -6,14 +6,9 @@ the log (:class:`BudgetStep`, :class:`LinkJudgement`). The policy that reads and
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from axis_ptz_ros2.media.limits import (
-    DEFAULT_BITRATE_KBPS,
-    DEFAULT_KEYFRAME_INTERVAL,
-    DEFAULT_MAX_BITRATE_KBPS,
-    DEFAULT_PRESET,
-)
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport
 from axis_ptz_ros2.streaming.meter import Rate
@@ -23,7 +18,7 @@ from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 @dataclass(frozen=True, slots=True)
 class VideoSettings:
     """What is asked for: the stream node's live video parameters, field for field (their defaults are the
-    parameters' defaults)."""
+    parameters' defaults); the ``h264_*`` parameters fill :attr:`h264`."""
 
     fps: int = 15
     resolution: str = ""  # 'WIDTHxHEIGHT' or a CIF name; '' = the largest the camera lists
@@ -34,11 +29,9 @@ class VideoSettings:
     adapt_to_link: bool = True
     link_release: float = 30.0  # s
     codec: str = "mjpeg"  # mjpeg | h264 (see :mod:`.controller`)
-    # the H.264 settings: bounds and defaults in the one table, axis_ptz_ros2.media.limits
-    h264_bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # kbit/s: the encoder's bitrate without feedback
-    h264_max_bitrate_kbps: int = DEFAULT_MAX_BITRATE_KBPS  # kbit/s: the most a clear link may raise it to
-    h264_keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames per intra-refresh wave; <= 1 s applies
-    h264_preset: str = DEFAULT_PRESET  # libx264 preset
+    # the encoder's: h264_bitrate_kbps (without feedback), h264_max_bitrate_kbps (the most a clear link may raise it
+    # to), h264_keyframe_interval (<= 1 s applies), h264_preset; the other fields keep H264Settings' defaults
+    h264: H264Settings = field(default_factory=H264Settings)
 
     def budget_config(self) -> BudgetConfig:
         """The budget ladder's shape."""

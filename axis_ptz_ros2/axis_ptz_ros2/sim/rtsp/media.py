@@ -12,17 +12,15 @@ from __future__ import annotations
 
 import base64
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final
+from typing import Final
 
 from axis_ptz_ros2.media import annexb
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.media.limits import ENCODER_BITRATE_RANGE_KBPS, MAX_KEYFRAME_INTERVAL
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.request_args import int_arg
 from axis_ptz_ros2.sim.rtsp.rtp import CLOCK_RATE, PAYLOAD_TYPE
 from axis_ptz_ros2.sim.view import CameraView
-
-if TYPE_CHECKING:  # PyAV: imported when a session first encodes (the simulator runs MJPEG-only without it)
-    from axis_ptz_ros2.media.encoder import EncoderConfig
 
 MEDIA_PATH: Final = "/axis-media/media.amp"
 VIDEO_CODECS: Final = ("h264", "h265", "av1", "mpeg4", "jpeg")  #: what VAPIX names (vapix.md §5.6)
@@ -51,16 +49,13 @@ class MediaRequest:
     bitrate_kbps: int
     adjustable: bool
 
-    def encoder_config(self) -> EncoderConfig:
-        """The libx264 configuration for this stream (veryfast up to 4CIF, ultrafast above: two shared cores)."""
-        from axis_ptz_ros2.media.encoder import EncoderConfig  # noqa: PLC0415 - PyAV, on first use
-
+    def h264_settings(self) -> H264Settings:
+        """The libx264 settings for this stream (veryfast up to 4CIF, ultrafast above: two shared cores); the
+        encoder takes the size (``width``, ``height``) beside them."""
         preset = "veryfast" if self.width * self.height <= 704 * 576 else "ultrafast"
-        return EncoderConfig(
-            width=self.width,
-            height=self.height,
+        return H264Settings(
             fps=self.fps,
-            bitrate_bps=self.bitrate_kbps * 1000,
+            bitrate_kbps=self.bitrate_kbps,
             keyframe_interval=min(self.keyframe_interval, MAX_KEYFRAME_INTERVAL),
             preset=preset,
             profile="baseline",  # an Axis camera's (the request's h264profile is not honoured)
@@ -120,7 +115,7 @@ def parameter_sets(request: MediaRequest) -> annexb.ParameterSets:
 
     from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: PLC0415 - PyAV, on first use
 
-    enc = H264Encoder(request.encoder_config())
+    enc = H264Encoder(request.h264_settings(), request.width, request.height)
     au = enc.encode_bgr(np.zeros((request.height, request.width, 3), np.uint8)).data
     sps = pps = None
     for nal in annexb.split_nal_units(au):

@@ -126,15 +126,15 @@ class RtspSession:
             if fps is not None:
                 self._fps = fps
             if max_bitrate_kbps is not None:
-                self._bitrate_bps = max_bitrate_kbps * 1000
+                self._bitrate_kbps = max_bitrate_kbps
 
-    _bitrate_bps: int | None = None  # a bitrate asked for and not yet applied (the stream loop takes it)
+    _bitrate_kbps: int | None = None  # a bitrate asked for and not yet applied (the stream loop takes it)
 
     @property
-    def bitrate_bps(self) -> int | None:
-        """The bitrate the session's encoder runs at now (None before its first frame)."""
+    def bitrate_kbps(self) -> int | None:
+        """The bitrate (kbit/s) the session's encoder runs at now (None before its first frame)."""
         enc = self._encoder
-        return None if enc is None else enc.config.bitrate_bps
+        return None if enc is None else enc.settings.bitrate_kbps
 
     # ---- the stream ------------------------------------------------------------------------------------
     def _run(self) -> None:
@@ -146,7 +146,7 @@ class RtspSession:
         req = self.request
         from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: PLC0415 - PyAV, on first use
 
-        self._encoder = enc = H264Encoder(req.encoder_config())
+        self._encoder = enc = H264Encoder(req.h264_settings(), req.width, req.height)
         gen = cam.generation
         next_t = time.monotonic()
         last_sr = -1.0
@@ -156,8 +156,8 @@ class RtspSession:
                 return
             with self._lock:
                 renew, self._renew = self._renew, False
-                fps, bitrate = self._fps, self._bitrate_bps
-                self._bitrate_bps = None
+                fps, bitrate = self._fps, self._bitrate_kbps
+                self._bitrate_kbps = None
             if renew:
                 enc.request_idr()
             if bitrate is not None:

@@ -1,0 +1,113 @@
+"""The H.264 encoder's settings: one type from the stream node's request to libx264 (ROS-free, PyAV-free).
+
+:class:`H264Settings` is what the stream node's ``h264_*`` parameters ask for
+(:attr:`~axis_ptz_ros2.streaming.video_types.VideoSettings.h264`), what the video controller tells the H.264 stage
+to do now (the bitrate the budgets leave, the ceiling, the VBV buffer, the rate in effect), and what the
+transcoder, the encoder and the simulated camera's RTSP encoder are built from; the picture size is an argument
+of the encoder (``H264Encoder(settings, width, height)``), not a setting. Bounds and defaults come from the one
+table, :mod:`.limits`; every field is checked when an object is made (:class:`~.errors.EncoderError` naming the
+field and its bounds), so a settings object that exists is one libx264 opens with.
+
+One unit convention: kbit/s for bitrates, kbit for the VBV buffer. libx264 (through PyAV) takes bit/s and bits:
+:attr:`H264Settings.bitrate_bps` and :attr:`H264Settings.vbv_bits` are the one place they are converted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from axis_ptz_ros2.media.errors import EncoderError
+from axis_ptz_ros2.media.limits import (
+    DEFAULT_BITRATE_KBPS,
+    DEFAULT_FPS,
+    DEFAULT_KEYFRAME_INTERVAL,
+    DEFAULT_MAX_BITRATE_KBPS,
+    DEFAULT_PRESET,
+    DEFAULT_PROFILE,
+    DEFAULT_REFRESH,
+    ENCODER_BITRATE_RANGE_KBPS,
+    ENCODER_FPS_RANGE,
+    KEYFRAME_RANGE,
+    MAX_DIMENSION,
+    MIN_VBV_KBIT,
+    PRESETS,
+    PROFILES,
+    REFRESH_MODES,
+    THREADS_RANGE,
+)
+
+
+@dataclass(frozen=True, slots=True)
+class H264Settings:
+    """What the H.264 encoder is to do (see the module docstring); every field checked when the object is made.
+
+    A request (``VideoSettings.h264``) says the bitrate without feedback and the ceiling a clear link may raise it
+    to; the video controller's target says the bitrate now and the ceiling to expect, which the stage opens the
+    encoder at (:meth:`opening`). The encoder itself reads ``bitrate_kbps`` and ignores ``max_bitrate_kbps``.
+    A camera-like stream (the simulator's) says ``profile="baseline"``, ``refresh="idr"``."""
+
+    bitrate_kbps: int = DEFAULT_BITRATE_KBPS  # kbit/s: the target (a request's: without feedback)
+    max_bitrate_kbps: int = DEFAULT_MAX_BITRATE_KBPS  # kbit/s: the ceiling; at or below bitrate_kbps: no higher
+    keyframe_interval: int = DEFAULT_KEYFRAME_INTERVAL  # frames per intra-refresh wave (idr: between periodic IDRs)
+    preset: str = DEFAULT_PRESET  # libx264 preset, one of PRESETS
+    fps: int = DEFAULT_FPS  # pictures/s the encoder runs at
+    vbv_kbit: int = 0  # kbit: the VBV buffer (bounds the largest picture, an IDR); 0 = bitrate × VBV_BUFFER_S
+    profile: str = DEFAULT_PROFILE  # one of PROFILES
+    refresh: str = DEFAULT_REFRESH  # one of REFRESH_MODES: x264's intra refresh (IDRs on request), or periodic IDRs
+    threads: int = 1  # libx264 threads (THREADS_RANGE)
+
+    def __post_init__(self) -> None:
+        low, high = ENCODER_BITRATE_RANGE_KBPS
+        _check_int("bitrate", self.bitrate_kbps, low, high, "kbit/s")
+        _check_int("max bitrate", self.max_bitrate_kbps, low, high, "kbit/s")
+        _check_int("keyframe interval", self.keyframe_interval, *KEYFRAME_RANGE, "frames")
+        _check_int("fps", self.fps, *ENCODER_FPS_RANGE, "pictures/s")
+        _check_int("threads", self.threads, *THREADS_RANGE, "")
+        if type(self.vbv_kbit) is not int or self.vbv_kbit != 0:  # 0 (the int): the default buffer
+            _check_int("VBV buffer", self.vbv_kbit, MIN_VBV_KBIT, high, "kbit (or 0: the default)")
+        for name, value, allowed in (
+            ("preset", self.preset, PRESETS),
+            ("profile", self.profile, PROFILES),
+            ("refresh", self.refresh, REFRESH_MODES),
+        ):
+            if value not in allowed:
+                raise EncoderError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")
+
+    @property
+    def bitrate_bps(self) -> int:
+        """The bitrate in bit/s, as libx264 takes it."""
+        return self.bitrate_kbps * 1000
+
+    @property
+    def vbv_bits(self) -> int:
+        """The VBV buffer in bits, as libx264 takes it (0 = the encoder's default)."""
+        return self.vbv_kbit * 1000
+
+    @property
+    def effective_keyframe_interval(self) -> int:
+        """The keyframe interval in frames that applies (intra refresh: one wave; ``idr``: between periodic IDRs;
+        a camera's own H.264: its GOP): ``keyframe_interval``, at most one second of frames."""
+        return min(self.keyframe_interval, self.fps)
+
+    def opening(self) -> H264Settings:
+        """What the stage opens an encoder with for this target: at the ceiling (``max(bitrate_kbps,
+        max_bitrate_kbps)``, the VBV maxrate, so a budget that moves under it changes the bitrate live: x264
+        cannot raise maxrate on an open encoder, that would re-open it, with an IDR, on every step up), and the
+        keyframe interval at most one second of frames."""
+        return replace(
+            self,
+            bitrate_kbps=max(self.bitrate_kbps, self.max_bitrate_kbps),
+            keyframe_interval=self.effective_keyframe_interval,
+        )
+
+
+def check_size(width: int, height: int) -> None:
+    """Raise :class:`EncoderError` unless ``width`` × ``height`` is a picture size the encoder takes."""
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, int) or not 16 <= v <= MAX_DIMENSION or v % 2:
+            raise EncoderError(f"{name} must be an even number of pixels in 16…{MAX_DIMENSION}, got {v!r}")
+
+
+def _check_int(name: str, value: object, low: int, high: int, unit: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise EncoderError(f"{name} must be {low}…{high} {unit}".rstrip() + f", got {value!r}")
