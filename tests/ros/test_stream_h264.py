@@ -588,14 +588,17 @@ def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one
     assert node._video.state().link_state == "congested"
 
 
-def test_the_default_ceiling_is_the_start_and_a_start_above_the_ceiling_is_taken_as_no_raising(
+def test_the_default_ceiling_lets_a_clear_link_raise_the_start_by_half_and_a_start_above_the_ceiling_is_no_raising(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
-    """The shipped default never probes past h264_bitrate_kbps (README, weak link); raising the start alone is
-    accepted (the ceiling then means "never above the start"), and both can be set at once to let a clear link
-    raise it."""
+    """The shipped default starts at 1000 kbit/s and lets a clear link raise it to 1500 (docs/weak-link.md, "The
+    ceiling"); raising the start alone is accepted (the ceiling then means "never above the start"), and both can
+    be set at once to let a clear link raise it further."""
     node = make_node(ros, camera, **H264)
-    assert node.get_parameter("h264_max_bitrate_kbps").value == node.get_parameter("h264_bitrate_kbps").value == 1000
+    assert (node.get_parameter("h264_bitrate_kbps").value, node.get_parameter("h264_max_bitrate_kbps").value) == (
+        1000,
+        1500,
+    )
     probe = ros.probe()
     (res,) = set_params(ros, probe, h264_bitrate_kbps=2000)
     assert res.successful, res.reason

@@ -454,9 +454,10 @@ def test_ceiling_equal_to_start_keeps_the_old_rule() -> None:
 
 
 def test_a_ceiling_at_or_below_the_start_is_accepted_and_never_raises_the_bitrate() -> None:
-    """The default ceiling is the start (no probing: README, weak link); a start set above the ceiling alone is
-    accepted, and the ceiling then means "never above the start", as a ceiling equal to it does."""
-    assert VideoSettings().h264.max_bitrate_kbps == VideoSettings().h264.bitrate_kbps
+    """The default ceiling (1500 kbit/s) is above the start (1000): a clear link may raise the bitrate that far; a
+    start set above the ceiling alone is accepted, and the ceiling then means "never above the start", as a ceiling
+    equal to it does."""
+    assert (VideoSettings().h264.bitrate_kbps, VideoSettings().h264.max_bitrate_kbps) == (1000, 1500)
     c, _ = controller(codec="h264")
     assert (
         c.check(VideoSettings(codec="h264", h264=H264Settings(max_bitrate_kbps=800)), {"h264_max_bitrate_kbps"}) is None

@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import pytest
 
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader
 from axis_ptz_ros2.streaming.controller import (
     AUTO_PLACEHOLDER,
@@ -34,6 +35,10 @@ class Clock:
 
     def __call__(self) -> float:
         return self.t
+
+
+#: H.264 with the ceiling at the start (no raising with feedback)
+AT_START = H264Settings(bitrate_kbps=1000, max_bitrate_kbps=1000)
 
 
 def make(settings: VideoSettings | None = None, **kw) -> tuple[VideoController, BitrateMeter, Clock, list[str]]:
@@ -242,7 +247,7 @@ def test_h264_mode_advertises_the_budget_in_force_and_announces_when_it_moves():
     """In h264 mode the ladder stands still and the budget drives the encoder's bitrate; what is advertised
     (``video/params``' ``max_bitrate_kbps``) is still the budget in force, the tighter of ``max_bitrate_kbps`` and
     the link's, announced when the link moves it (as a ladder step is in MJPEG), not on every report."""
-    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000)
+    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000, h264=AT_START)
     assert ctl.state().budget_kbps == 5000.0, "the hand-set budget caps the encoder"
     _send_h264(ctl, clock, 4.0, 1500.0)
     for _i in range(4):  # a link that carries what is sent: no budget of the link's (ceiling = start), nothing new
@@ -273,7 +278,7 @@ def test_h264_mode_advertises_the_budget_in_force_and_announces_when_it_moves():
 
 
 def test_h264_adaptation_switched_off_announces_the_hand_set_budget_again():
-    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000)
+    ctl, _meter, clock, seen = make(codec="h264", fps=30, resolution="704x576", max_bitrate_kbps=5000, h264=AT_START)
     _send_h264(ctl, clock, 4.0, 1500.0)
     assert ctl.feedback(FeedbackReport("/op", 20, 10.0, 500.0, 0.02, 0.01, 0.1, 2.0), lambda _c: True) is not None
     assert ctl.state().budget_kbps <= 500

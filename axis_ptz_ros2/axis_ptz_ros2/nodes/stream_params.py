@@ -99,7 +99,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     _h264(
         "max_bitrate_kbps",
         "H.264 bitrate ceiling: consumers' feedback of a clear link (adapt_to_link) may raise the bitrate up to "
-        f"this, at most {H264_BUDGET_FRACTION:g} × the link's budget; at or below h264_bitrate_kbps (the default) "
+        f"this, at most {H264_BUDGET_FRACTION:g} × the link's budget; at or below h264_bitrate_kbps "
         "never above it",
         "kbit/s",
         int_range=BITRATE_RANGE_KBPS,

@@ -338,7 +338,7 @@ def next_bitrate(kbps: int, direction: int) -> int:
 
 def _bitrate_key(direction: int, state: TeleopState) -> list[Command]:
     """Y/H with H.264: the bitrate without feedback and the ceiling one step each way, together (the ceiling never
-    below the start; a ceiling at the start, the default, stays at it: no raising with feedback)."""
+    below the start; a ceiling at the start stays at it: no raising with feedback)."""
     start, top = state.h264_bitrate_kbps, state.h264_max_bitrate_kbps
     if start is None or top is None:
         return [Notice("H.264 bitrate not known yet (no video/params)")]
