@@ -136,3 +136,43 @@ def test_without_pyav_every_h264_tool_says_so_once_and_mjpeg_goes_on(
         text = out.snapshot()
         assert "Traceback" not in text, f"{name}:\n{text[-3000:]}"
         assert text.count("PyAV >= 18.0") == 1, f"{name} said it {text.count('PyAV >= 18.0')} times:\n{text[-3000:]}"
+
+
+def test_without_pyav_codec_h264_falls_back_to_plain_mjpeg(
+    ros: RosHarness, cam: SimulatedCamera, fake_av: tuple[str, Path]
+) -> None:
+    """Asked for H.264 that cannot be made (no pass-through on the 214, no PyAV to transcode): no MJPEG share. The
+    MJPEG topic carries the main stream at the size asked for (the share's budget would take it down to its small
+    sizes) and ``video/params`` tells what is in effect: MJPEG at the requested size and compression."""
+    from ffmpeg_image_transport_msgs.msg import FFMPEGPacket  # noqa: PLC0415
+
+    from axis_ptz_interfaces.msg import VideoParams  # noqa: PLC0415
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS, VIDEO_QOS  # noqa: PLC0415
+    from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: PLC0415
+
+    kind, av_path = fake_av
+    probe = ros.probe()
+    sizes: list[tuple[int, int]] = []
+    params: list[VideoParams] = []
+
+    def on_jpeg(msg: CompressedImage) -> None:
+        sof = jpeg_sof(bytes(msg.data))
+        sizes.append((sof[0], sof[1]) if sof else (0, 0))
+
+    probe.create_subscription(CompressedImage, "/image_raw/compressed", on_jpeg, STREAM_QOS)
+    probe.create_subscription(VideoParams, "/video/params", params.append, LATCHED_QOS)
+    probe.create_subscription(FFMPEGPacket, "/image_raw/ffmpeg", lambda _m: None, VIDEO_QOS)
+    args = ("hostname:=127.0.0.1", f"port:={cam.port}", "codec:=h264", "resolution:=704x576", "compression:=30")
+    with started("axis_stream", av_path, *(a for arg in args for a in ("-p", arg))) as (stream, out):
+        ros.wait_for(lambda: says_what_is_needed(out.snapshot(), kind), timeout=60.0, period=0.05)
+        ros.wait_for(lambda: len(sizes) >= 10, timeout=60.0, period=0.05)
+        before = len(sizes)
+        ros.wait_for(lambda: len(sizes) >= before + 30, timeout=60.0, period=0.05)  # long enough for a share to step
+        assert stream.poll() is None, out.snapshot()[-3000:]
+        late = set(sizes[before:])
+        assert late == {(704, 576)}, f"MJPEG topic sizes {sorted(late)} (asked 704x576):\n{out.snapshot()[-3000:]}"
+        ros.wait_for(lambda: bool(params), timeout=10.0, period=0.05)
+        last = params[-1]
+        in_effect = (last.codec, last.width, last.height, last.compression)
+        assert in_effect == ("mjpeg", 704, 576, 30), f"video/params says {in_effect}"
+    assert "Traceback" not in out.snapshot(), out.snapshot()[-3000:]

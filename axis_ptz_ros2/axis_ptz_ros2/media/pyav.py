@@ -62,4 +62,9 @@ def require() -> None:
         raise PyAvUnavailableError(why)
 
 
+def usable() -> bool:
+    """Whether PyAV can serve the H.264 path here (checked once per process, like :func:`require`)."""
+    return _problem_once() is None
+
+
 _problem_once = functools.cache(problem)

@@ -230,7 +230,7 @@ class StreamNode(Node):
         msg.source = source or state.source
         msg.available_resolutions = [str(r) for r in state.resolutions]
         settings = self._video.settings
-        msg.codec = str(settings.codec)
+        msg.codec = "h264" if self._video.h264 else "mjpeg"  # in effect (h264 asked without a way to make it: mjpeg)
         msg.h264_bitrate_kbps = settings.h264.bitrate_kbps
         msg.h264_max_bitrate_kbps = settings.h264.max_bitrate_kbps
         return msg

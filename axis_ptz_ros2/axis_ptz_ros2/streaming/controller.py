@@ -87,8 +87,11 @@ class VideoController:
         camera: int = 1,
         on_change: Callable[[], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
+        h264_possible: bool = True,
     ) -> None:
-        """Raises ValueError with the reason if ``settings`` ask for what no camera could stream."""
+        """Raises ValueError with the reason if ``settings`` ask for what no camera could stream.
+        ``h264_possible``: whether H.264 can be produced here (:meth:`set_h264_possible`)."""
+        self._h264_possible = h264_possible
         self._lock = threading.Lock()
         self._notify_lock = threading.Lock()
         self._meter = meter
@@ -102,7 +105,7 @@ class VideoController:
         self._settings = settings
         self._h264_meter = BitrateMeter(meter.window_s)  # the H.264 bytes sent, in h264 mode
         self._extra = ExtraBytes(meter.window_s)  # stills sent on the same link (streaming/still.py)
-        self._link = LinkAdapter(_adapter_config(settings))
+        self._link = LinkAdapter(_adapter_config(settings, self.h264))
         self._budget = BandwidthController(
             self._request(settings),
             self._effective_budget(),
@@ -155,8 +158,26 @@ class VideoController:
 
     @property
     def h264(self) -> bool:
-        """Whether the codec asked for is H.264."""
-        return self._settings.codec == "h264"
+        """Whether H.264 is in effect: the codec asked for is H.264 and it can be produced here (the one place that
+        decides: without it the MJPEG topic is the main stream at the request, on the MJPEG ladder, and no MJPEG share
+        runs)."""
+        return self._settings.codec == "h264" and self._h264_possible
+
+    def set_h264_possible(self, possible: bool) -> None:
+        """Whether H.264 can be produced here (PyAV usable to transcode, or the camera's own passed through). A
+        change while the codec asked for is H.264 switches what is in effect as a change of codec would (announced,
+        the cause left as it was)."""
+        with self._lock:
+            if possible == self._h264_possible:
+                return
+            was = self.h264
+            self._h264_possible = possible
+            if self.h264 == was:
+                return
+            self._codec_switched(self._clock())
+            self._budget.configure(requested=self._request(self._settings), now=self._clock())
+            self._current = self._budget.current
+        self._announce()
 
     def video_kbps(self) -> int:
         """h264 mode: what the budgets in force let the video have as a whole, kbit/s (:func:`h264_target_kbps`;
@@ -226,12 +247,10 @@ class VideoController:
         names = set(changed)
         video = bool(VIDEO_FIELDS & names)
         with self._lock:
-            old_codec = self._settings.codec
+            was_h264 = self.h264
             self._settings = settings
-            if LINK_FIELDS & names or settings.codec != old_codec:
-                # a new codec: what was learned of the link was in another unit (JPEG bytes vs H.264 bytes)
-                self._link = LinkAdapter(_adapter_config(settings))
-                self._budget.set_budget(self._effective_budget(), now)
+            if LINK_FIELDS & names or self.h264 != was_h264:
+                self._codec_switched(now)
             if video:
                 requested = self._request(settings)
                 if names & {"budget_max_compression", "budget_min_fps"}:
@@ -351,6 +370,12 @@ class VideoController:
             self._announce()
 
     # -- internals -----------------------------------------------------------------------------------------
+    def _codec_switched(self, now: float) -> None:
+        """A new codec in effect (or new link settings): what was learned of the link was in another unit (JPEG
+        bytes vs H.264 bytes); the MJPEG ladder's budget follows. Call with the lock held."""
+        self._link = LinkAdapter(_adapter_config(self._settings, self.h264))
+        self._budget.set_budget(self._effective_budget(), now)
+
     def _known_resolutions(self) -> tuple[Resolution, ...]:
         return self._resolutions if self._resolutions else AXIS214_PAL_RESOLUTIONS
 
@@ -362,7 +387,8 @@ class VideoController:
             res = Resolution.parse(text)
         else:
             res = _largest(self._resolutions) if self._resolutions else AUTO_PLACEHOLDER
-        compression = 0 if settings.codec == "h264" else int(settings.compression)  # the encoder's best input
+        h264 = settings.codec == "h264" and self._h264_possible
+        compression = 0 if h264 else int(settings.compression)  # the encoder's best input
         return VideoParams(res, int(settings.fps), compression, camera=self._camera)
 
     def _share_request(self, settings: VideoSettings) -> VideoParams:
@@ -371,7 +397,7 @@ class VideoController:
 
     def _effective_budget(self) -> float:
         """The budget for the MJPEG ladder (0 = none; in h264 mode the encoder takes it); call with the lock held."""
-        return 0.0 if self._settings.codec == "h264" else self._budget_kbps()
+        return 0.0 if self.h264 else self._budget_kbps()
 
     def _budget_kbps(self) -> float:
         """The tighter of the hand-set budget and the link's (0 = none); call with the lock held."""
@@ -436,11 +462,11 @@ class VideoController:
             self._on_change()
 
 
-def _adapter_config(settings: VideoSettings) -> AdapterConfig:
-    """The link adapter's tuning for the codec asked for (H.264 is judged by bytes, with a lossy link's repair
+def _adapter_config(settings: VideoSettings, h264: bool) -> AdapterConfig:
+    """The link adapter's tuning for the codec in effect (H.264 is judged by bytes, with a lossy link's repair
     delays allowed for: :func:`~.feedback.h264_adapter_config`)."""
     release = float(settings.link_release)
-    return h264_adapter_config(release) if settings.codec == "h264" else AdapterConfig(release_s=release)
+    return h264_adapter_config(release) if h264 else AdapterConfig(release_s=release)
 
 
 def requested_changes(

@@ -12,8 +12,9 @@ says so. Decisions flow down, frames flow up:
 * :class:`~.discovery.CameraDiscovery` learns what the camera is and its sizes;
 * :class:`~.reader.StreamReader` reads the camera's MJPEG (``image_raw/compressed``, ``camera_info``, and in h264
   mode the transcoder's input);
-* a second reader streams the MJPEG share (:mod:`.mjpeg_share`) while the codec is h264 and the MJPEG topic has a
-  subscriber;
+* a second reader streams the MJPEG share (:mod:`.mjpeg_share`) while H.264 is in effect (the codec is h264 and
+  H.264 can be produced: the camera's own passed through, or PyAV to transcode) and the MJPEG topic has a subscriber;
+  without it the MJPEG topic is the main stream at the request, as with codec mjpeg;
 * :class:`~.h264.H264Stage` makes the H.264 stream, from the JPEGs (a camera that cannot stream H.264, the 214) or
   from :class:`~.rtsp_source.RtspH264Source` (the camera's own, passed through);
 * what the encoder and the camera's RTSP stream are to do (:class:`~axis_ptz_ros2.media.h264_settings.H264Settings`,
@@ -33,6 +34,7 @@ from enum import IntFlag
 from typing import Any
 
 from axis_ptz_ros2.camera_models import CameraProfile
+from axis_ptz_ros2.media import pyav
 from axis_ptz_ros2.media.frame import JPEG, EncodedFrame
 from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.controller import VideoController
@@ -55,6 +57,13 @@ from axis_ptz_ros2.streaming.status import (
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import Resolution
+
+
+def _h264_possible(settings: VideoSettings, supported: bool | None) -> bool:
+    """Whether H.264 can be produced for ``settings``: the camera's own passed through (``supported``: whether it
+    streams H.264, None until asked) or transcoded with a usable PyAV (:mod:`~axis_ptz_ros2.media.pyav`, checked
+    only when the codec asked for is H.264)."""
+    return settings.codec != "h264" or supported is True or pyav.usable()
 
 
 class Outlet(IntFlag):
@@ -95,7 +104,9 @@ class VideoPipeline:
         self._throttle = LogThrottle()
         self._lazy = lazy
         meter = BitrateMeter(reader_config.meter_window_s)
-        self.video = VideoController(settings, meter, camera=camera, on_change=self._on_decision)
+        self.video = VideoController(
+            settings, meter, camera=camera, on_change=self._on_decision, h264_possible=_h264_possible(settings, None)
+        )
         self._h264 = self.video.h264_settings()  # what the encoder is to do (pushed: read on the frame path)
         self._stream_size: Resolution | None = None  # passed through with resolution auto: the size asked for
         self._rtsp_request = media_request(self.video.current, self._h264)
@@ -157,6 +168,7 @@ class VideoPipeline:
     def apply(self, settings: VideoSettings, names: Collection[str], source: str, lazy: bool) -> None:
         """New parameters (after a set): the controller decides, the readers and the H.264 side follow."""
         self._lazy = lazy
+        self.video.set_h264_possible(_h264_possible(settings, self.rtsp.supported))  # (before: one switch at most)
         self.video.apply(settings, names, source)
         self._update()
 
@@ -228,12 +240,16 @@ class VideoPipeline:
 
     def _update_locked(self) -> bool:
         image, info, h264 = self._demand
-        video_h264 = self.video.h264
+        asked_h264 = self.video.settings.codec == "h264"
+        self.video.set_h264_possible(_h264_possible(self.video.settings, self.rtsp.supported))
+        video_h264 = self.video.h264  # in effect: asked for and can be produced
         self._image, self._info = image and not video_h264, info
         self._set_share(image and video_h264)
         self.starts.count(h264, self._viewers)
         self._decide()  # before the RTSP source plays: its request is decided
-        encode = video_h264 and h264 > 0
+        # asked for: the camera is still asked whether it streams H.264 (passed through, no PyAV needed), and without
+        # PyAV the stage says once what it needs
+        encode = asked_h264 and h264 > 0
         supported = self.rtsp.supported  # None until asked (on the first activation)
         self.transcode = encode and supported is False
         if encode and supported is not None and not self._told_mode:
