@@ -163,8 +163,8 @@ def viewer(ns: str, diagnostics: bool) -> int:
     from diagnostic_msgs.msg import DiagnosticArray
     from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
     from rclpy.event_handler import SubscriptionEventCallbacks
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from stopping import spin_until_stopped  # bench/stopping.py
 
     from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
 
@@ -203,16 +203,7 @@ def viewer(ns: str, diagnostics: bool) -> int:
 
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
     emit({"t": "ready", "rx": time.time_ns()})
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_stopped(node)
     return 0
 
 

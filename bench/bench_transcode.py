@@ -17,13 +17,13 @@ machine the wall times carry other processes' load, the CPU figures much less.
 from __future__ import annotations
 
 import argparse
-import resource
 import statistics
 import time
 
 import av
 import cv2
 import numpy as np
+from machine import cpu_s, loadavg  # bench/machine.py (bench/ is on sys.path when run)
 from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.encoder import H264Encoder
@@ -34,17 +34,6 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera
 
 FPS = 30
 W, H = 704, 576
-
-
-def cpu_s() -> float:
-    """User + system CPU seconds of this process, all threads (libx264 may use several)."""
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    return ru.ru_utime + ru.ru_stime
-
-
-def loadavg() -> str:
-    with open("/proc/loadavg", encoding="ascii") as f:
-        return " ".join(f.read().split()[:3])
 
 
 def pct(values: list[float], q: float) -> float:
@@ -123,6 +112,7 @@ def main() -> None:
         "axis_ptz_ros2/axis_ptz_ros2/sim",
         "axis_ptz_ros2/axis_ptz_ros2/streaming/h264.py",
         "bench/bench_transcode.py",
+        "bench/machine.py",
     )
     print(f"load average before: {loadavg()}")
     camera = SimulatedCamera(host="127.0.0.1", port=0)  # not started: its pictures only

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import bisect
 import math
-import signal
 import statistics
 import sys
 import threading
@@ -140,6 +139,8 @@ def rekey(pictures: list[dict[str, Any]], sends: Sends, saved: Path | None = Non
 
 def sim_child(port: int = 0) -> int:
     """A simulated Axis 214 that prints its address as ``axis_camera_sim`` does, then ``sent <ns>`` per JPEG."""
+    from stopping import wait_for_stop  # bench/stopping.py (bench/ is on sys.path)
+
     from axis_ptz_ros2.sim.camera import SimulatedCamera
 
     lock = threading.Lock()
@@ -151,10 +152,7 @@ def sim_child(port: int = 0) -> int:
     log_sends(record)
     cam = SimulatedCamera(port=port).start()  # as axis_camera_sim --port <port>
     print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (logging every JPEG's send time)", flush=True)
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
-    signal.signal(signal.SIGINT, lambda *_: done.set())
-    done.wait()
+    wait_for_stop()
     cam.stop()
     return 0
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import resource
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from link_h264_roles import psnr_db  # noqa: E402  (bench/ is on sys.path when run)
+from machine import cpu_s, loadavg  # noqa: E402  (bench/machine.py)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
 from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
@@ -80,16 +80,6 @@ def settings() -> list[Setting]:
         Setting("node", node.preset, node.profile, node.refresh, node.effective_keyframe_interval, True),
         Setting("reference", "medium", "high", "idr", LONG_GOP, False),
     ]
-
-
-def cpu_s() -> float:
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    return ru.ru_utime + ru.ru_stime
-
-
-def loadavg() -> str:
-    with open("/proc/loadavg", encoding="ascii") as f:
-        return " ".join(f.read().split()[:3])
 
 
 def run(s: Setting, jpegs: list[bytes], view: np.ndarray, kbps: int, link_kbps: float) -> dict[str, float]:

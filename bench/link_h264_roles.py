@@ -196,9 +196,9 @@ def viewer(  # noqa: C901, PLR0915
     import cv2
     import numpy as np
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.parameter import Parameter
+    from stopping import spin_until_stopped  # bench/stopping.py (bench/ is on sys.path)
 
     t_start = time.time_ns()
     ref = Path(refdir)
@@ -349,16 +349,7 @@ def viewer(  # noqa: C901, PLR0915
 
     node.create_subscription(VideoParams, "video/params", on_params, LATCHED_QOS)
     emit({"t": "ready", "rx": time.time_ns(), "start": t_start})
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_stopped(node)
     return 0
 
 

@@ -58,6 +58,8 @@ def sim_child() -> int:
     """Run a simulator whose video handler streams as fast as possible whatever fps= the client asks."""
     import dataclasses
 
+    from stopping import wait_for_stop  # bench/stopping.py (bench/ is on sys.path)
+
     from axis_ptz_ros2.sim.camera import SimulatedCamera
     from axis_ptz_ros2.sim.http import mjpeg
 
@@ -70,10 +72,7 @@ def sim_child() -> int:
     mjpeg.image_args = unlimited
     cam = SimulatedCamera(port=0).start()
     print(f"Simulated AXIS 214 PTZ at {cam.base_url}/ (fps forced to 0)", flush=True)
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
-    signal.signal(signal.SIGINT, lambda *_: done.set())
-    done.wait()
+    wait_for_stop()
     cam.stop()
     return 0
 

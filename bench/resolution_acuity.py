@@ -20,12 +20,12 @@ import sys
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import acuity  # noqa: E402
 from report import inputs, row  # noqa: E402  (bench/report.py)
+from resolution_tradeoff import noisy  # noqa: E402  (bench/resolution_tradeoff.py)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
 from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: E402
@@ -34,16 +34,6 @@ from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
 
 SIZES = ((1920, 1080), (1280, 720), (1024, 576), (800, 450), (640, 360), (480, 270))
 CHART = "acuity_35m"
-
-
-def _noisy(soft: np.ndarray, noise: tuple[np.ndarray, np.ndarray] | None, rng: np.random.Generator) -> np.ndarray:
-    if noise is None:
-        return soft
-    pos, neg = noise
-    h, w = soft.shape[:2]
-    dy = int(rng.integers(0, pos.shape[0] - h + 1))
-    dx = int(rng.integers(0, pos.shape[1] - w + 1))
-    return cv2.subtract(cv2.add(soft, pos[dy : dy + h, dx : dx + w]), neg[dy : dy + h, dx : dx + w])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     inputs(
         "bench/resolution_acuity.py",
+        "bench/resolution_tradeoff.py",  # noisy()
         "bench/acuity.py",
         "bench/acuity_chart.py",
         "axis_ptz_ros2/axis_ptz_ros2/media/encoder.py",
@@ -81,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             model.noise_field(w, h) if model.noisy else None,
             acuity.pose_homography(renderer, target, pan, tilt, zoom, w, h),
         )
-        raw = acuity.score(_noisy(views[(w, h)][0], views[(w, h)][1], rng), views[(w, h)][2])
+        raw = acuity.score(noisy(views[(w, h)][0], views[(w, h)][1], rng), views[(w, h)][2])
         print(f"  {w}x{h} uncoded: {raw.rows_read} rows")
     best: dict[int, tuple[int, int, int]] = {}  # bitrate -> (median rows, worst rows, pixels) of the best size
     sizes_at: dict[int, str] = {}
@@ -105,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             rows: list[int] = []
             bits = 0
             for k in range(pictures):
-                out = enc.encode_bgr(np.ascontiguousarray(_noisy(soft, noise, rng), dtype=np.uint8), 1)
+                out = enc.encode_bgr(np.ascontiguousarray(noisy(soft, noise, rng), dtype=np.uint8), 1)
                 pic = dec.decode(out.data)
                 if k < fps:
                     continue

@@ -33,6 +33,18 @@ SIZES = ((1920, 1080), (1280, 720), (800, 450), (640, 360))
 FPS, PICTURES = 30, 120
 
 
+def noisy(soft: np.ndarray, noise: tuple[np.ndarray, np.ndarray] | None, rng: np.random.Generator) -> np.ndarray:
+    """``soft`` with a window of the persona's noise field (``noise_field``'s positive and negative parts) at a
+    random offset drawn from ``rng``, as the simulator adds it per picture; ``soft`` itself without noise."""
+    if noise is None:
+        return soft
+    pos, neg = noise
+    h, w = soft.shape[:2]
+    dy = int(rng.integers(0, pos.shape[0] - h + 1))
+    dx = int(rng.integers(0, pos.shape[1] - w + 1))
+    return cv2.subtract(cv2.add(soft, pos[dy : dy + h, dx : dx + w]), neg[dy : dy + h, dx : dx + w])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kbps", default="600,1000,1500", help="bitrates to try (kbit/s, comma-separated)")
@@ -68,13 +80,7 @@ def main() -> None:
             scores: list[float] = []
             bits = 0
             for k in range(PICTURES):
-                img = soft
-                if noise is not None:
-                    pos, neg = noise
-                    dy = int(rng.integers(0, pos.shape[0] - h + 1))
-                    dx = int(rng.integers(0, pos.shape[1] - w + 1))
-                    img = cv2.subtract(cv2.add(soft, pos[dy : dy + h, dx : dx + w]), neg[dy : dy + h, dx : dx + w])
-                out = enc.encode_bgr(np.ascontiguousarray(img, dtype=np.uint8), 1)
+                out = enc.encode_bgr(np.ascontiguousarray(noisy(soft, noise, rng), dtype=np.uint8), 1)
                 pic = dec.decode(out.data)
                 if k < FPS:
                     continue
