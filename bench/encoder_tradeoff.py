@@ -83,7 +83,7 @@ def settings() -> list[Setting]:
 
 
 def run(s: Setting, jpegs: list[bytes], view: np.ndarray, kbps: int, link_kbps: float) -> dict[str, float]:
-    vbv_kbit = h264_vbv_kbit(kbps, link_kbps) if s.link_vbv else 0
+    vbv_kbit = h264_vbv_kbit(kbps, link_kbps, s.refresh) if s.link_vbv else 0
     tc = MjpegTranscoder(
         H264Settings(
             fps=FPS,
