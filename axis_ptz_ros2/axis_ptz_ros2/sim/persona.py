@@ -20,8 +20,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from axis_ptz_ros2.config import default_config_path, load_camera_model
 from axis_ptz_ros2.geometry import PtzKinematics
-from axis_ptz_ros2.optics import ZoomCurve, ZoomModel
+from axis_ptz_ros2.optics import ZoomModel
 from axis_ptz_ros2.sim.camera_model import CameraModel
 from axis_ptz_ros2.sim.params import TREE_BUILDERS, TreeTag, parameter_tree
 from axis_ptz_ros2.sim.ptz import Speeds
@@ -45,7 +46,8 @@ SQUARE_PIXEL_FACTOR = 12.0 / 11.0  # PAL
 class Persona:
     """Everything that differs between simulated camera models (frozen data; see the module docstring).
 
-    ``limits``/``zoom_model`` None: take them from the world file (the 214's come from ``sim_world.yaml``).
+    ``limits``/``zoom_model`` None: take them from the world (the 214: its limits from ``sim_world.yaml``, its zoom
+    model from ``axis214.yaml``, the world file having none).
     ``resolutions`` maps the names listed in ``Properties.Image.Resolution`` (CIF names or ``WxH``) to sizes;
     ``square_pixel_factor`` is the width stretch of ``squarepixel=1`` (1.0 = pixels already square).
     ``frame_rate`` is the most pictures per second the camera makes (its video standard's or sensor's rate): a
@@ -198,19 +200,12 @@ MODERN_RESOLUTIONS: dict[str, tuple[int, int]] = {
     )
 }
 
-#: AXIS Q6075-E class optics (see config/q6075.yaml for sources): 40× optical reaching 9999 (vapix.md S11
-#: table), digital zoom to 19999 (MaxZoom 19999 observed with DigitalZoom=true, vapix.md §4.7, S8).
-Q6075_ZOOM = ZoomModel(
-    hfov_wide_deg=63.7,
-    max_magnification=40.0,
-    min_zoom=1,
-    max_zoom=19999,
-    curve=ZoomCurve.LINEAR,
-    image_aspect=16.0 / 9.0,
-    square_pixels=True,
-    optical_max_zoom=9999,
-    digital_max_magnification=16.0,
-)
+#: AXIS Q6075-E class optics: the zoom model of its camera-model file config/q6075.yaml (40× optical reaching
+#: 9999, digital zoom to 19999; the sources are listed there), read through the camera-model loader when this
+#: module is imported: the camera's facts live in its YAML file only. Raises
+#: :class:`~axis_ptz_ros2.config.CameraModelError` (a ``ValueError``) naming the file when it cannot be read.
+Q6075_MODEL_FILE = "q6075.yaml"
+Q6075_ZOOM: ZoomModel = load_camera_model(default_config_path(Q6075_MODEL_FILE)).zoom
 Q6075_LIMITS = PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 19999)
 
 #: The modern persona's picture: a digital 1080p sensor (no analogue band limit, progressive). All guesses:
@@ -243,7 +238,7 @@ AXIS_Q6075 = Persona(
     default_auth="digest",
     https=True,
     tree="modern",
-    camera_model_file="q6075.yaml",
+    camera_model_file=Q6075_MODEL_FILE,
     speeds=Speeds(pan_deg_s=450.0, tilt_deg_s=300.0, zoom_full_travel_s=4.0, focus_full_travel_s=1.0),
     limits=Q6075_LIMITS,
     zoom_model=Q6075_ZOOM,
