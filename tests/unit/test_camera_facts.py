@@ -132,6 +132,7 @@ def test_the_simulated_q6075_is_its_model_file() -> None:
     assert (lim.min_pan, lim.max_pan, lim.min_tilt, lim.max_tilt, lim.min_zoom, lim.max_zoom) == dataclasses.astuple(
         m.limits
     )
+    assert (AXIS_Q6075.speeds.pan_deg_s, AXIS_Q6075.speeds.tilt_deg_s) == (m.max_pan_speed_dps, m.max_tilt_speed_dps)
 
 
 def test_an_unknown_camera_starts_from_generic_yaml() -> None:

@@ -200,13 +200,22 @@ MODERN_RESOLUTIONS: dict[str, tuple[int, int]] = {
     )
 }
 
-#: AXIS Q6075-E class optics: the zoom model of its camera-model file config/q6075.yaml (40× optical reaching
-#: 9999, digital zoom to 19999; the sources are listed there), read through the camera-model loader when this
-#: module is imported: the camera's facts live in its YAML file only. Raises
-#: :class:`~axis_ptz_ros2.config.CameraModelError` (a ``ValueError``) naming the file when it cannot be read.
+#: AXIS Q6075-E class facts from its camera-model file config/q6075.yaml (the sources are listed there), read
+#: through the camera-model loader when this module is imported: the camera's facts live in its YAML file only.
+#: Raises :class:`~axis_ptz_ros2.config.CameraModelError` (a ``ValueError``) naming the file when it cannot be read.
 Q6075_MODEL_FILE = "q6075.yaml"
-Q6075_ZOOM: ZoomModel = load_camera_model(default_config_path(Q6075_MODEL_FILE)).zoom
-Q6075_LIMITS = PtzLimits(-180.0, 180.0, -90.0, 20.0, 1, 19999)
+_Q6075_MODEL = load_camera_model(default_config_path(Q6075_MODEL_FILE))
+#: its optics: 40× optical reaching 9999, digital zoom to 19999
+Q6075_ZOOM: ZoomModel = _Q6075_MODEL.zoom
+#: its limits: the file's fallback limits (what a real one reports for itself)
+Q6075_LIMITS = PtzLimits(
+    _Q6075_MODEL.limits.min_pan_deg,
+    _Q6075_MODEL.limits.max_pan_deg,
+    _Q6075_MODEL.limits.min_tilt_deg,
+    _Q6075_MODEL.limits.max_tilt_deg,
+    _Q6075_MODEL.limits.min_zoom,
+    _Q6075_MODEL.limits.max_zoom,
+)
 
 #: The modern persona's picture: a digital 1080p sensor (no analogue band limit, progressive). All guesses:
 #: temporal noise 1.0 / 0.5 DN (a current 1/2.8" CMOS in office light after the camera's noise filter), lens
@@ -239,10 +248,15 @@ AXIS_Q6075 = Persona(
     https=True,
     tree="modern",
     camera_model_file=Q6075_MODEL_FILE,
-    speeds=Speeds(pan_deg_s=450.0, tilt_deg_s=300.0, zoom_full_travel_s=4.0, focus_full_travel_s=1.0),
+    speeds=Speeds(
+        pan_deg_s=_Q6075_MODEL.max_pan_speed_dps,
+        tilt_deg_s=_Q6075_MODEL.max_tilt_speed_dps,
+        zoom_full_travel_s=4.0,  # GUESS, not in the model file (the driver does not need it)
+        focus_full_travel_s=1.0,
+    ),
     limits=Q6075_LIMITS,
     zoom_model=Q6075_ZOOM,
-    kinematics=PtzKinematics(0.0, (0.05, 0.0, 0.0)),  # as config/q6075.yaml (a guess, see there)
+    kinematics=_Q6075_MODEL.head,
     move_step_fov=0.25,
     attributes=True,
     preset_params=True,
