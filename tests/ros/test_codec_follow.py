@@ -25,11 +25,10 @@ from axis_ptz_interfaces.msg import LinkFeedback, VideoParams  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.nodes.republish import RepublishNode  # noqa: E402
-from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 from tests.support.waiting import unchanged_for  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -41,13 +40,6 @@ H264 = {"codec": "h264", "resolution": "352x288", "fps": 10}
 
 
 # the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
-
-
-def stream_node(ros: RosHarness, camera: SimulatedCamera, **params: object) -> StreamNode:
-    values = {"port": camera.port, **FAST_STREAM_PARAMS, **params}
-    return ros.add(
-        StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-    )
 
 
 def set_stream(ros: RosHarness, probe: Node, **values: object) -> None:
@@ -80,7 +72,7 @@ def only(probe: Node, node_name: str, topic: str) -> bool:
 # the link monitor
 # ---------------------------------------------------------------------------------------------------------
 def test_link_monitor_follows_the_streams_codec_and_switches_with_it(ros: RosHarness, camera: SimulatedCamera) -> None:
-    stream_node(ros, camera, **H264)
+    make_stream_node(ros, camera, **H264)
     monitor = ros.add(LinkMonitorNode(context=ros.context))  # the default: codec auto
     probe = ros.probe()
     reports: list[LinkFeedback] = []
@@ -143,7 +135,7 @@ def test_link_monitor_refuses_an_unknown_codec_with_the_reason(ros: RosHarness) 
 
 def test_link_monitor_with_an_explicit_codec_keeps_it(ros: RosHarness, camera: SimulatedCamera) -> None:
     """``codec: mjpeg`` is the operator's choice: the stream's H.264 announcement changes nothing."""
-    stream_node(ros, camera, **H264)
+    make_stream_node(ros, camera, **H264)
     monitor = ros.add(LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter("codec", value="mjpeg")]))
     probe = ros.probe()
     ros.wait_for(lambda: only(probe, "axis_link_monitor", JPEG_TOPIC), 10.0)
@@ -155,7 +147,7 @@ def test_link_monitor_with_an_explicit_codec_keeps_it(ros: RosHarness, camera: S
 # the republisher
 # ---------------------------------------------------------------------------------------------------------
 def test_republisher_follows_the_streams_codec_and_switches_with_it(ros: RosHarness, camera: SimulatedCamera) -> None:
-    stream_node(ros, camera, **H264)
+    make_stream_node(ros, camera, **H264)
     rep = ros.add(RepublishNode(context=ros.context))  # the default: input auto, lazy
     probe = ros.probe()
     images: list[Image] = []
@@ -213,7 +205,7 @@ class _Watcher:
 
 
 def test_web_console_follows_the_streams_codec_and_switches_with_it(ros: RosHarness, camera: SimulatedCamera) -> None:
-    stream_node(ros, camera, **H264)
+    make_stream_node(ros, camera, **H264)
     console = ros.add(WebConsole(context=ros.context, parameter_overrides=[Parameter("port", value=0)]))
     probe = ros.probe()
     ros.wait_for(lambda: _state(console)["ptz_video"]["codec"] == "h264", 10.0)

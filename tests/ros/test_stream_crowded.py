@@ -18,18 +18,16 @@ import pytest
 pytest.importorskip("rclpy")
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: E402
 from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
 from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -37,13 +35,6 @@ H264 = {"codec": "h264", "resolution": "704x576", "fps": 25}
 
 
 # the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
-
-
-def make_node(ros: RosHarness, camera: SimulatedCamera, **params: object) -> StreamNode:
-    values = {"port": camera.port, **FAST_STREAM_PARAMS, **params}
-    return ros.add(
-        StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-    )
 
 
 class Received:
@@ -75,7 +66,7 @@ class Received:
 def test_mjpeg_subscriber_in_h264_mode_gets_its_share_never_compression0(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
-    node = make_node(ros, camera, **H264)
+    node = make_stream_node(ros, camera, **H264)
     probe = ros.probe()
     h264 = Received()
     probe.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", h264.on_packet, STREAM_QOS)
@@ -111,7 +102,7 @@ def test_mjpeg_subscriber_in_h264_mode_gets_its_share_never_compression0(
 
 
 def test_mjpeg_subscriber_leaving_gives_the_encoder_its_bitrate_back(ros: RosHarness, camera: SimulatedCamera) -> None:
-    node = make_node(ros, camera, **H264)
+    node = make_stream_node(ros, camera, **H264)
     probe = ros.probe()
     h264 = Received()
     probe.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", h264.on_packet, STREAM_QOS)
@@ -129,7 +120,7 @@ def test_mjpeg_subscriber_leaving_gives_the_encoder_its_bitrate_back(ros: RosHar
 def test_a_report_about_the_mjpeg_topic_does_not_squeeze_the_h264_stream(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
-    node = make_node(ros, camera, **H264)
+    node = make_stream_node(ros, camera, **H264)
     probe = ros.probe()
     h264 = Received()
     probe.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", h264.on_packet, STREAM_QOS)
@@ -164,7 +155,7 @@ def test_a_viewer_whose_first_idrs_were_replaced_still_gets_a_start_point(
 ) -> None:
     """A plain subscriber (no feedback) that loses everything for its first 0.7 s -- the stage's IDRs at once and
     0.4 s after it appeared, as a crowded link's keep-last queue replaced them -- gets another IDR soon after."""
-    node = make_node(ros, camera, **H264)
+    node = make_stream_node(ros, camera, **H264)
     probe = ros.probe()
     first = Received()
     probe.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", first.on_packet, STREAM_QOS)
@@ -184,7 +175,7 @@ def test_a_viewer_whose_first_idrs_were_replaced_still_gets_a_start_point(
 
 
 def test_start_point_repeats_stop_once_every_viewer_reports_pictures(ros: RosHarness, camera: SimulatedCamera) -> None:
-    node = make_node(ros, camera, **H264)
+    node = make_stream_node(ros, camera, **H264)
     viewer = ros.probe("reporting_viewer")
     got = Received()
     viewer.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", got.on_packet, STREAM_QOS)

@@ -13,15 +13,14 @@ import pytest
 pytest.importorskip("rclpy")
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_interfaces.msg import LinkFeedback, VideoParams  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, LATCHED_QOS, STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -39,9 +38,7 @@ def camera() -> Iterator[SimulatedCamera]:
 
 def _run(ros: RosHarness, camera: SimulatedCamera, adapt: bool, seconds: float) -> tuple[list[Any], dict[str, str]]:
     """Stream 704x576 @ 15 fps c0 to a consumer that reports a congested link; (video/params seen, diagnostics)."""
-    values = {"port": camera.port, **FAST, "fps": 15, "resolution": "704x576", "compression": 0}
-    values["adapt_to_link"] = adapt
-    ros.add(StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]))
+    make_stream_node(ros, camera, fps=15, resolution="704x576", compression=0, adapt_to_link=adapt)
     probe = ros.probe("link_consumer")
     lock = threading.Lock()
     params: list[Any] = []

@@ -10,7 +10,6 @@ from __future__ import annotations
 import statistics
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl
 
@@ -32,8 +31,9 @@ from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.models import AXIS_214_ZOOM  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 from tests.support.stamps import sim_stamp  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 from tests.support.waiting import unchanged_for
 
 pytestmark = pytest.mark.ros
@@ -41,19 +41,7 @@ pytestmark = pytest.mark.ros
 FAST = FAST_STREAM_PARAMS
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimulatedCamera]:
-    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
-    try:
-        yield cam
-    finally:
-        cam.stop()
-
-
-@pytest.fixture
-def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    """The shared simulator with faults and counters reset."""
-    return reset_camera(sim)
+# the simulated camera: `sim` (one per module) and `camera` (reset per test) come from tests/ros/conftest.py
 
 
 @dataclass
@@ -87,12 +75,6 @@ class Recorder:
     def count(self) -> int:
         with self.lock:
             return len(self.frames)
-
-
-def make_node(ros: RosHarness, camera: SimulatedCamera, **params) -> StreamNode:
-    values = {"port": camera.port, **FAST, **params}
-    overrides = [Parameter(k, value=v) for k, v in values.items()]
-    return ros.add(StreamNode(context=ros.context, parameter_overrides=overrides))
 
 
 def subscribe(ros: RosHarness, probe, info: bool = True) -> tuple[Recorder, list]:
@@ -228,7 +210,7 @@ def assert_never_repeated(frames: list[Frame]) -> None:
 
 # --------------------------------------------------------------------------------------------------------
 def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros, camera):
-    node = make_node(ros, camera, fps=15)
+    node = make_stream_node(ros, camera, fps=15)
     probe = ros.probe()
     time.sleep(0.6)  # a window for a (wrong) stream request with nobody subscribed: the thing under test is none
     assert camera.request_counts.endpoints.get("video", 0) == 0, "streamed with nobody subscribed"
@@ -255,7 +237,8 @@ def test_lazy_no_request_until_subscribed_and_stops_after_last_unsubscribes(ros,
 
 
 def test_parameters_change_the_frames_live(ros, camera):
-    node = make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
+    # stall_timeout 1.0: the default watchdog
+    node = make_stream_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)
     probe = ros.probe()
     params_seen: list[VideoParams] = []
     probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
@@ -319,7 +302,7 @@ def test_parameters_change_the_frames_live(ros, camera):
 
 
 def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
-    node = make_node(ros, camera, fps=10, resolution="352x288", compression=30)
+    node = make_stream_node(ros, camera, fps=10, resolution="352x288", compression=30)
     probe = ros.probe()
     rec, _ = subscribe(ros, probe)
     ros.wait_for(lambda: rec.count() >= 5, timeout=5)
@@ -350,7 +333,7 @@ def test_invalid_values_refused_with_reason_and_never_sent(ros, camera):
 
 
 def test_service_sets_several_atomically(ros, camera):
-    node = make_node(ros, camera, fps=10, resolution="704x576", compression=30)
+    node = make_stream_node(ros, camera, fps=10, resolution="704x576", compression=30)
     probe = ros.probe()
     rec, _ = subscribe(ros, probe)
     ros.wait_for(lambda: rec.count() >= 3, timeout=5)
@@ -390,7 +373,7 @@ def test_service_sets_several_atomically(ros, camera):
 
 
 def test_recovers_after_reboot_stall_and_garbage(ros, camera):
-    node = make_node(ros, camera, fps=20, resolution="176x144")
+    node = make_stream_node(ros, camera, fps=20, resolution="176x144")
     probe = ros.probe()
     rec, _ = subscribe(ros, probe, info=False)
     ros.wait_for(lambda: rec.count() >= 5, timeout=5)
@@ -436,7 +419,7 @@ def test_auth_failure_reported_clearly_and_not_hammered(ros, tmp_path):
     try:
         pw = tmp_path / "cred"
         pw.write_text("root:wrong-pass-XYZ\n")
-        node = make_node(ros, cam, password_file=str(pw), lazy=False, auth_retry=1.0)
+        node = make_stream_node(ros, cam, password_file=str(pw), lazy=False, auth_retry=1.0)
         probe = ros.probe()
         diags: list[DiagnosticArray] = []
         probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
@@ -461,7 +444,7 @@ def test_auth_failure_reported_clearly_and_not_hammered(ros, tmp_path):
 
 
 def test_camera_info_matches_frames_and_follows_zoom(ros, camera):
-    make_node(ros, camera, fps=15, resolution="704x576", zoom=1.0)
+    make_stream_node(ros, camera, fps=15, resolution="704x576", zoom=1.0)
     probe = ros.probe()
     rec, _ = subscribe(ros, probe)
     ros.wait_for(lambda: len(rec.infos) >= 5, timeout=5)
@@ -493,7 +476,8 @@ def test_camera_info_matches_frames_and_follows_zoom(ros, camera):
 
 
 def test_bandwidth_budget_holds_the_bitrate(ros, camera):
-    node = make_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)  # default watchdog
+    # stall_timeout 1.0: the default watchdog
+    node = make_stream_node(ros, camera, fps=20, resolution="704x576", compression=0, stall_timeout=1.0)
     probe = ros.probe()
     params_seen: list[VideoParams] = []
     probe.create_subscription(VideoParams, "video/params", params_seen.append, LATCHED_QOS)
@@ -548,7 +532,7 @@ def test_bandwidth_budget_holds_the_bitrate(ros, camera):
 
 def test_video_params_carry_the_cameras_resolution_list(ros: RosHarness, camera: SimulatedCamera) -> None:
     """The latched video/params tells the teleops which sizes the camera offers (read from param.cgi)."""
-    make_node(ros, camera)
+    make_stream_node(ros, camera)
     probe = ros.probe("res_probe")
     got: list[VideoParams] = []
     probe.create_subscription(VideoParams, "video/params", got.append, LATCHED_QOS)

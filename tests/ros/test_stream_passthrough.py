@@ -31,6 +31,7 @@ from tests.ros.test_stream_h264 import FAST, H264Recorder, Packet, set_params, s
 from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.idr import idr_granted_at_once  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 from tests.support.waiting import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -78,22 +79,21 @@ def renews(monkeypatch: pytest.MonkeyPatch) -> list[float]:
 
 
 def make_node(ros: RosHarness, camera: SimulatedCamera, cred: str, **params: object) -> StreamNode:
+    """The shared stream node (tests/support/stream_node.py) on this camera's RTSP, with its password, asking for
+    H.264 at SIZE and 15 fps."""
     assert camera.rtsp is not None
-    values = {
-        "port": camera.port,
+    values: dict[str, object] = {
         "rtsp_port": camera.rtsp.port,
         "password_file": cred,
         "codec": "h264",
         "resolution": f"{SIZE[0]}x{SIZE[1]}",
         "fps": 15,
-        **FAST,
         # the simulator's encoder, the node and DDS share this one process: a 0.4 s stall limit read the GIL's
         # pauses as a lost stream (reconnects, a second session) in ~40 % of runs; 1.5 s is still fast recovery
         "stall_timeout": 1.5,
         **params,
     }
-    overrides = [Parameter(k, value=v) for k, v in values.items()]
-    return ros.add(StreamNode(context=ros.context, parameter_overrides=overrides))
+    return make_stream_node(ros, camera, **values)
 
 
 def _diag_values(diags: list[DiagnosticArray], suffix: str) -> dict[str, str]:

@@ -18,14 +18,12 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_ros2.nodes.common import STREAM_QOS  # noqa: E402
-from axis_ptz_ros2.nodes.stream_node import StreamNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -61,10 +59,7 @@ def test_reconnects_build_no_ssl_context(
     ros: RosHarness, camera: SimulatedCamera, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     counted = ContextCount(monkeypatch)
-    values = {"port": camera.port, "fps": 30, "resolution": "704x576", **FAST_STREAM_PARAMS}
-    node = ros.add(
-        StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-    )
+    node = make_stream_node(ros, camera, fps=30, resolution="704x576")
     frames = [0]
     probe = ros.probe()
     probe.create_subscription(

@@ -32,6 +32,7 @@ from axis_ptz_ros2.sim import FaultConfig, SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.still import BUSY  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
+from tests.support.stream_node import make_stream_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -59,12 +60,6 @@ class Inbox:
     def count(self) -> int:
         with self.lock:
             return len(self.msgs)
-
-
-def make_node(ros: RosHarness, camera: SimulatedCamera, **params) -> StreamNode:
-    values = {"port": camera.port, **FAST_STREAM_PARAMS, **params}
-    node = StreamNode(context=ros.context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-    return ros.add(node)
 
 
 def decoded(jpeg: bytes) -> np.ndarray:
@@ -110,7 +105,7 @@ def call_async(ros: RosHarness, client, t_box: list[float]):  # noqa: ANN001, AN
 
 # --------------------------------------------------------------------------------------------------------
 def test_still_is_the_full_resolution_at_compression_0_and_published_before_the_answer(ros, camera):
-    node = make_node(ros, camera, fps=10, resolution="352x288", compression=50, lazy=False)
+    node = make_stream_node(ros, camera, fps=10, resolution="352x288", compression=50, lazy=False)
     probe = ros.probe()
     live, still = Inbox(), Inbox()
     probe.create_subscription(CompressedImage, "image_raw/compressed", live.on, STREAM_QOS)
@@ -167,7 +162,7 @@ def test_still_is_the_full_resolution_at_compression_0_and_published_before_the_
 def test_live_goes_on_and_a_second_request_is_refused_while_a_still_is_in_flight(ros, camera):
     # every reply of the camera comes 0.8 s late: the still is in flight at least that long
     camera.set_faults(FaultConfig(latency_ms=800))
-    node = make_node(ros, camera, fps=10, resolution="352x288", compression=50, lazy=False, stall_timeout=3.0)
+    node = make_stream_node(ros, camera, fps=10, resolution="352x288", compression=50, lazy=False, stall_timeout=3.0)
     probe = ros.probe()
     live = Inbox()
     probe.create_subscription(CompressedImage, "image_raw/compressed", live.on, STREAM_QOS)
@@ -214,7 +209,7 @@ def test_stopped_camera_answers_false_at_once_without_the_password(ros, tmp_path
         cred = tmp_path / "cred"
         cred.write_text("root:secret-XYZ-42\n")
         cred.chmod(0o600)
-        make_node(ros, cam, password_file=str(cred), lazy=True, connect_timeout=0.5)
+        make_stream_node(ros, cam, password_file=str(cred), lazy=True, connect_timeout=0.5)
     finally:
         cam.stop()
     probe = ros.probe()
@@ -237,7 +232,7 @@ def test_stopped_camera_answers_false_at_once_without_the_password(ros, tmp_path
 
 
 def test_camera_dropping_packets_answers_false_within_the_connect_timeout(ros, camera):
-    node = make_node(ros, camera, lazy=True, connect_timeout=0.5)
+    node = make_stream_node(ros, camera, lazy=True, connect_timeout=0.5)
     ros.wait_for(lambda: node._video.resolutions_known, timeout=5)
     probe = ros.probe()
     client = probe.create_client(Trigger, "still/capture")
@@ -296,7 +291,7 @@ def test_console_still_button_and_key_show_the_stream_nodes_still(ros, camera):
 
     from axis_ptz_ros2.nodes.web_console import WebConsole  # noqa: PLC0415
 
-    make_node(ros, camera, lazy=True)
+    make_stream_node(ros, camera, lazy=True)
     console = ros.add(
         WebConsole(context=ros.context, parameter_overrides=[Parameter("port", value=0)])  # (loopback, no token)
     )
