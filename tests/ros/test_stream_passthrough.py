@@ -167,7 +167,7 @@ def test_passes_the_cameras_h264_through(ros: RosHarness, camera: SimulatedCamer
     assert values["h264 source"] == "camera (RTSP)"
     assert int(values["rtsp access units"]) > 0
     # and between which bitrates the link moves it (the parameters' defaults here)
-    assert (values["h264 bitrate start [kbit/s]"], values["h264 bitrate ceiling [kbit/s]"]) == ("1000", "1000")
+    assert (values["h264 bitrate start [kbit/s]"], values["h264 bitrate ceiling [kbit/s]"]) == ("1000", "1500")
 
 
 def test_a_late_joiner_gets_an_idr_within_a_second(
