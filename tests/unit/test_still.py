@@ -160,3 +160,67 @@ def test_a_still_takes_its_share_of_the_budget_the_live_stream_steps_down_once_a
     meter2 = BitrateMeter(2.0)
     ctl2 = VideoController(VideoSettings(fps=10, resolution="704x576", compression=0, adapt_to_link=False), meter2)
     assert live(ctl2, meter2, 100.0, 5.0, still_at=102.0) == []
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def _send(ctl: VideoController, clock: _Clock, seconds: float, kbps: float) -> None:
+    """``seconds`` of 25 access units/s at ``kbps`` sent (what reports are judged against)."""
+    for _i in range(int(seconds * 25)):
+        clock.t += 1 / 25
+        ctl.on_h264_frame(clock.t, int(kbps * 1000 / 8 / 25))
+
+
+def test_h264_a_still_gets_most_of_the_link_while_it_crosses_and_its_queue_is_not_congestion():
+    """h264 mode: a 245 kB still on a link whose budget is 2000 kbit/s: the encoder's target drops to 30 % of the
+    budget for the still's crossing (its 1960 kbit over the 70 % left, plus a margin), reports covering that time
+    are not judged (a delay that would cut the budget changes nothing), and afterwards the target is back."""
+    from axis_ptz_ros2.media.h264_settings import H264Settings
+    from axis_ptz_ros2.streaming.feedback import FeedbackReport
+    from axis_ptz_ros2.streaming.still import STILL_H264_VIDEO_SHARE, STILL_MARGIN_S
+
+    clock = _Clock()
+    settings = VideoSettings(
+        codec="h264", fps=25, resolution="704x576", h264=H264Settings(bitrate_kbps=1000, max_bitrate_kbps=1500)
+    )
+    ctl = VideoController(settings, BitrateMeter(2.0), clock=clock)
+    ctl.set_h264_possible(True)
+    _send(ctl, clock, 3.0, 1000.0)
+    clear = FeedbackReport("/op", 50, 25.0, 1000.0, 0.03, 0.01, 0.04, 2.0)
+    while ctl.h264_settings().bitrate_kbps < 1500:  # a clear link: the budget climbs, the target to the ceiling
+        ctl.feedback(clear, lambda _c: True)
+        _send(ctl, clock, 0.5, 0.9 * ctl.h264_settings().bitrate_kbps)
+        assert clock.t < 1100.0, "the budget never climbed"
+    budget = ctl.state().link_budget_kbps
+    assert budget > 1600
+    ctl.on_still(clock.t, 245_000)
+    target = ctl.h264_settings().bitrate_kbps
+    assert target == int(STILL_H264_VIDEO_SHARE * budget)
+    crossing = 245_000 * 8 / 1000 / ((1 - STILL_H264_VIDEO_SHARE) * budget) + STILL_MARGIN_S
+    queued = FeedbackReport("/op", 50, 25.0, 900.0, 0.7, 0.01, 0.04, 2.0)  # a 690 ms queue: congestion by itself
+    assert ctl.feedback(queued, lambda _c: True) is None  # not judged: the still's own queue
+    assert ctl.state().link_budget_kbps == budget
+    _send(ctl, clock, crossing - 0.2, target)
+    assert ctl.h264_settings().bitrate_kbps == target  # still crossing
+    _send(ctl, clock, 0.4, target)
+    assert ctl.h264_settings().bitrate_kbps == 1500  # crossed: the target is back
+    assert ctl.feedback(queued, lambda _c: True) is None  # a report whose window still covers the crossing
+    _send(ctl, clock, 2.6, 1500.0)
+    j = ctl.feedback(queued, lambda _c: True)  # past it: the same queue is congestion again
+    assert j is not None
+    assert j.decision.state == "congested"
+
+
+def test_mjpeg_a_still_does_not_cap_or_hide_anything_of_h264():
+    """MJPEG mode keeps its own reservation (the ladder); the H.264 window is not opened."""
+    clock = _Clock()
+    ctl = VideoController(VideoSettings(fps=10, resolution="704x576"), BitrateMeter(2.0), clock=clock)
+    before = ctl.h264_settings().bitrate_kbps
+    ctl.on_still(clock.t, 245_000)
+    assert ctl.h264_settings().bitrate_kbps == before

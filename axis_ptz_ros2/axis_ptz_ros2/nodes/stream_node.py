@@ -144,7 +144,9 @@ class StreamNode(Node):
             events=events,
         )
         # still/capture -> still/compressed: the camera's best JPEG on demand, counted against the budget
-        self._still = StillOutput(self, self._client, self._video, frame_id, self.get_logger().warning)
+        self._still = StillOutput(
+            self, self._client, self._video, frame_id, self.get_logger().warning, count=pl.on_still
+        )
 
         self.feedback_reports = 0  # consumers' reports received (diagnostics, tests)
         self.create_subscription(LinkFeedback, "video/feedback", self._on_feedback, FEEDBACK_QOS)

@@ -56,11 +56,15 @@ class StillOutput:
         video: VideoController,
         frame_id: str,
         log: Callable[[str], None] | None = None,
+        count: Callable[[float, int], None] | None = None,
     ) -> None:
         """``client``: the stream's camera client (its configuration and auth counters are shared, not its
-        connection or lock); ``video``: the controller whose budget the still counts against."""
+        connection or lock); ``video``: the controller whose budget the still counts against; ``count(now,
+        nbytes)``: what counts a still going out (default ``video.on_still``; the pipeline's also tells the encoder
+        at once)."""
         self._node = node
         self._video = video
+        self._count = count or video.on_still
         self._frame_id = frame_id
         self._log = log
         config = client.config
@@ -121,7 +125,7 @@ class StillOutput:
         msg.header.frame_id = self._frame_id
         msg.format = jpeg_format(still.components)
         msg._data = still.jpeg  # noqa: SLF001 - the immutable bytes as they are (as the live images)
-        self._video.on_still(time.monotonic(), len(still.jpeg))
+        self._count(time.monotonic(), len(still.jpeg))
         self.pub.publish(msg)
         return still_summary(still)
 

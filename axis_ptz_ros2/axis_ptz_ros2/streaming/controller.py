@@ -35,6 +35,7 @@ from collections.abc import Callable, Collection
 from dataclasses import replace
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
 from axis_ptz_ros2.streaming.h264_policy import (
@@ -46,7 +47,7 @@ from axis_ptz_ros2.streaming.h264_policy import (
 )
 from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
 from axis_ptz_ros2.streaming.mjpeg_share import MjpegShare, split_kbps
-from axis_ptz_ros2.streaming.still import ExtraBytes
+from axis_ptz_ros2.streaming.still import ExtraBytes, StillWindow
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
@@ -105,6 +106,7 @@ class VideoController:
         self._settings = settings
         self._h264_meter = BitrateMeter(meter.window_s)  # the H.264 bytes sent, in h264 mode
         self._extra = ExtraBytes(meter.window_s)  # stills sent on the same link (streaming/still.py)
+        self._still = StillWindow()  # h264 mode: a still crossing the link
         self._link = LinkAdapter(_adapter_config(settings, self.h264))
         self._budget = BandwidthController(
             self._request(settings),
@@ -195,6 +197,7 @@ class VideoController:
             link = self._link.budget_kbps if s.adapt_to_link else 0.0
         kbps, ceiling = h264_target_kbps(s.h264.bitrate_kbps, s.h264.max_bitrate_kbps, link, float(s.max_bitrate_kbps))
         kbps = split_kbps(kbps, self.mjpeg.active)[0]
+        kbps = self._still.cap(self._clock(), kbps, BITRATE_RANGE_KBPS[0])
         return replace(
             s.h264,
             bitrate_kbps=kbps,
@@ -317,8 +320,12 @@ class VideoController:
         over the window, at most :data:`STILL_SHARE` of the budget) is reserved out of the MJPEG budget. The next
         judgement (within :data:`BUDGET_PERIOD_S`) judges the live stream against what is left: over it, the ladder
         jumps to the level predicted under it; once the still has left the window the live stream climbs back as
-        usual. Its size never enters the frame-size learning."""
+        usual. Its size never enters the frame-size learning. In h264 mode the encoder instead leaves the still most
+        of the link while it crosses, and reports covering that time are not judged (:class:`~.still.StillWindow`)."""
         self._extra.add(now, nbytes)
+        if self.h264:
+            link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
+            self._still.start(now, nbytes, link if link > 0 else float(self._settings.h264.bitrate_kbps))
 
     def on_h264_frame(self, now: float, nbytes: int) -> None:
         """An H.264 access unit of ``nbytes`` was sent (h264 mode: what consumers' reports are judged against)."""
@@ -448,6 +455,8 @@ class VideoController:
         changed = self._budget.changed_at
         if changed is not None and now - changed < r.window_s + FEEDBACK_SETTLE_S:
             return None  # the report's window still holds the switch (the reconnect's gap, the old settings)
+        if self.h264 and self._still.covers(now, r.window_s + FEEDBACK_SETTLE_S):
+            return None  # the report's window holds a still crossing the link: its queue is ours
         if r.frames == 0 and sent.span_s < 0.75 * meter.window_s:
             return None  # nothing received, but the stream has only just (re)started: not a swamped link
         return r

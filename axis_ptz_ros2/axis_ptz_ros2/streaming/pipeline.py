@@ -192,6 +192,12 @@ class VideoPipeline:
         self._decide()
         return None if judgement is None else str(judgement)
 
+    def on_still(self, now: float, nbytes: int) -> None:
+        """A still of ``nbytes`` goes out on the link now (monotonic ``now``): counted against the budget, and in
+        h264 mode the encoder told at once to leave it room (:meth:`.controller.VideoController.on_still`)."""
+        self.video.on_still(now, nbytes)
+        self._decide()
+
     def tick(self) -> None:
         """1 Hz: the reader's watchdog, the link adapter's hold and release, the passthrough size's holds."""
         self.reader.check_watchdog()

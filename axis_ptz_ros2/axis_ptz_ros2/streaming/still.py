@@ -214,3 +214,49 @@ class ExtraBytes:
             self._samples = [s for s in self._samples if s[0] > cutoff]
             total = sum(b for t, b in self._samples if t <= now)
         return total * 8.0 / 1000.0 / self.window_s
+
+
+#: h264 mode: while a still crosses the link the live H.264 gets at most this fraction of the reference rate (the
+#: link's budget, or ``h264_bitrate_kbps`` without feedback), so the still has the rest. H.264 at a third of its
+#: rate keeps its picture rate (the picture gets softer for a second or two); the MJPEG ladder would have to step
+#: down in size or rate instead, so MJPEG keeps :data:`~.controller.STILL_SHARE` of its budget for one meter window.
+STILL_H264_VIDEO_SHARE = 0.3
+#: s: added to a still's expected crossing time (the link's repairs, the reader's heartbeat)
+STILL_MARGIN_S = 0.5
+
+
+class StillWindow:
+    """h264 mode: the time a still is expected to take on the link (thread-safe). Until then the encoder's target
+    is capped at :data:`STILL_H264_VIDEO_SHARE` of the reference rate, and consumers' reports covering that time are
+    not judged: the queue the still makes is ours, not the link's congestion (without this, two stills of 170-245 kB
+    on 2 Mbit/s + 2 % read as congestion and cut the budget to its 100 kbit/s floor: the live video fell from 25 to
+    5 fps and stills took 4.8 s or never came, two-host bench at dfd75bb)."""
+
+    def __init__(self) -> None:
+        self._until = -1e18
+        self._cap_kbps = 0.0
+        self._lock = threading.Lock()
+
+    def start(self, now: float, nbytes: int, reference_kbps: float) -> float:
+        """A still of ``nbytes`` goes out at ``now`` on a link of about ``reference_kbps`` (> 0); returns until when
+        (monotonic s) it is expected to be crossing."""
+        if reference_kbps <= 0:
+            raise ValueError("reference_kbps must be positive")
+        room = (1.0 - STILL_H264_VIDEO_SHARE) * reference_kbps
+        with self._lock:
+            self._until = max(self._until, now + nbytes * 8.0 / 1000.0 / room + STILL_MARGIN_S)
+            self._cap_kbps = STILL_H264_VIDEO_SHARE * reference_kbps
+            return self._until
+
+    def cap(self, now: float, kbps: int, floor: int) -> int:
+        """The live H.264 target ``kbps`` while a still crosses (at most the cap, never under ``floor``), else as
+        it is."""
+        with self._lock:
+            if now >= self._until:
+                return kbps
+            return max(floor, min(kbps, int(self._cap_kbps)))
+
+    def covers(self, now: float, window_s: float) -> bool:
+        """Whether a report of the last ``window_s`` seconds (received at ``now``) covers a still's crossing."""
+        with self._lock:
+            return now - window_s < self._until
