@@ -463,7 +463,8 @@ def print_stills(r: dict[str, Any]) -> None:
         print(f"  still request {q['k']}: {ans}; {got}")
     print(
         f"{r['name']}: stills asked {r['still_asked']}, answered ok {r['still_ok']}, arrived {r['still_arrived']}; "
-        f"call -> still median {fmt(r['still_arrival_p50'], '{:.2f}')} s, max {worst} (target <= {STILL_TARGET_S} s); call -> answer median {fmt(r['still_answer_p50'], '{:.2f}')} s, max "
+        f"call -> still median {fmt(r['still_arrival_p50'], '{:.2f}')} s, max {worst} (target <= {STILL_TARGET_S} s); "
+        f"call -> answer median {fmt(r['still_answer_p50'], '{:.2f}')} s, max "
         f"{fmt(r['still_answer_max'], '{:.2f}')} s; size {r['still_sizes']} (target {W}x{H}), "
         f"{fmt(r['still_bytes_p50'], '{:.0f}')} bytes median"
     )
