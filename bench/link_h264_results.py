@@ -445,13 +445,21 @@ def still_figures(s: Session, end: int) -> dict[str, Any]:
     out["still_win_fps_worst"] = worst if got else math.nan
     out["still_win_age_p95"] = pct(ages, 0.95)
     out["still_win_pictures"] = len(ages)
+    # the live video before the first request (from the measurement's start, which includes the start-up)
+    b = reqs[0]["rx"] if reqs else s.t0
+    before = [p for p in s.pics if s.t0 <= p["rx"] < b]
+    out["still_pre_s"] = (b - s.t0) / NS
+    out["still_pre_fps"] = (
+        sum(1 for p in before if (p["w"], p["h"]) == s.size) / out["still_pre_s"] if b > s.t0 else math.nan
+    )
+    out["still_pre_age_p95"] = pct([x for x in (age_ms(p) for p in before) if not math.isnan(x)], 0.95)
     return out
 
 
 def print_stills(r: dict[str, Any]) -> None:
     """The ``h264-still`` figures, one line per request and the summary against the targets."""
     print(f"{r['name']}: a still asked every {STILL_EVERY_S:g} s from {STILL_AFTER_S:g} s after the first picture")
-    worst = "— (a still did not come)" if math.isinf(r["still_arrival_max"]) else f"{r['still_arrival_max']:.2f} s"
+    worst = still_max(r)
     for q in r["still_requests"]:
         a, st = q["answer"], q["still"]
         ans = "no answer"
@@ -473,8 +481,16 @@ def print_stills(r: dict[str, Any]) -> None:
         f"{W}x{H} (worst window {fmt(r['still_win_fps_worst'], '{:.1f}')}), age p95 "
         f"{fmt(r['still_win_age_p95'], '{:.0f}')} ms over {r['still_win_pictures']} pictures (targets >= "
         f"{STILL_FPS_TARGET:.0f} fps, <= {STILL_AGE_TARGET_MS:.0f} ms); whole session after the first "
-        f"{SETTLE_S:.0f} s: {r['fps_full']:.1f} fps, age p95 {r['age_p95']:.0f} ms"
+        f"{SETTLE_S:.0f} s: {r['fps_full']:.1f} fps, age p95 {r['age_p95']:.0f} ms; the {r['still_pre_s']:.1f} s "
+        f"before the first request: {fmt(r['still_pre_fps'], '{:.1f}')} fps, age p95 "
+        f"{fmt(r['still_pre_age_p95'], '{:.0f}')} ms"
     )
+
+
+def still_max(r: dict[str, Any]) -> str:
+    """The slowest still's call -> arrival, or that one did not come."""
+    m = r["still_arrival_max"]
+    return "— (a still did not come)" if math.isinf(m) else f"{fmt(m, '{:.2f}')} s"
 
 
 def still_good(r: dict[str, Any]) -> bool:
