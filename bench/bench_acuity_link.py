@@ -19,6 +19,9 @@ simulator's own handler, before the session measures). Sessions, one after anoth
   q6075-auto  2 Mbit/s: the same with ``resolution`` auto: the driver picks the size by the bitrate in force
               (``streaming/passthrough_size.py``; the robot gets ``-p resolution:=""`` after the size asked, the last
               ``-p`` wins); its pictures are upscaled to 1920x1080 before they are read
+  h264-still  2 Mbit/s: as ``h264``, the operator asking for a full-quality still (``still/capture``) every 5 s
+              (``bench_link_h264.py``'s ``h264-still``: its still figures too); each still that arrived is read as
+              the live pictures are, against the camera's own compression-0 rows (target: equal). Only if asked for.
 
 How a picture is read: ``bench/acuity.py`` through the chart's homography at the camera's pose (known from the
 simulator, so the reading is the picture's detail, not whether its fiducials were found); a picture smaller than the
@@ -70,17 +73,26 @@ from link_h264_results import (  # noqa: E402
     NS,
     PAN_SPEED,
     SETTLE_S,
+    STILL_AGE_TARGET_MS,
+    STILL_FPS_TARGET,
+    STILL_TARGET_S,
     Session,
     figures,
     fmt,
     plot,
+    print_stills,
     print_table,
     session,
+    still_figures,
+    still_good,
+    still_max,
 )
 from link_h264_roles import PSNR_EVERY  # noqa: E402
 
 CHART = "acuity_35m"
 SESSIONS = ("mjpeg", "h264", "h264-nofb", "h264-1m", "h264-pan", "q6075-h264", "q6075-auto")
+#: sessions run only when asked for (``--sessions``)
+EXTRA = ("h264-still",)
 #: sessions that are another one with extra robot parameters (``BENCH_LINK_ROBOT_ARGS`` of bench_link_h264.py)
 VARIANTS = {"h264-1m": ("h264", ""), "q6075-auto": ("q6075-h264", '-p resolution:=""')}
 REF_DRAWS = 5  #: compression-0 JPEGs of the still view read for the camera's own rows (median)
@@ -102,8 +114,8 @@ def chart_pose(model: str, size: tuple[int, int]) -> tuple[Any, Any, tuple[float
 
 def acuity_session(name: str, every: int) -> Session:
     """Session ``name`` (:data:`SESSIONS`) in acuity mode."""
-    if name not in SESSIONS:
-        raise ValueError(f"unknown session {name!r}: one of {', '.join(SESSIONS)}")
+    if name not in SESSIONS + EXTRA:
+        raise ValueError(f"unknown session {name!r}: one of {', '.join(SESSIONS + EXTRA)}")
     s = session(VARIANTS[name][0] if name in VARIANTS else name)
     s.name = name
     s.rate_kbit = 1000 if name == "h264-1m" else 2000
@@ -207,6 +219,31 @@ def acuity_figures(s: Session, refdir: Path, seconds: float) -> dict[str, Any]:
     targets = [d["target_kbps"] for d in s.diag if d["rx"] >= a]
     out["enc_target"] = statistics.median(targets) if targets else math.nan
     out["enc_kbps"] = out["kbps"] if s.codec == "h264" else math.nan
+    if s.still_every:
+        out.update(still_figures(s, s.t0 + int(seconds * NS)))
+        out.update(still_acuity(out["still_requests"], refdir, s.size, ref))
+    return out
+
+
+def still_acuity(requests: list[dict[str, Any]], refdir: Path, size: tuple[int, int], ref: list[int]) -> dict[str, Any]:
+    """The stills that arrived (``refdir/stills/<stamp>.jpg``, kept by the viewer) read through the chart's homography
+    at the session's pose, as the live pictures are (a smaller one upscaled to ``size`` first), against the camera's
+    own compression-0 rows ``ref`` (:data:`REF_DRAWS` draws): rows per still, their median, equal or not."""
+    import cv2
+    import numpy as np
+
+    H = np.load(refdir / "chart_h.npy")
+    rows = []
+    for q in requests:
+        st = q["still"]
+        f = refdir / "stills" / f"{st['stamp']}.jpg" if st else None
+        if f is None or not f.exists():
+            continue
+        img = cv2.imdecode(np.frombuffer(f.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+        rows.append(acuity.score(upscaled(img, size), H).rows_read)
+    out: dict[str, Any] = {"still_rows": rows}
+    out["still_rows_p50"] = statistics.median(rows) if rows else math.nan
+    out["still_rows_equal"] = bool(rows) and bool(ref) and statistics.median(rows) == statistics.median(ref)
     return out
 
 
@@ -271,6 +308,21 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> bool:
         "more rows read than the 214 (H.264 + monitor" + (f": {fmt(h['rows_p50'], '{:g}')})" if h else ")"),
         (lambda r: r["rows_p50"] > h["rows_p50"]) if h else None,
     )  # fmt: skip
+    st = results.get("h264-still")
+    if st is not None:
+        g = bool(still_good(st) and st["still_rows_equal"])
+        row(
+            "acuity chart at 35 m (zoom limit), two hosts, 2 Mbit/s 2 % loss, H.264 + link monitor, a full-quality "
+            "still asked every 5 s: stills arrived / asked; call → still median, max; rows read in the stills vs the "
+            "camera's own compression-0 pictures; live video fps / age p95 from each call to its still's arrival",
+            f"{st['still_arrived']} / {st['still_asked']}; {fmt(st['still_arrival_p50'], '{:.2f}')}, "
+            f"{still_max(st)}; stills {' '.join(map(str, st['still_rows'])) or '—'} rows "
+            f"(camera {st['ref']}); {fmt(st['still_win_fps'], '{:.1f}')} fps / "
+            f"{fmt(st['still_win_age_p95'], '{:.0f}')} ms",
+            f"all / ≤ {STILL_TARGET_S} s; equal; ≥ {STILL_FPS_TARGET:.0f} fps / ≤ {STILL_AGE_TARGET_MS:.0f} ms",
+            g,
+        )
+        ok &= g
     q = results.get("q6075-h264")
     checked(
         "q6075-auto", "2 Mbit/s", "current-Axis persona, resolution auto (size by the bitrate), passed through + "
@@ -284,7 +336,7 @@ def readme_rows(results: dict[str, dict[str, Any]]) -> bool:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=40.0, help="measurement per session (s, >= 20)")
-    ap.add_argument("--sessions", default=",".join(SESSIONS), help="comma-separated, of " + ", ".join(SESSIONS))
+    ap.add_argument("--sessions", default=",".join(SESSIONS), help="comma-separated, of " + ", ".join(SESSIONS + EXTRA))
     ap.add_argument("--every", type=int, default=15, help=f"read every N-th picture shown (a multiple of {PSNR_EVERY})")
     ap.add_argument("--plot", default="", help="PNG of the sessions over time ('' = none)")
     ap.add_argument(
@@ -297,8 +349,8 @@ def main() -> int:
         ap.error(f"--every must be a positive multiple of {PSNR_EVERY}, not {a.every}")
     names = [n for n in a.sessions.split(",") if n]
     for n in names:
-        if n not in SESSIONS:
-            ap.error(f"unknown session {n!r}: one of {', '.join(SESSIONS)}")
+        if n not in SESSIONS + EXTRA:
+            ap.error(f"unknown session {n!r}: one of {', '.join(SESSIONS + EXTRA)}")
     from tests.support import link as linkmod
 
     reason = linkmod.available()
@@ -337,6 +389,14 @@ def main() -> int:
         results.append(r)
     print()
     print_table(results, seconds, 2000, TABLE)
+    for r in results:
+        if "still_asked" in r:
+            print_stills(r)
+            print(
+                f"{r['name']}: acuity chart in the stills: {' '.join(map(str, r['still_rows'])) or '—'} rows read "
+                f"(median {fmt(r['still_rows_p50'], '{:g}')}); the camera's own compression-0 pictures: {r['ref']}; "
+                f"target: equal -> {'equal' if r['still_rows_equal'] else 'NOT equal'}"
+            )
     if a.plot:
         plot(sessions, seconds, Path(a.plot), 2000)
         print(f"\nplot: {os.path.relpath(a.plot, ROOT)}")

@@ -23,6 +23,12 @@ fresh link, so they never share it):
                   MJPEG subscriber that reports on its topic, started first) beside a plain H.264 viewer without
                   feedback (issue 40's crowded link; both measured, rows ``crowded`` and ``crowded-mjpeg``; only if
                   asked for)
+  h264-still      as ``h264``, and the operator's viewer asks for a full-quality still (``still/capture``, std_srvs/
+                  Trigger) every 5 s from 10 s after its first picture, subscribing ``still/compressed`` as the
+                  node publishes it (reliable, transient local, depth 1): per request the time to the answer and to
+                  the still's arrival, the still's size and bytes, and the live video (fps, age p95) in the windows
+                  from each request to its still's arrival beside the whole session's (issue 39 item 5; only if
+                  asked for)
 
 The operator's measuring viewer is this script's ``--viewer`` mode: with feedback it *is* ``axis_link_monitor``
 (its node class, run in-process with its parameters, so the link carries one copy of the video as in the README's
@@ -81,6 +87,10 @@ from link_h264_results import (  # noqa: E402
     NS,
     PAN_SPEED,
     SCRIPTS,
+    STILL_AGE_TARGET_MS,
+    STILL_EVERY_S,
+    STILL_FPS_TARGET,
+    STILL_TARGET_S,
     H,
     Session,
     W,
@@ -91,9 +101,13 @@ from link_h264_results import (  # noqa: E402
     link_name,
     panning_psnr,
     plot,
+    print_stills,
     print_table,
     report_events,
     session,
+    still_figures,
+    still_good,
+    still_max,
 )
 from link_h264_roles import robot_sim, viewer  # noqa: E402
 
@@ -108,6 +122,7 @@ INPUTS = (
     "axis_ptz_ros2/axis_ptz_ros2/media",
     "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
     "axis_ptz_ros2/axis_ptz_ros2/nodes/link_monitor.py",
+    "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_still.py",
     "tests/support/link.py",
     "config/fastdds_weak_link.xml",
     "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
@@ -125,6 +140,8 @@ def start_viewer(hosts: Any, link: Any, s: Session, env: dict[str, str], refdir:
         argv.append("--save-pictures")
     if s.acuity_every:
         argv += ["--acuity", str(s.acuity_every)]
+    if s.still_every:
+        argv += ["--still-every", str(s.still_every)]
     err = open(hosts.logs / f"{hosts.tag}-viewer-{k}.log", "wb")  # noqa: SIM115 - closed below, the child keeps it
     spawned = time.time_ns()
     proc = link.popen("operator", argv, env=env, stdout=subprocess.PIPE, stderr=err, cwd=str(ROOT))
@@ -242,6 +259,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
         s.lost = [r for r in reader.of("lost") if s.t0 <= r["rx"] < end]
         s.gaps = [r for r in reader.of("gap") if s.t0 <= r["rx"] < end]
         s.params = reader.of("params")
+        s.stills = reader.of("still_req") + reader.of("still_ans") + reader.of("still")
         if s.crowd is not None and crowd is not None:
             c = s.crowd
             c.t0, c.params = s.t0, crowd.of("params")
@@ -262,6 +280,14 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
     if s.pan_speed:
         panning_psnr(s, refdir)
     return s
+
+
+def with_stills(s: Session, seconds: float) -> dict[str, Any]:
+    """The session's figures, and the stills' (``link_h264_results.still_figures``) when it asked for stills."""
+    out = figures(s, seconds)
+    if s.still_every:
+        out.update(still_figures(s, s.t0 + int(seconds * NS)))
+    return out
 
 
 def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
@@ -344,6 +370,19 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
             "report",
             None,
         )
+    for r in results.values():
+        if "still_asked" in r:
+            checked(
+                f"{link}, H.264 + link monitor, a full-quality still asked every {STILL_EVERY_S:g} s (still/capture → "
+                "still/compressed): stills arrived / asked; call → still median, max; its size; live video fps / age "
+                "p95 from each call to its still's arrival (whole session's)",
+                f"{r['still_arrived']} / {r['still_asked']}; {fmt(r['still_arrival_p50'], '{:.2f}')}, "
+                f"{still_max(r)}; {r['still_sizes']} ({fmt(r['still_bytes_p50'], '{:.0f}')}"
+                f" bytes); {fmt(r['still_win_fps'], '{:.1f}')} fps / {fmt(r['still_win_age_p95'], '{:.0f}')} ms "
+                f"({r['fps_full']:.1f} fps / {r['age_p95']:.0f} ms)",
+                f"all / ≤ {STILL_TARGET_S} s; {W}x{H}; ≥ {STILL_FPS_TARGET:.0f} fps / ≤ {STILL_AGE_TARGET_MS:.0f} ms",
+                still_good(r),
+            )
     return ok
 
 
@@ -374,7 +413,7 @@ def main() -> int:
     ap.add_argument(
         "--sessions",
         default="mjpeg,h264,h264-nofb,mjpeg-nofb",
-        help="also h264-step, h264-cut (scripted link changes), h264-pan, q6075-h264",
+        help="also h264-step, h264-cut (scripted link changes), h264-pan, q6075-h264, crowded, h264-still",
     )
     ap.add_argument("--starts", type=int, default=5, help="viewer starts timed in the h264-nofb session")
     ap.add_argument("--rate-kbit", type=int, default=2000, help="the link's rate each way (kbit/s)")
@@ -391,6 +430,7 @@ def main() -> int:
     ap.add_argument("--aim", default="", help=argparse.SUPPRESS)
     ap.add_argument("--diagnostics", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--acuity", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--still-every", type=float, default=0.0, help=argparse.SUPPRESS)
     ap.add_argument("--viewer", choices=("mjpeg", "h264"), default="", help=argparse.SUPPRESS)
     ap.add_argument("--no-feedback", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--save-pictures", action="store_true", help=argparse.SUPPRESS)
@@ -401,7 +441,7 @@ def main() -> int:
     if a.robot_sim:
         return robot_sim(a.robot_sim, a.ref, a.model, a.pan_speed, a.aim, a.pan_flip, a.diagnostics)
     if a.viewer:
-        return viewer(a.viewer, not a.no_feedback, a.ref, a.save_pictures, a.acuity)
+        return viewer(a.viewer, not a.no_feedback, a.ref, a.save_pictures, a.acuity, a.still_every)
     from tests.support import link as linkmod
 
     reason = linkmod.available()
@@ -422,7 +462,7 @@ def main() -> int:
         sessions.append(run_session(session(name), seconds, a.starts, logs, a.fastdds_profile))
     scripted = [s for s in sessions if s.name in SCRIPTS]
     sessions = [s for s in sessions if s.name not in SCRIPTS]
-    results = [figures(x, seconds) for s in sessions for x in (s, s.crowd) if x is not None]
+    results = [with_stills(x, seconds) for s in sessions for x in (s, s.crowd) if x is not None]
     events = [event_figures(s) for s in scripted]
     print()
     for s in sessions:
@@ -430,6 +470,9 @@ def main() -> int:
             ceiling(logs / f"ref-{s.name}")
     if results:
         print_table(results, seconds, LINK_KBIT)
+    for r in results:
+        if "still_asked" in r:
+            print_stills(r)
     if a.plot:
         plot(sessions + scripted, seconds, Path(a.plot), LINK_KBIT)
         print(f"\nplot: {os.path.relpath(a.plot, ROOT)}")

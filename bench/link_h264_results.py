@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench_link import pct  # the two-host bench's helpers
-from link_h264_roles import psnr_db
+from link_h264_roles import STILL_AFTER_S, psnr_db
 
 NS = 1_000_000_000
 W, H = 704, 576
@@ -22,6 +22,14 @@ W, H = 704, 576
 #: is lower, and the README row says which.
 CAMERA_FPS = 25.0
 FPS_TARGET = min(29.0, 0.97 * CAMERA_FPS)
+#: ``h264-still``: a still asked for every this many seconds, the first :data:`STILL_AFTER_S` after the viewer's
+#: first picture (so about when the figures' steady part begins), and the targets (issue 39 item 5)
+STILL_EVERY_S = 5.0
+STILL_TARGET_S = 1.5
+STILL_FPS_TARGET = 20.0
+STILL_AGE_TARGET_MS = 250.0
+#: a request made later than this before the measurement's end is not counted (its still could not arrive in time)
+STILL_GRACE_S = 4.0
 SETTLE_S = 10.0  # the first seconds of a measurement (the MJPEG ladder finding its rate) are reported apart
 PAN_SPEED = 10  #: the panning session's ``continuouspantiltmove`` speed: % of the 214's 100°/s, so 10°/s
 
@@ -39,6 +47,9 @@ class Session:
     pan_flip_s: float = 0.0  # a panning head reverses every this many seconds (0: ``link_h264_roles.PAN_FLIP_S``)
     acuity_every: int = 0  # the viewer keeps every this-many-th picture shown for the acuity chart (0: none)
     diagnostics: bool = False  # the robot side records the stream node's H.264 bitrate target (/diagnostics)
+    #: the operator's viewer asks for a still (``still/capture``) every this many seconds, from
+    #: :data:`STILL_AFTER_S` after its first picture (0: never; ``link_h264_roles.still_client``)
+    still_every: float = 0.0
     t0: int = 0
     pics: list[dict[str, Any]] = field(default_factory=list)
     params: list[dict[str, Any]] = field(default_factory=list)
@@ -55,6 +66,8 @@ class Session:
     events: dict[str, int] = field(default_factory=dict)  # what happened to the link, and when (ns)
     acuity: list[dict[str, Any]] = field(default_factory=list)  # chart readings (``bench/bench_acuity_link.py``)
     diag: list[dict[str, Any]] = field(default_factory=list)  # the stream node's H.264 bitrate target over time
+    #: still requests (``still_req``), their Trigger answers (``still_ans``) and the stills that arrived (``still``)
+    stills: list[dict[str, Any]] = field(default_factory=list)
     pose0: list[float] = field(default_factory=list)  # the pose the camera started measuring from
     #: ``crowded``: a second viewer on the operator's side beside this one, started before it (the MJPEG subscriber)
     crowd: Session | None = None
@@ -74,7 +87,8 @@ def session(name: str) -> Session:
     """A session by its name: ``mjpeg``, ``h264``, ``h264-nofb``, ``mjpeg-nofb``, ``h264-step``, ``h264-cut``,
     ``h264-pan`` (the head sweeping at :data:`PAN_SPEED`), ``q6075-h264`` (the current-Axis persona's H.264 passed
     through, 1920x1080 asked), ``crowded`` (issue 40: a plain H.264 viewer beside ``axis_link_monitor`` left at
-    ``codec: mjpeg``, started first -- the MJPEG subscriber -- while the stream node runs ``codec: h264``)."""
+    ``codec: mjpeg``, started first -- the MJPEG subscriber -- while the stream node runs ``codec: h264``),
+    ``h264-still`` (``h264`` with the operator asking for a full-quality still every :data:`STILL_EVERY_S`)."""
     if name == "crowded":
         s = Session(name, "h264", False)
         s.crowd = Session("crowded-mjpeg", "mjpeg", True)
@@ -85,6 +99,8 @@ def session(name: str) -> Session:
         s.pan_speed = PAN_SPEED
     if name.startswith("q6075"):
         s.model, s.size = "q6075", (1920, 1080)
+    if name == "h264-still":
+        s.still_every = STILL_EVERY_S
     return s
 
 
@@ -370,6 +386,125 @@ def print_table(
         print(f"{r['name']}: picture sizes shown (count): {r['sizes']}" + (f"; {r['note']}" if r["note"] else ""))
 
 
+def matched_stills(s: Session, end: int) -> list[dict[str, Any]]:
+    """Per still request made from the measurement's start to :data:`STILL_GRACE_S` before ``end``: its call
+    (``rx``), the Trigger answer (``answer_s`` after the call, ``ok``, ``msg``; None if none came) and the still that
+    arrived for it (``arrival_s`` after the call, ``w``, ``h``, ``bytes``, ``stamp``; None if none). A still belongs
+    to the last request called before its stamp (the JPEG's arrival on the robot, the same clock): a refused
+    request publishes none."""
+    reqs = sorted(
+        (r for r in s.stills if r["t"] == "still_req" and s.t0 <= r["rx"] <= end - int(STILL_GRACE_S * NS)),
+        key=lambda r: r["rx"],
+    )
+    answers = {r["k"]: r for r in s.stills if r["t"] == "still_ans"}
+    out = [dict(r, answer=answers.get(r["k"]), still=None) for r in reqs]
+    calls = [r for r in out if r.get("ready", True)]
+    for st in sorted((r for r in s.stills if r["t"] == "still"), key=lambda r: r["rx"]):
+        owner = [r for r in calls if r["rx"] <= st["stamp"]]
+        if owner and owner[-1]["still"] is None:
+            owner[-1]["still"] = st
+    for r in out:
+        a, st = r["answer"], r["still"]
+        r["answer_s"] = (a["rx"] - r["rx"]) / NS if a else None
+        r["arrival_s"] = (st["rx"] - r["rx"]) / NS if st else None
+    return out
+
+
+def still_figures(s: Session, end: int) -> dict[str, Any]:
+    """``h264-still``: stills asked / answered with success / arrived, call → answer and call → arrival (median,
+    max), the stills' sizes and bytes, and the live video in the windows from each call to its still's arrival:
+    pictures of the size asked per second over those windows together, the worst window's, and the frame age p95
+    of the pictures shown in them."""
+    reqs = matched_stills(s, end)
+    got = [r for r in reqs if r["still"] is not None]
+    arrival = [r["arrival_s"] for r in got]
+    answer = [r["answer_s"] for r in reqs if r["answer_s"] is not None]
+    out: dict[str, Any] = {"still_requests": reqs}
+    out["still_asked"], out["still_arrived"] = len(reqs), len(got)
+    out["still_ok"] = sum(1 for r in reqs if r["answer"] and r["answer"]["ok"])
+    out["still_not_ready"] = sum(1 for r in reqs if not r.get("ready", True))
+    out["still_answer_p50"], out["still_answer_max"] = pct(answer, 0.5), max(answer, default=math.nan)
+    out["still_arrival_p50"], out["still_arrival_max"] = pct(arrival, 0.5), max(arrival, default=math.nan)
+    # every request that got no still counts as never arriving (the target is on every request)
+    if len(got) < len(reqs):
+        out["still_arrival_max"] = math.inf
+    sizes = sorted({f"{r['still']['w']}x{r['still']['h']}" for r in got})
+    out["still_sizes"] = ", ".join(sizes) or "none"
+    out["still_size_ok"] = bool(got) and sizes == [f"{W}x{H}"]
+    out["still_bytes_p50"] = pct([r["still"]["bytes"] for r in got], 0.5)
+    n, span, ages, worst = 0, 0.0, [], math.inf
+    for r in got:
+        a, b = r["rx"], r["still"]["rx"]
+        inside = [p for p in s.pics if a <= p["rx"] <= b]
+        full = [p for p in inside if (p["w"], p["h"]) == s.size]
+        n += len(full)
+        span += (b - a) / NS
+        ages += [x for x in (age_ms(p) for p in inside) if not math.isnan(x)]
+        worst = min(worst, len(full) / ((b - a) / NS)) if b > a else worst
+    out["still_win_fps"] = n / span if span > 0 else math.nan
+    out["still_win_fps_worst"] = worst if got else math.nan
+    out["still_win_age_p95"] = pct(ages, 0.95)
+    out["still_win_pictures"] = len(ages)
+    # the live video before the first request (from the measurement's start, which includes the start-up)
+    b = reqs[0]["rx"] if reqs else s.t0
+    before = [p for p in s.pics if s.t0 <= p["rx"] < b]
+    out["still_pre_s"] = (b - s.t0) / NS
+    out["still_pre_fps"] = (
+        sum(1 for p in before if (p["w"], p["h"]) == s.size) / out["still_pre_s"] if b > s.t0 else math.nan
+    )
+    out["still_pre_age_p95"] = pct([x for x in (age_ms(p) for p in before) if not math.isnan(x)], 0.95)
+    return out
+
+
+def print_stills(r: dict[str, Any]) -> None:
+    """The ``h264-still`` figures, one line per request and the summary against the targets."""
+    print(f"{r['name']}: a still asked every {STILL_EVERY_S:g} s from {STILL_AFTER_S:g} s after the first picture")
+    worst = still_max(r)
+    for q in r["still_requests"]:
+        a, st = q["answer"], q["still"]
+        ans = "no answer"
+        if a is not None:
+            ans = f"answer {q['answer_s']:.2f} s ({'ok' if a['ok'] else 'FAILED'}: {a['msg']})"
+        if not q.get("ready", True):
+            ans = "not sent: the service was not discovered yet"
+        got = "no still" if st is None else f"still {q['arrival_s']:.2f} s, {st['w']}x{st['h']} {st['bytes']} bytes"
+        print(f"  still request {q['k']}: {ans}; {got}")
+    print(
+        f"{r['name']}: stills asked {r['still_asked']}, answered ok {r['still_ok']}, arrived {r['still_arrived']}; "
+        f"call -> still median {fmt(r['still_arrival_p50'], '{:.2f}')} s, max {worst} (target <= {STILL_TARGET_S} s); "
+        f"call -> answer median {fmt(r['still_answer_p50'], '{:.2f}')} s, max "
+        f"{fmt(r['still_answer_max'], '{:.2f}')} s; size {r['still_sizes']} (target {W}x{H}), "
+        f"{fmt(r['still_bytes_p50'], '{:.0f}')} bytes median"
+    )
+    print(
+        f"{r['name']}: live video from each call to its still's arrival: {fmt(r['still_win_fps'], '{:.1f}')} fps of "
+        f"{W}x{H} (worst window {fmt(r['still_win_fps_worst'], '{:.1f}')}), age p95 "
+        f"{fmt(r['still_win_age_p95'], '{:.0f}')} ms over {r['still_win_pictures']} pictures (targets >= "
+        f"{STILL_FPS_TARGET:.0f} fps, <= {STILL_AGE_TARGET_MS:.0f} ms); whole session after the first "
+        f"{SETTLE_S:.0f} s: {r['fps_full']:.1f} fps, age p95 {r['age_p95']:.0f} ms; the {r['still_pre_s']:.1f} s "
+        f"before the first request: {fmt(r['still_pre_fps'], '{:.1f}')} fps, age p95 "
+        f"{fmt(r['still_pre_age_p95'], '{:.0f}')} ms"
+    )
+
+
+def still_max(r: dict[str, Any]) -> str:
+    """The slowest still's call -> arrival, or that one did not come."""
+    m = r["still_arrival_max"]
+    return "— (a still did not come)" if math.isinf(m) else f"{fmt(m, '{:.2f}')} s"
+
+
+def still_good(r: dict[str, Any]) -> bool:
+    """Every still asked arrived within the target, full size, the live video holding its targets meanwhile."""
+    return bool(
+        r["still_asked"] > 0
+        and r["still_arrived"] == r["still_asked"]
+        and r["still_arrival_max"] <= STILL_TARGET_S
+        and r["still_size_ok"]
+        and r["still_win_fps"] >= STILL_FPS_TARGET
+        and r["still_win_age_p95"] <= STILL_AGE_TARGET_MS
+    )
+
+
 # ---------------------------------------------------------------------------------------------------------
 # the picture (OpenCV drawing, as bench_link.py)
 # ---------------------------------------------------------------------------------------------------------
@@ -381,6 +516,7 @@ COLORS = {
     "h264-pan": (20, 150, 200),
     "q6075-h264": (120, 120, 120),
     "crowded": (0, 200, 200),
+    "h264-still": (0, 120, 240),
 }
 LABELS = {
     "mjpeg": "MJPEG ladder + axis_link_monitor",
@@ -390,6 +526,7 @@ LABELS = {
     "h264-pan": f"H.264 + monitor, camera panning {PAN_SPEED} deg/s",
     "q6075-h264": "current-Axis persona: its H.264 passed through",
     "crowded": "crowded: plain H.264 viewer beside an MJPEG subscriber",
+    "h264-still": "H.264 + monitor, a still asked every 5 s",
 }
 
 

@@ -28,6 +28,14 @@ homography at that pose (``refdir/chart_h.npy``) and can print the stream node's
 ``acuity_every``-th picture it shows (twice that above 704x576) as ``refdir/pics/<capture ns>.npy``, its line marked
 ``"acuity": true``, for the chart to be read after the session (reading a 1920x1080 picture costs ~0.4 s of CPU:
 in the viewer's process it would delay the pictures it times and the monitor's feedback).
+
+Stills (``h264-still``; :func:`still_client`): the viewer also calls the stream node's ``still/capture``
+(std_srvs/Trigger) every ``still_every`` s from :data:`STILL_AFTER_S` after its first picture, and subscribes
+``still/compressed`` with the QoS the node publishes it with (``LATCHED_QOS``: reliable, transient local, depth 1);
+JSON lines per call (``still_req``: its time, or that the service was not discovered yet and nothing was sent), per
+answer (``still_ans``: time, success, message) and per still that arrived (``still``: time, stamp, bytes, the
+JPEG's width and height); each still is kept as ``refdir/stills/<stamp ns>.jpg`` (read for the acuity chart after
+the session).
 """
 
 from __future__ import annotations
@@ -37,12 +45,15 @@ import math
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 #: a panning session's head: the seconds of ``continuouspantiltmove`` from one end of its sweep to the other
 PAN_FLIP_S = 5.0
 PSNR_EVERY = 3
+#: ``still_every``: the viewer's first still request comes this long after its first picture shown
+STILL_AFTER_S = 10.0
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -190,8 +201,72 @@ def robot_sim(  # noqa: C901, PLR0912, PLR0915 - one process's set-up, step by s
 # ---------------------------------------------------------------------------------------------------------
 # operator side
 # ---------------------------------------------------------------------------------------------------------
+def still_client(node: Any, emit: Callable[[dict[str, Any]], None], ref: Path, every: float, first: list[int]) -> None:
+    """On ``node`` (spun by the viewer's executor): ``still/capture`` every ``every`` s from :data:`STILL_AFTER_S`
+    after ``first[0]`` (the first picture shown, ns; 0 until then), ``still/compressed`` recorded (module docstring).
+    A request is made whether or not the previous still has come (the node refuses one while a still is in flight,
+    and says so)."""
+    from sensor_msgs.msg import CompressedImage
+    from std_srvs.srv import Trigger
+
+    from axis_ptz_ros2.nodes.common import LATCHED_QOS
+    from axis_ptz_ros2.nodes.stream_still import STILL_SERVICE, STILL_TOPIC
+    from axis_ptz_ros2.streaming import jpeg_size
+
+    stills = ref / "stills"
+    stills.mkdir(parents=True, exist_ok=True)
+    client = node.create_client(Trigger, STILL_SERVICE)
+    ns = 1_000_000_000
+
+    def on_still(msg: Any) -> None:
+        rx = time.time_ns()
+        data = bytes(msg.data)
+        stamp = int(msg.header.stamp.sec) * ns + int(msg.header.stamp.nanosec)
+        w, h = jpeg_size(data) or (0, 0)
+        (stills / f"{stamp}.jpg").write_bytes(data)
+        emit({"t": "still", "rx": rx, "stamp": stamp, "bytes": len(data), "w": w, "h": h, "format": msg.format})
+
+    node.create_subscription(CompressedImage, STILL_TOPIC, on_still, LATCHED_QOS)
+    k, next_at = [0], [0]
+
+    def answered(n: int, fut: Any) -> None:
+        rx = time.time_ns()
+        try:
+            r = fut.result()
+        except Exception as err:  # noqa: BLE001 - recorded, the bench goes on
+            emit({"t": "still_ans", "k": n, "rx": rx, "ok": False, "msg": f"{type(err).__name__}: {err}"})
+            return
+        emit({"t": "still_ans", "k": n, "rx": rx, "ok": bool(r.success), "msg": str(r.message)})
+
+    def tick() -> None:
+        if not first[0]:
+            return
+        now = time.time_ns()
+        if not next_at[0]:
+            next_at[0] = first[0] + int(STILL_AFTER_S * ns)
+        if now < next_at[0]:
+            return
+        next_at[0] += int(every * ns)
+        k[0] += 1
+        n = k[0]
+        if not client.service_is_ready():
+            emit({"t": "still_req", "k": n, "rx": now, "ready": False})
+            return
+        t = time.time_ns()
+        fut = client.call_async(Trigger.Request())
+        fut.add_done_callback(lambda f, n=n: answered(n, f))
+        emit({"t": "still_req", "k": n, "rx": t, "ready": True})
+
+    node.create_timer(0.02, tick)
+
+
 def viewer(  # noqa: C901, PLR0915
-    codec: str, feedback: bool, refdir: str, save_pictures: bool = False, acuity_every: int = 0
+    codec: str,
+    feedback: bool,
+    refdir: str,
+    save_pictures: bool = False,
+    acuity_every: int = 0,
+    still_every: float = 0.0,
 ) -> int:
     import cv2
     import numpy as np
@@ -215,6 +290,7 @@ def viewer(  # noqa: C901, PLR0915
         pics.mkdir(parents=True, exist_ok=True)
     lock = threading.Lock()
     count = [0]
+    first = [0]  # when the first picture was shown (ns): the still requests count from it
 
     def emit(rec: dict[str, Any]) -> None:
         with lock:
@@ -243,6 +319,7 @@ def viewer(  # noqa: C901, PLR0915
             elif refs:
                 rec["psnr"] = psnr(img)
         count[0] += 1
+        first[0] = first[0] or rx
         emit(rec)
 
     def on_jpeg(data: bytes, rx: int) -> None:
@@ -348,6 +425,8 @@ def viewer(  # noqa: C901, PLR0915
               "fps": m.fps, "resolution": m.resolution, "compression": m.compression})  # fmt: skip
 
     node.create_subscription(VideoParams, "video/params", on_params, LATCHED_QOS)
+    if still_every > 0:
+        still_client(node, emit, ref, still_every, first)
     emit({"t": "ready", "rx": time.time_ns(), "start": t_start})
     spin_until_stopped(node)
     return 0
