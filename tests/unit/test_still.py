@@ -224,3 +224,28 @@ def test_mjpeg_a_still_does_not_cap_or_hide_anything_of_h264():
     before = ctl.h264_settings().bitrate_kbps
     ctl.on_still(clock.t, 245_000)
     assert ctl.h264_settings().bitrate_kbps == before
+
+
+def test_h264_a_still_reported_crossed_holds_the_cap_until_then_not_by_an_estimate():
+    """With ``until_crossed`` the cap lasts until the node says every reader acknowledged the still (a 245 kB still
+    took 1.8-5.0 s on 2 Mbit/s + 2 % where 1.85 s was estimated), at most STILL_CROSSING_MAX_S."""
+    from axis_ptz_ros2.media.h264_settings import H264Settings
+    from axis_ptz_ros2.streaming.still import STILL_CROSSING_MAX_S, StillWindow
+
+    clock = _Clock()
+    settings = VideoSettings(codec="h264", fps=25, resolution="704x576", h264=H264Settings(bitrate_kbps=1000))
+    ctl = VideoController(settings, BitrateMeter(2.0), clock=clock)
+    ctl.set_h264_possible(True)
+    ctl.on_still(clock.t, 245_000, until_crossed=True)
+    capped = ctl.h264_settings().bitrate_kbps
+    assert capped == 300  # 30 % of h264_bitrate_kbps without feedback
+    clock.t += 4.5  # past the 245 kB estimate over 700 kbit/s (2.8 s + 0.5), not yet acknowledged
+    assert ctl.h264_settings().bitrate_kbps == capped
+    ctl.still_crossed(clock.t)
+    assert ctl.h264_settings().bitrate_kbps == 1000
+    w = StillWindow()
+    w.start(0.0, 1000, 1000.0, until_ended=True)
+    assert w.cap(STILL_CROSSING_MAX_S - 0.01, 1000) == 300
+    assert w.cap(STILL_CROSSING_MAX_S, 1000) == 1000  # never acknowledged: the longest wait ends it
+    with pytest.raises(ValueError, match="reference_kbps"):
+        w.start(0.0, 1000, 0.0)

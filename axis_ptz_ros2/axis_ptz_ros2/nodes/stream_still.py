@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable
 
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import CompressedImage
@@ -37,9 +38,12 @@ from std_srvs.srv import Trigger
 
 from axis_ptz_ros2.nodes.common import LATCHED_QOS, jpeg_format, publisher, stamp_from_ns
 from axis_ptz_ros2.streaming.controller import VideoController
-from axis_ptz_ros2.streaming.still import StillOutcome, StillTaker, still_summary
+from axis_ptz_ros2.streaming.still import STILL_CROSSING_MAX_S, StillOutcome, StillTaker, still_summary
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import Resolution
+
+#: s: one wait for the readers' acknowledgements of a still (closing the node ends the waiting within it)
+ACK_POLL_S = 0.2
 
 #: the still's topic and service (relative: they follow the node's namespace)
 STILL_TOPIC = "still/compressed"
@@ -57,14 +61,17 @@ class StillOutput:
         frame_id: str,
         log: Callable[[str], None] | None = None,
         count: Callable[[float, int], None] | None = None,
+        crossed: Callable[[float], None] | None = None,
     ) -> None:
         """``client``: the stream's camera client (its configuration and auth counters are shared, not its
         connection or lock); ``video``: the controller whose budget the still counts against; ``count(now,
         nbytes)``: what counts a still going out (default ``video.on_still``; the pipeline's also tells the encoder
-        at once)."""
+        at once); ``crossed(now)``: told when every reader has acknowledged the still (or the wait for it ended),
+        after the answer."""
         self._node = node
         self._video = video
         self._count = count or video.on_still
+        self._crossed = crossed
         self._frame_id = frame_id
         self._log = log
         config = client.config
@@ -101,6 +108,8 @@ class StillOutput:
             done.set_result((outcome.still is not None, message))
             if not self._closed.is_set():
                 self._wake.trigger()
+            if outcome.still is not None and self._crossed is not None:
+                self._wait_crossed()
 
         refusal = self.taker.start(finished)
         if refusal is not None:
@@ -128,6 +137,17 @@ class StillOutput:
         self._count(time.monotonic(), len(still.jpeg))
         self.pub.publish(msg)
         return still_summary(still)
+
+    def _wait_crossed(self) -> None:
+        """Worker thread, after the answer: wait until every reader has acknowledged the still (in short waits, so
+        closing the node ends it), at most :data:`~axis_ptz_ros2.streaming.still.STILL_CROSSING_MAX_S`; then tell
+        ``crossed``. A second request meanwhile is refused (the taker is busy until this returns)."""
+        deadline = time.monotonic() + STILL_CROSSING_MAX_S
+        while not self._closed.is_set() and time.monotonic() < deadline:
+            if self.pub.wait_for_all_acked(Duration(seconds=ACK_POLL_S)):
+                break
+        if self._crossed is not None:
+            self._crossed(time.monotonic())
 
     def close(self, timeout: float = 1.0) -> None:
         """Before the node goes: no publication from here on, the fetch in flight cut (its client closed), joined."""

@@ -35,7 +35,6 @@ from collections.abc import Callable, Collection
 from dataclasses import replace
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
-from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
 from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
 from axis_ptz_ros2.streaming.h264_policy import (
@@ -197,7 +196,7 @@ class VideoController:
             link = self._link.budget_kbps if s.adapt_to_link else 0.0
         kbps, ceiling = h264_target_kbps(s.h264.bitrate_kbps, s.h264.max_bitrate_kbps, link, float(s.max_bitrate_kbps))
         kbps = split_kbps(kbps, self.mjpeg.active)[0]
-        kbps = self._still.cap(self._clock(), kbps, BITRATE_RANGE_KBPS[0])
+        kbps = self._still.cap(self._clock(), kbps)
         return replace(
             s.h264,
             bitrate_kbps=kbps,
@@ -315,17 +314,20 @@ class VideoController:
         self._announce()
         return step
 
-    def on_still(self, now: float, nbytes: int) -> None:
-        """A still of ``nbytes`` went out on the link (``still/compressed``): for one meter window its rate (bytes
-        over the window, at most :data:`STILL_SHARE` of the budget) is reserved out of the MJPEG budget. The next
-        judgement (within :data:`BUDGET_PERIOD_S`) judges the live stream against what is left: over it, the ladder
-        jumps to the level predicted under it; once the still has left the window the live stream climbs back as
-        usual. Its size never enters the frame-size learning. In h264 mode the encoder instead leaves the still most
-        of the link while it crosses, and reports covering that time are not judged (:class:`~.still.StillWindow`)."""
+    def on_still(self, now: float, nbytes: int, until_crossed: bool = False) -> None:
+        """A still of ``nbytes`` went out on the link (``still/compressed``). MJPEG: for one meter window its rate
+        (at most :data:`STILL_SHARE` of the budget) is reserved out of the budget; the ladder jumps under what is
+        left, then climbs back (the still's size never enters the frame-size learning). h264: the encoder leaves it
+        most of the link while it crosses (``until_crossed``: until :meth:`still_crossed`), and reports covering
+        that time are not judged (:class:`~.still.StillWindow`)."""
         self._extra.add(now, nbytes)
         if self.h264:
             link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
-            self._still.start(now, nbytes, link if link > 0 else float(self._settings.h264.bitrate_kbps))
+            ref = link if link > 0 else float(self._settings.h264.bitrate_kbps)
+            self._still.start(now, nbytes, ref, until_crossed)
+
+    def still_crossed(self, now: float) -> None:
+        self._still.end(now)  # every reader acknowledged the still (or it will not arrive): the full target is back
 
     def on_h264_frame(self, now: float, nbytes: int) -> None:
         """An H.264 access unit of ``nbytes`` was sent (h264 mode: what consumers' reports are judged against)."""

@@ -194,8 +194,14 @@ class VideoPipeline:
 
     def on_still(self, now: float, nbytes: int) -> None:
         """A still of ``nbytes`` goes out on the link now (monotonic ``now``): counted against the budget, and in
-        h264 mode the encoder told at once to leave it room (:meth:`.controller.VideoController.on_still`)."""
-        self.video.on_still(now, nbytes)
+        h264 mode the encoder told at once to leave it room until :meth:`still_crossed`
+        (:meth:`.controller.VideoController.on_still`)."""
+        self.video.on_still(now, nbytes, until_crossed=True)
+        self._decide()
+
+    def still_crossed(self, now: float) -> None:
+        """The still has crossed (every reader acknowledged it, or the wait ended): the encoder's target is back."""
+        self.video.still_crossed(now)
         self._decide()
 
     def tick(self) -> None:
