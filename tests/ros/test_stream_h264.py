@@ -10,7 +10,6 @@ from __future__ import annotations
 import statistics
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl
 
@@ -41,27 +40,12 @@ from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
 from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.idr import idr_granted_at_once  # noqa: E402
-from tests.support.sim import FAST_STREAM_PARAMS, reset_camera  # noqa: E402
+from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 FAST = FAST_STREAM_PARAMS
 H264 = {"codec": "h264", "resolution": "704x576", "fps": 15}
-
-
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimulatedCamera]:
-    cam = SimulatedCamera(host="127.0.0.1", port=0).start()
-    try:
-        yield cam
-    finally:
-        cam.stop()
-
-
-@pytest.fixture
-def camera(sim: SimulatedCamera) -> SimulatedCamera:
-    """The shared simulator with faults and counters reset."""
-    return reset_camera(sim)
 
 
 @dataclass
