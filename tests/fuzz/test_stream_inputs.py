@@ -131,5 +131,7 @@ def test_after_all_that_the_node_streams_with_a_valid_request(rig: Any) -> None:
     assert all(r.successful for r in response.results), [r.reason for r in response.results]
     _still_streaming(ros, arrivals)
     _camera_saw_only_valid_requests(cam)
+    # the reader reconnects with the new request on its own thread: wait for the camera to have seen it
+    ros.wait_for(lambda: any("resolution=352x288" in e.query for e in cam.request_counts.video_log), timeout=10)
     assert any("resolution=352x288" in e.query for e in cam.request_counts.video_log)
     assert math.isfinite(arrivals[-1])
