@@ -383,6 +383,7 @@ def main() -> int:  # noqa: C901, PLR0912, PLR0915 - one scripted run, then its 
     # Fast DDS's 3 s default, 10-minute runs had viewers matched 2.2-2.7 s after they subscribed)
     profile = ROOT / "config" / "fastdds_weak_link.xml"
     os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(profile))
+    os.environ.setdefault("RMW_FASTRTPS_PUBLICATION_MODE", "AUTO")  # as docs/weak-link.md says, with the profile
     print(f"Fast DDS profile: {os.environ['FASTRTPS_DEFAULT_PROFILES_FILE']}")
     inputs(
         "config/fastdds_weak_link.xml",

@@ -27,12 +27,16 @@ ROOT = Path(__file__).resolve().parents[2]  # the repository (tests/netns/hosts.
 
 
 def host_env(**extra: str) -> dict[str, str]:
-    """The environment of a process on one of the two "hosts": default DDS discovery, this session's domain."""
+    """The environment of a process on one of the two "hosts": default DDS discovery, this session's domain. With a
+    Fast DDS profile (``FASTRTPS_DEFAULT_PROFILES_FILE``) also ``RMW_FASTRTPS_PUBLICATION_MODE=AUTO``, as
+    docs/weak-link.md says to export with it (the profile's paced still writer needs it)."""
     env = dict(os.environ)
     for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
         env.pop(k, None)
     env["PYTHONUNBUFFERED"] = "1"
     env["PATH"] = f"{Path(sys.executable).parent}:{env.get('PATH', '')}"
+    if extra.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
+        env["RMW_FASTRTPS_PUBLICATION_MODE"] = "AUTO"
     env.update(extra)
     return env
 

@@ -43,3 +43,24 @@ def test_participants_announce_themselves_every_half_second():
     defaults = [p for p in root.iterfind(".//f:participant", NS) if p.get("is_default_profile") == "true"]
     assert len(defaults) == 1
     assert _duration(defaults[0], "f:rtps/f:builtin/f:discovery_config/f:leaseAnnouncement") == ("0", "500000000")
+
+
+def test_only_the_still_writer_is_paced_and_its_pace_leaves_the_live_video_room():
+    """With ``RMW_FASTRTPS_PUBLICATION_MODE=AUTO`` every writer publishes as the profile says: only still/compressed
+    names a publish mode (asynchronous, behind a flow controller declared in the default participant profile); the
+    others keep Fast DDS's synchronous default. The pace is under a 2 Mbit/s link (the live video keeps room)."""
+    root = ET.parse(PROFILE).getroot()
+    modes = {w.get("profile_name"): w.find("f:qos/f:publishMode", NS) for w in root.iterfind(".//f:data_writer", NS)}
+    assert {name for name, mode in modes.items() if mode is not None} == {"/still/compressed"}
+    mode = modes["/still/compressed"]
+    assert mode is not None
+    assert mode.findtext("f:kind", namespaces=NS) == "ASYNCHRONOUS"
+    defaults = [p for p in root.iterfind(".//f:participant", NS) if p.get("is_default_profile") == "true"]
+    controllers = defaults[0].findall(".//f:flow_controller_descriptor", NS)
+    assert [c.findtext("f:name", namespaces=NS) for c in controllers] == [
+        mode.findtext("f:flow_controller_name", namespaces=NS)
+    ]
+    nbytes = int(controllers[0].findtext("f:max_bytes_per_period", namespaces=NS) or 0)
+    period_s = int(controllers[0].findtext("f:period_ms", namespaces=NS) or 0) / 1000
+    assert nbytes >= 1400, "a period must carry at least one datagram (maxMessageSize 1400)"
+    assert 0.5e6 <= nbytes * 8 / period_s < 2.0e6

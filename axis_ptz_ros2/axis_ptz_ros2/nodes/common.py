@@ -20,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
@@ -108,6 +109,10 @@ def _copy_qos(q: QoSProfile) -> QoSProfile:
     )
 
 
+#: what rclpy raises when the middleware refuses an entity (e.g. a writer its XML profile cannot give)
+MiddlewareRefused: type[Exception] = _rclpy.RCLError
+
+
 def publisher(node: Node, msg_type: Any, topic: str, qos: QoSProfile | int, **kwargs: Any) -> Publisher:
     """``node.create_publisher`` with the standard QoS overrides (every publisher of the project goes here).
 
@@ -121,6 +126,8 @@ def publisher(node: Node, msg_type: Any, topic: str, qos: QoSProfile | int, **kw
     profile = _copy_qos(qos) if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
     try:
         return node.create_publisher(msg_type, topic, profile, qos_overriding_options=options, **kwargs)
+    except MiddlewareRefused:
+        raise  # the middleware refused the writer (e.g. its XML profile): not an override, the caller decides
     except (
         InvalidQosOverridesError,
         InvalidParameterTypeException,

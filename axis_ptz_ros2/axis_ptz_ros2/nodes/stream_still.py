@@ -19,8 +19,12 @@ Link budget: a still goes out on the same link as the live video. For one meter 
 the stream's MJPEG bandwidth budget, at most half of it
 (:meth:`~axis_ptz_ros2.streaming.controller.VideoController.on_still`): the live stream's next budget judgement
 (within 0.25 s) judges it against what is left and jumps once to the level predicted under it; it climbs back once
-the still has left the window. The still itself is not paced: it is one DDS sample, which rclpy hands to the
-middleware whole (its fragments go out as fast as the transport's flow control lets them).
+the still has left the window (h264 mode: the encoder's target is capped until every reader has acknowledged the
+still, :class:`~axis_ptz_ros2.streaming.still.StillWindow`). The node does not pace the still: it is one DDS sample,
+which rclpy hands to the middleware whole. The weak-link profile (``config/fastdds_weak_link.xml``) paces its writer
+with a Fast DDS flow controller; that needs ``RMW_FASTRTPS_PUBLICATION_MODE=AUTO``, and where the middleware refuses
+the writer the node runs on without stills, logging why and answering every request with the reason
+(:data:`UNAVAILABLE`).
 """
 
 from __future__ import annotations
@@ -32,18 +36,31 @@ from collections.abc import Callable
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.task import Future
 from sensor_msgs.msg import CompressedImage
 from std_srvs.srv import Trigger
 
-from axis_ptz_ros2.nodes.common import LATCHED_QOS, jpeg_format, publisher, stamp_from_ns
+from axis_ptz_ros2.nodes.common import LATCHED_QOS, MiddlewareRefused, jpeg_format, publisher, stamp_from_ns
 from axis_ptz_ros2.streaming.controller import VideoController
 from axis_ptz_ros2.streaming.still import STILL_CROSSING_MAX_S, StillOutcome, StillTaker, still_summary
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import Resolution
 
-#: s: one wait for the readers' acknowledgements of a still (closing the node ends the waiting within it)
-ACK_POLL_S = 0.2
+#: s: how often the still's writer is asked whether every reader has acknowledged the still (closing the node ends
+#: the waiting within it). Asked without waiting, with the wait in Python: rclpy's ``Publisher.wait_for_all_acked``
+#: holds the GIL while it waits, so 0.2 s waits starved the node's frame path for as long as a still crossed (a
+#: counting thread ran at 2.7 % of its speed; on 2 Mbit/s + 2 % the live video fell to 1-2 fps)
+ACK_POLL_S = 0.05
+#: a wait that returns at once (see :data:`ACK_POLL_S`)
+NO_WAIT = Duration(seconds=0)
+
+#: the answer (and the error logged at start) when the middleware refused the still's writer
+UNAVAILABLE = (
+    "still unavailable: the middleware refused the writer of still/compressed. A Fast DDS profile that paces it "
+    "(config/fastdds_weak_link.xml) needs RMW_FASTRTPS_PUBLICATION_MODE=AUTO: rmw_fastrtps makes every writer "
+    "synchronous otherwise, and Fast DDS refuses a flow controller on a synchronous writer"
+)
 
 #: the still's topic and service (relative: they follow the node's namespace)
 STILL_TOPIC = "still/compressed"
@@ -83,7 +100,15 @@ class StillOutput:
             secrets=(config.password,),
         )
         self._closed = threading.Event()
-        self.pub = publisher(node, CompressedImage, STILL_TOPIC, LATCHED_QOS)
+        # None: the middleware refused the still's writer (the reason in ``unavailable``); the node runs on without
+        # stills and every request is answered with that reason
+        self.pub: Publisher | None = None
+        self.unavailable = ""
+        try:
+            self.pub = publisher(node, CompressedImage, STILL_TOPIC, LATCHED_QOS)
+        except MiddlewareRefused as err:
+            self.unavailable = f"{UNAVAILABLE} ({str(err).splitlines()[0]})"
+            node.get_logger().error(self.unavailable)
         self._wake = node.create_guard_condition(lambda: None)  # the executor resumes the waiting answer
         # a group of its own, reentrant: a second request is answered (refused) while the first awaits its still,
         # and the node's other callbacks never wait for it (the default group is mutually exclusive)
@@ -97,6 +122,9 @@ class StillOutput:
 
     async def _on_capture(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Start the still on the worker and await its publication (the executor goes on meanwhile)."""
+        if self.pub is None:
+            response.success, response.message = False, self.unavailable
+            return response
         done: Future = Future()
 
         def finished(outcome: StillOutcome) -> None:  # worker thread
@@ -135,16 +163,20 @@ class StillOutput:
         msg.format = jpeg_format(still.components)
         msg._data = still.jpeg  # noqa: SLF001 - the immutable bytes as they are (as the live images)
         self._count(time.monotonic(), len(still.jpeg))
+        if self.pub is None:  # never: a request is refused before its fetch
+            return self.unavailable
         self.pub.publish(msg)
         return still_summary(still)
 
     def _wait_crossed(self) -> None:
-        """Worker thread, after the answer: wait until every reader has acknowledged the still (in short waits, so
-        closing the node ends it), at most :data:`~axis_ptz_ros2.streaming.still.STILL_CROSSING_MAX_S`; then tell
-        ``crossed``. A second request meanwhile is refused (the taker is busy until this returns)."""
+        """Worker thread, after the answer: wait until every reader has acknowledged the still (asked every
+        :data:`ACK_POLL_S` without waiting in rclpy, so the GIL stays free and closing the node ends it), at most
+        :data:`~axis_ptz_ros2.streaming.still.STILL_CROSSING_MAX_S`; then tell ``crossed``. A second request
+        meanwhile is refused (the taker is busy until this returns)."""
         deadline = time.monotonic() + STILL_CROSSING_MAX_S
-        while not self._closed.is_set() and time.monotonic() < deadline:
-            if self.pub.wait_for_all_acked(Duration(seconds=ACK_POLL_S)):
+        pub = self.pub
+        while pub is not None and time.monotonic() < deadline:
+            if pub.wait_for_all_acked(NO_WAIT) or self._closed.wait(ACK_POLL_S):
                 break
         if self._crossed is not None:
             self._crossed(time.monotonic())
