@@ -475,6 +475,24 @@ def test_h264_probe_past_the_start_that_congests_returns_to_the_start_not_to_wha
     assert a.budget_kbps == pytest.approx(0.8 * 450.0)
 
 
+def test_h264_a_steady_stream_whose_link_drops_is_cut_by_what_arrives_not_back_to_the_start():
+    """Past the start with a clear link the budget stands well above what x264 sends (~1260 kbit/s for this scene);
+    then the link drops to 1 Mbit/s. That is not a probe congesting: the rate had been carried for seconds, and the
+    start (1000 kbit/s) is more than the link now carries with its overhead and repairs. The received rate
+    decides at once (2 -> 1 Mbit/s step at 3b0f6ed: back to the start, the queue stood 2.5 s more)."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    a = LinkAdapter(h264_adapter_config())
+    now = 10.0
+    while now < 30.0:  # 20 s of clear reports at ~1260 kbit/s sent: the budget climbs past the start
+        a.report(now, _report(fps=25.0, kbps=1260.0, queue=0.04, frames=50), 25, 1260.0, 0.0, 1000)
+        now += 0.5
+    assert a.budget_kbps > 1500.0
+    swamped = _report(fps=16.0, kbps=796.0, queue=0.6, frames=32)
+    assert a.report(now, swamped, 25, 1257.0, 0.0, 1000).state == "congested"
+    assert a.budget_kbps == pytest.approx(0.8 * 796.0)  # not the 1000 kbit/s start
+
+
 def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congested():
     """The link drops under what is sent (2 -> 1 Mbit/s): the budget falls with the received rate, stays under
     0.8 x the rate that congested for the back-off (10 s), then grows by 5 % per report window only, not x1.2 per

@@ -153,6 +153,10 @@ class AdapterConfig:
     # from ``decrease`` x the rate that last congested on, grow by this instead of ``increase``, once per
     # ``climb_hold_s`` (0: ``increase``, no different growth there)
     probe_increase: float = 0.0
+    # a congestion after at least this long of clear reports at (``stable_share`` of) the rate sent now is the link
+    # changing under a steady stream, not a probe past the start: the received rate decides (see :meth:`report`)
+    stable_s: float = 4.0
+    stable_share: float = 0.9
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -166,6 +170,8 @@ class AdapterConfig:
             raise ValueError("need good_memory_s >= 0 and good_margin >= 1")
         if self.climb_hold_s < 0:
             raise ValueError("need climb_hold_s >= 0")
+        if self.stable_s < 0 or not 0.0 < self.stable_share <= 1.0:
+            raise ValueError("need stable_s >= 0 and 0 < stable_share <= 1")
         if self.lost_congested < 0:
             raise ValueError("need lost_congested >= 0")
         if self.probe_increase != 0.0 and not 1.0 < self.probe_increase <= self.increase:
@@ -270,11 +276,15 @@ class LinkAdapter:
                 good = [k for t, k in self._good if now - t <= cfg.good_memory_s and k < cfg.decrease * sent_kbps]
                 if good:  # a step up congested: the rate before it was received cleanly, go back there
                     new = max(new, min(cfg.good_margin * max(good), cfg.decrease * sent_kbps))
-                if 0 < grow_from_kbps < current:
+                if 0 < grow_from_kbps < current and not self._steady_before(now, sent_kbps):
                     # a probe past the start (H.264 above h264_bitrate_kbps) congested: back towards the start, the
                     # rate that runs without any feedback, one ``decrease`` step at most, not to what the swamped link
                     # delivered meanwhile (weak-link bench at 4d580ab: a probe to 1300 kbit/s fell to 280-600 kbit/s
-                    # for 10 s); under the start, the received rate decides again
+                    # for 10 s); under the start, the received rate decides again. Not when this rate had been
+                    # carried cleanly for ``stable_s``: the link changed, and its start may be more than it carries
+                    # now (the 2 -> 1 Mbit/s step at 3b0f6ed, debug log: sending ~1260 kbit/s for 10 s, then
+                    # congested with 796 received; back to the 1000 kbit/s start the queue stood 2.5 s more, until
+                    # the next decrease to 364 kbit/s; the frame age was back under 100 ms 4.7 s after the step)
                     new = max(new, min(grow_from_kbps, cfg.decrease * current))
                 self._good.clear()
                 self._budget = max(new, cfg.min_kbps)
@@ -334,6 +344,15 @@ class LinkAdapter:
                 self._budget = max(min(self._budget, cfg.good_margin * self._sent_kbps), cfg.min_kbps)
             self.state = "silent"
         return Decision(self._budget, self.state, 0.0, 1.0)
+
+    def _steady_before(self, now: float, sent_kbps: float) -> bool:
+        """Whether the clear reports of the last ``stable_s`` and more (since the last congestion, within
+        ``good_memory_s``) all saw at least ``stable_share`` of ``sent_kbps`` sent: a steady stream, not a probe."""
+        cfg = self.config
+        recent = [(t, k) for t, k in self._good if now - t <= cfg.good_memory_s]
+        if not recent or now - recent[0][0] < cfg.stable_s:
+            return False
+        return all(k >= cfg.stable_share * sent_kbps for _t, k in recent)
 
     @staticmethod
     def _queue_delay(r: FeedbackReport) -> float:
