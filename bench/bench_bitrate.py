@@ -139,6 +139,8 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/sim/scene.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim/frames.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim/camera.py",
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "axis_ptz_ros2/axis_ptz_ros2/sim/http/mjpeg.py",
         "tests/support/picture.py",
         "config/sim_world.yaml",

@@ -253,6 +253,8 @@ def main() -> int:
         "axis_ptz_ros2/camera_info.py",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/laser_sim.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "config/sim_world.yaml",
         "bench/bench_calibration_e2e.py",
         "tests/support/sim_picker.py",

@@ -152,6 +152,8 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "config/sim_world.yaml",
     )
     sub = Subscriber()

@@ -466,6 +466,8 @@ def readme_rows(r: dict[str, Any], fixed: list[dict[str, Any]]) -> None:
         "axis_ptz_ros2/axis_ptz_ros2/nodes/ptz_node.py",
         "tests/support/link.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "config/sim_world.yaml",
     )
     f = fixed[0] if fixed else None

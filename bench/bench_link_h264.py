@@ -126,6 +126,8 @@ INPUTS = (
     "tests/support/link.py",
     "config/fastdds_weak_link.xml",
     "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
+    "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+    "config/q6075.yaml",
     "config/sim_world.yaml",
 )
 #: the link's rate each way (kbit/s; ``--rate-kbit``): the thesis's link is 2000, issue 21's second case 1000

@@ -78,6 +78,8 @@ def main() -> int:
         q = "resolution=704x576&fps=30"
         inputs(
             "axis_ptz_ros2/axis_ptz_ros2/sim",
+            "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+            "config/q6075.yaml",
             "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
             "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
             "axis_ptz_ros2/axis_ptz_ros2/optics.py",

@@ -55,6 +55,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from pipelines import Proc
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support (the viewers' spin)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 HOUR_S = 3600.0
@@ -164,9 +165,9 @@ def viewer(ns: str, diagnostics: bool) -> int:
     from ffmpeg_image_transport_msgs.msg import FFMPEGPacket
     from rclpy.event_handler import SubscriptionEventCallbacks
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from stopping import spin_until_stopped  # bench/stopping.py
 
     from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver
+    from tests.support.spin import spin_until_stopped
 
     out = sys.stdout
 

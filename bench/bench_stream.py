@@ -270,6 +270,8 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/nodes/runner.py",
         "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "bench/bench_stream.py",
         "bench/pipelines.py",
         "bench/cpu_compare.py",

@@ -110,6 +110,8 @@ def main() -> None:
     inputs(
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "axis_ptz_ros2/axis_ptz_ros2/streaming/h264.py",
         "bench/bench_transcode.py",
         "bench/machine.py",

@@ -95,7 +95,8 @@ def match(pictures: Sequence[tuple[int, int]], sends: Sends) -> list[int | None]
     order, some missing), ``sends`` every send time of the simulator (any order), or those of each connection
     (:func:`followed`). None: no send before its stamp."""
     sent = followed(pictures, sends)
-    idx = [bisect.bisect_right(sent, stamp) - 1 for _pts, stamp in pictures]
+    by_time = [bisect.bisect_right(sent, stamp) - 1 for _pts, stamp in pictures]
+    idx = list(by_time)
     order = sorted(range(len(pictures)), key=lambda i: pictures[i][0])
     later = -1  # the picture with the next higher pts (already settled)
     for i in reversed(order):
@@ -103,7 +104,19 @@ def match(pictures: Sequence[tuple[int, int]], sends: Sends) -> list[int | None]
         if later >= 0 and idx[later] >= 0 and idx[i] >= 0 and 0 <= pts < pictures[later][0]:  # (no pts: -1)
             idx[i] = min(idx[i], idx[later] - (pictures[later][0] - pts))
         later = i
+    if _median_lag_ms(pictures, sent, idx) > _median_lag_ms(pictures, sent, by_time) + NEAR_MS:
+        # the pts order moved the bulk of the pictures back, not a few behind the camera: a pts counted without a
+        # JPEG of its own somewhere after them shifts every earlier picture by a send (seen in the acuity and link
+        # benches at b6fc656 and d15a689: "stamp - send: median 40.8 ms", every picture scored against the pose one
+        # frame later); the time alone is the better match then
+        idx = by_time
     return [sent[k] if k >= 0 else None for k in idx]
+
+
+def _median_lag_ms(pictures: Sequence[tuple[int, int]], sent: Sequence[int], idx: Sequence[int]) -> float:
+    """Median stamp - send (ms) of the pictures matched by ``idx`` (0 if none is)."""
+    lags = [(stamp - sent[k]) / 1e6 for (_pts, stamp), k in zip(pictures, idx, strict=True) if k >= 0]
+    return statistics.median(lags) if lags else 0.0
 
 
 def lag_summary(pictures: Sequence[tuple[int, int]], matched: Sequence[int | None]) -> str:

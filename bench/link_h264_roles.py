@@ -273,7 +273,8 @@ def viewer(  # noqa: C901, PLR0915
     import rclpy
     from rclpy.node import Node
     from rclpy.parameter import Parameter
-    from stopping import spin_until_stopped  # bench/stopping.py (bench/ is on sys.path)
+
+    from tests.support.spin import spin_until_stopped
 
     t_start = time.time_ns()
     ref = Path(refdir)

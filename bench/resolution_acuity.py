@@ -51,6 +51,8 @@ def main(argv: list[str] | None = None) -> int:
         "bench/acuity_chart.py",
         "axis_ptz_ros2/axis_ptz_ros2/media/encoder.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
+        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
+        "config/q6075.yaml",
         "config/sim_world.yaml",
     )
     fps, gop = args.fps, args.gop or args.fps

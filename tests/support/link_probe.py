@@ -28,7 +28,6 @@ import time
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import CompressedImage, JointState
 
@@ -36,6 +35,7 @@ from axis_ptz_interfaces.msg import PtzCommand, PtzState, VideoParams
 from axis_ptz_ros2.nodes.common import COMMAND_QOS, LATCHED_QOS, STREAM_QOS, publisher
 from axis_ptz_ros2.nodes.link_monitor import FeedbackPublisher
 from axis_ptz_ros2.streaming import jpeg_size
+from tests.support.spin import spin_until_stopped
 from tests.support.stamps import sim_stamp
 
 _lock = threading.Lock()
@@ -163,18 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     args, ros_args = ap.parse_known_args(argv)
     rclpy.init(args=["link_probe", *ros_args])
     node = LinkProbe(set(args.topics.split(",")), args.image_qos, feedback=not args.no_feedback)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
     threading.Thread(target=_read_commands, args=(node,), daemon=True).start()
     _emit({"t": "ready", "rx": time.time_ns()})
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_stopped(node)
     return 0
 
 

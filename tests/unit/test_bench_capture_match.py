@@ -40,6 +40,18 @@ def test_pictures_lost_or_jpegs_not_transcoded_keep_their_own_sends() -> None:
     assert match(pics, SENDS) == [SENDS[2], SENDS[7], SENDS[9]]
 
 
+def test_a_pts_counted_without_a_jpeg_does_not_shift_every_earlier_picture() -> None:
+    # pictures 0-14 each 2 ms after their own JPEG, then a pts counted twice for one JPEG (two access units of it):
+    # by the pts order alone every earlier picture would move one JPEG back (their lag 42 ms: a frame off); the
+    # bulk moved back is refused and the time decides
+    pics = [(k, SENDS[k] + 2 * MS) for k in range(15)] + [(16, SENDS[15] + 2 * MS), (17, SENDS[15] + 30 * MS)]
+    got = match(pics, SENDS)
+    assert got[:16] == SENDS[:16]
+    # one picture behind the camera is still put back (the test above): a minority moved is kept
+    pics = [(3, SENDS[3] + MS), (4, SENDS[5] + MS), (5, SENDS[5] + 3 * MS), (6, SENDS[6] + MS)]
+    assert match(pics, SENDS) == [SENDS[3], SENDS[4], SENDS[5], SENDS[6]]
+
+
 def test_no_send_before_the_stamp_and_pictures_without_pts() -> None:
     assert match([(0, T0 - MS)], SENDS) == [None]
     # without pts (-1) only time is used: nothing is moved by an order it does not have

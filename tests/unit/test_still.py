@@ -179,12 +179,12 @@ def _send(ctl: VideoController, clock: _Clock, seconds: float, kbps: float) -> N
 
 def test_h264_a_still_gets_most_of_the_link_while_it_crosses_and_its_queue_is_not_congestion():
     """h264 mode: a 245 kB still on a link whose budget is 2000 kbit/s: the encoder's target drops to
-    STILL_H264_VIDEO_SHARE of the budget for the still's crossing (its 1960 kbit over the rest, plus a margin), reports
-    covering that time
-    are not judged (a delay that would cut the budget changes nothing), and afterwards the target is back."""
+    STILL_H264_VIDEO_SHARE of the budget until the still has crossed (the node says so once every reader has
+    acknowledged it), reports covering that time are not judged (a delay that would cut the budget changes nothing),
+    and afterwards the target is back."""
     from axis_ptz_ros2.media.h264_settings import H264Settings
     from axis_ptz_ros2.streaming.feedback import FeedbackReport
-    from axis_ptz_ros2.streaming.still import STILL_H264_VIDEO_SHARE, STILL_MARGIN_S
+    from axis_ptz_ros2.streaming.still import STILL_H264_VIDEO_SHARE
 
     clock = _Clock()
     settings = VideoSettings(
@@ -203,14 +203,14 @@ def test_h264_a_still_gets_most_of_the_link_while_it_crosses_and_its_queue_is_no
     ctl.on_still(clock.t, 245_000)
     target = ctl.h264_settings().bitrate_kbps
     assert target == int(STILL_H264_VIDEO_SHARE * budget)
-    crossing = 245_000 * 8 / 1000 / ((1 - STILL_H264_VIDEO_SHARE) * budget) + STILL_MARGIN_S
     queued = FeedbackReport("/op", 50, 25.0, 900.0, 0.7, 0.01, 0.04, 2.0)  # a 690 ms queue: congestion by itself
     assert ctl.feedback(queued, lambda _c: True) is None  # not judged: the still's own queue
     assert ctl.state().link_budget_kbps == budget
-    _send(ctl, clock, crossing - 0.2, target)
-    assert ctl.h264_settings().bitrate_kbps == target  # still crossing
-    _send(ctl, clock, 0.4, target)
+    _send(ctl, clock, 3.0, target)  # past its bits over the room left (1.1 s): crossing until acknowledged
+    assert ctl.h264_settings().bitrate_kbps == target
+    ctl.still_crossed(clock.t)
     assert ctl.h264_settings().bitrate_kbps == 1500  # crossed: the target is back
+    _send(ctl, clock, 0.2, 1500.0)
     assert ctl.feedback(queued, lambda _c: True) is None  # a report whose window still covers the crossing
     _send(ctl, clock, 2.6, 1500.0)
     j = ctl.feedback(queued, lambda _c: True)  # past it: the same queue is congestion again
@@ -228,8 +228,8 @@ def test_mjpeg_a_still_does_not_cap_or_hide_anything_of_h264():
 
 
 def test_h264_a_still_reported_crossed_holds_the_cap_until_then_not_by_an_estimate():
-    """With ``until_crossed`` the cap lasts until the node says every reader acknowledged the still (a 245 kB still
-    took 1.8-5.0 s on 2 Mbit/s + 2 % where 1.85 s was estimated), at most STILL_CROSSING_MAX_S."""
+    """The cap lasts until the node says every reader acknowledged the still (a 245 kB still took 1.8-5.0 s on
+    2 Mbit/s + 2 % where 1.85 s was estimated from its size), at most STILL_CROSSING_MAX_S."""
     from axis_ptz_ros2.media.h264_settings import H264Settings
     from axis_ptz_ros2.streaming.still import STILL_CROSSING_MAX_S, STILL_H264_VIDEO_SHARE, StillWindow
 
@@ -237,17 +237,17 @@ def test_h264_a_still_reported_crossed_holds_the_cap_until_then_not_by_an_estima
     settings = VideoSettings(codec="h264", fps=25, resolution="704x576", h264=H264Settings(bitrate_kbps=1000))
     ctl = VideoController(settings, BitrateMeter(2.0), clock=clock)
     ctl.set_h264_possible(True)
-    ctl.on_still(clock.t, 245_000, until_crossed=True)
+    ctl.on_still(clock.t, 245_000)
     capped = ctl.h264_settings().bitrate_kbps
     assert capped == int(STILL_H264_VIDEO_SHARE * 1000)  # of h264_bitrate_kbps without feedback
     assert 0 < capped < 1000
-    clock.t += 4.5  # past the 245 kB estimate over the rest of 1000 kbit/s (2.2 s + 0.5), not yet acknowledged
+    clock.t += 4.5  # past its 1960 kbit over the rest of 1000 kbit/s (2.2 s), not yet acknowledged
     assert ctl.h264_settings().bitrate_kbps == capped
     ctl.still_crossed(clock.t)
     assert ctl.h264_settings().bitrate_kbps == 1000
     w = StillWindow()
-    w.start(0.0, 1000, 1000.0, until_ended=True)
+    w.start(0.0, 1000.0)
     assert w.cap(STILL_CROSSING_MAX_S - 0.01, 1000) == capped
     assert w.cap(STILL_CROSSING_MAX_S, 1000) == 1000  # never acknowledged: the longest wait ends it
     with pytest.raises(ValueError, match="reference_kbps"):
-        w.start(0.0, 1000, 0.0)
+        w.start(0.0, 0.0)

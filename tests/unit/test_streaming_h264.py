@@ -12,7 +12,6 @@ from axis_ptz_ros2.media.annexb import NalType
 from axis_ptz_ros2.media.errors import EncoderError
 from axis_ptz_ros2.media.frame import EncodedFrame
 from axis_ptz_ros2.media.h264_settings import H264Settings
-from axis_ptz_ros2.media.limits import DEFAULT_REFRESH
 from axis_ptz_ros2.media.transcoder import MjpegTranscoder
 from axis_ptz_ros2.sim.frames import stamp
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
@@ -558,7 +557,6 @@ def test_vbv_buffer_follows_the_bitrate_and_with_periodic_idrs_at_most_a_slice_o
     assert h264_vbv_kbit(1000, 5000.0, "idr") == 150  # a wide link: the bitrate's buffer
     assert h264_vbv_kbit(1080, 1200.0, "intra") == 162  # not 72: the buffer x264 keeps until the next IDR
     assert h264_vbv_kbit(600, 0.0, "intra") == 90
-    assert h264_vbv_kbit(1080, 1200.0) == h264_vbv_kbit(1080, 1200.0, DEFAULT_REFRESH)
     c, _ = controller(codec="h264", max_bitrate_kbps=400)
     assert c.h264_settings().vbv_kbit == 60  # a hand-set budget is no link measure: 0.15 s of 400 kbit/s
 

@@ -145,7 +145,13 @@ class StreamNode(Node):
         )
         # still/capture -> still/compressed: the camera's best JPEG on demand, counted against the budget
         self._still = StillOutput(
-            self, self._client, self._video, frame_id, self.get_logger().warning, pl.on_still, pl.still_crossed
+            self,
+            self._client,
+            self._video,
+            frame_id,
+            self.get_logger().warning,
+            count=pl.on_still,
+            crossed=pl.still_crossed,
         )
 
         self.feedback_reports = 0  # consumers' reports received (diagnostics, tests)

@@ -77,17 +77,18 @@ class StillOutput:
         video: VideoController,
         frame_id: str,
         log: Callable[[str], None] | None = None,
-        count: Callable[[float, int], None] | None = None,
-        crossed: Callable[[float], None] | None = None,
+        *,
+        count: Callable[[float, int], None],
+        crossed: Callable[[float], None],
     ) -> None:
         """``client``: the stream's camera client (its configuration and auth counters are shared, not its
-        connection or lock); ``video``: the controller whose budget the still counts against; ``count(now,
-        nbytes)``: what counts a still going out (default ``video.on_still``; the pipeline's also tells the encoder
+        connection or lock); ``video``: the controller that knows the camera's resolutions; ``count(now, nbytes)``:
+        what counts a still going out against the budget (the pipeline's ``on_still``, which also tells the encoder
         at once); ``crossed(now)``: told when every reader has acknowledged the still (or the wait for it ended),
         after the answer."""
         self._node = node
         self._video = video
-        self._count = count or video.on_still
+        self._count = count
         self._crossed = crossed
         self._frame_id = frame_id
         self._log = log
@@ -136,7 +137,7 @@ class StillOutput:
             done.set_result((outcome.still is not None, message))
             if not self._closed.is_set():
                 self._wake.trigger()
-            if outcome.still is not None and self._crossed is not None:
+            if outcome.still is not None:
                 self._wait_crossed()
 
         refusal = self.taker.start(finished)
@@ -178,8 +179,7 @@ class StillOutput:
         while pub is not None and time.monotonic() < deadline:
             if pub.wait_for_all_acked(NO_WAIT) or self._closed.wait(ACK_POLL_S):
                 break
-        if self._crossed is not None:
-            self._crossed(time.monotonic())
+        self._crossed(time.monotonic())
 
     def close(self, timeout: float = 1.0) -> None:
         """Before the node goes: no publication from here on, the fetch in flight cut (its client closed), joined."""

@@ -314,17 +314,17 @@ class VideoController:
         self._announce()
         return step
 
-    def on_still(self, now: float, nbytes: int, until_crossed: bool = False) -> None:
+    def on_still(self, now: float, nbytes: int) -> None:
         """A still of ``nbytes`` went out on the link (``still/compressed``). MJPEG: for one meter window its rate
         (at most :data:`STILL_SHARE` of the budget) is reserved out of the budget; the ladder jumps under what is
         left, then climbs back (the still's size never enters the frame-size learning). h264: the encoder leaves it
-        most of the link while it crosses (``until_crossed``: until :meth:`still_crossed`), and reports covering
-        that time are not judged (:class:`~.still.StillWindow`)."""
+        most of the link until :meth:`still_crossed`, and reports covering that time are not judged
+        (:class:`~.still.StillWindow`)."""
         self._extra.add(now, nbytes)
         if self.h264:
             link = self._link.budget_kbps if self._settings.adapt_to_link else 0.0
             ref = link if link > 0 else float(self._settings.h264.bitrate_kbps)
-            self._still.start(now, nbytes, ref, until_crossed)
+            self._still.start(now, ref)
 
     def still_crossed(self, now: float) -> None:
         self._still.end(now)  # every reader acknowledged the still (or it will not arrive): the full target is back

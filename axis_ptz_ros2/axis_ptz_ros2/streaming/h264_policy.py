@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Final
 
-from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, DEFAULT_REFRESH, VBV_BUFFER_S
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, VBV_BUFFER_S
 from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
@@ -66,7 +66,7 @@ def h264_target_kbps(start: int, ceiling: int, link_kbps: float, hand_kbps: floa
     return kbps, max(top, kbps)
 
 
-def h264_vbv_kbit(kbps: int, link_kbps: float, refresh: str = DEFAULT_REFRESH) -> int:
+def h264_vbv_kbit(kbps: int, link_kbps: float, refresh: str) -> int:
     """The encoder's VBV buffer in kbit: :data:`~axis_ptz_ros2.media.limits.VBV_BUFFER_S` of the bitrate ``kbps``
     targeted now; with periodic IDRs (``refresh`` ``"idr"``) and a link budget ``link_kbps`` (0 = none), at most
     :data:`IDR_LINK_S` of it.

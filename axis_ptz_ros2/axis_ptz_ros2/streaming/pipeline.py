@@ -196,7 +196,7 @@ class VideoPipeline:
         """A still of ``nbytes`` goes out on the link now (monotonic ``now``): counted against the budget, and in
         h264 mode the encoder told at once to leave it room until :meth:`still_crossed`
         (:meth:`.controller.VideoController.on_still`)."""
-        self.video.on_still(now, nbytes, until_crossed=True)
+        self.video.on_still(now, nbytes)
         self._decide()
 
     def still_crossed(self, now: float) -> None:

@@ -225,36 +225,31 @@ class ExtraBytes:
 #: 0.2 stills took 1.9 s (the pace had to be 1.3 Mbit/s to leave the video its room), with 0.12 1.55 s and the
 #: live video kept 23 fps, age p95 176 ms (0.3 before the pacing, when the GIL-holding wait starved the video)
 STILL_H264_VIDEO_SHARE = 0.12
-#: s: added to a still's expected crossing time (the link's repairs, the reader's heartbeat)
-STILL_MARGIN_S = 0.5
 #: s: the longest a still is taken to be crossing when its end is reported (acknowledged by every reader)
 STILL_CROSSING_MAX_S = 10.0
 
 
 class StillWindow:
-    """h264 mode: the time a still is expected to take on the link (thread-safe). Until then the encoder's target
-    is capped at :data:`STILL_H264_VIDEO_SHARE` of the reference rate, and consumers' reports covering that time are
-    not judged: the queue the still makes is ours, not the link's congestion (without this, two stills of 170-245 kB
-    on 2 Mbit/s + 2 % read as congestion and cut the budget to its 100 kbit/s floor: the live video fell from 25 to
-    5 fps and stills took 4.8 s or never came, two-host bench at dfd75bb)."""
+    """h264 mode: the time a still crosses the link, until the node says it has (thread-safe). Meanwhile the
+    encoder's target is capped at :data:`STILL_H264_VIDEO_SHARE` of the reference rate, and consumers' reports
+    covering that time are not judged: the queue the still makes is ours, not the link's congestion (without this,
+    two stills of 170-245 kB on 2 Mbit/s + 2 % read as congestion and cut the budget to its 100 kbit/s floor: the
+    live video fell from 25 to 5 fps and stills took 4.8 s or never came, two-host bench at dfd75bb)."""
 
     def __init__(self) -> None:
         self._until = -1e18
         self._cap_kbps = 0.0
         self._lock = threading.Lock()
 
-    def start(self, now: float, nbytes: int, reference_kbps: float, until_ended: bool = False) -> float:
-        """A still of ``nbytes`` goes out at ``now`` on a link of about ``reference_kbps`` (> 0); returns until when
-        (monotonic s) it is taken to be crossing: its bits over the room left, plus :data:`STILL_MARGIN_S`; with
-        ``until_ended`` until :meth:`end` says it has crossed (every reader acknowledged it), at most
-        :data:`STILL_CROSSING_MAX_S`. An estimate is a guess: on 2 Mbit/s + 2 % a 245 kB still took 1.8-5.0 s where
-        1.85 s was estimated, and the encoder back at its full rate under the rest of it read as congestion."""
+    def start(self, now: float, reference_kbps: float) -> float:
+        """A still goes out at ``now`` on a link of about ``reference_kbps`` (> 0); returns until when (monotonic s)
+        it is taken to be crossing: until :meth:`end` says it has crossed (every reader acknowledged it), at most
+        :data:`STILL_CROSSING_MAX_S`. Not an estimate from its size: on 2 Mbit/s + 2 % a 245 kB still took 1.8-5.0 s
+        where 1.85 s was estimated, and the encoder back at its full rate under the rest of it read as congestion."""
         if reference_kbps <= 0:
             raise ValueError("reference_kbps must be positive")
-        room = (1.0 - STILL_H264_VIDEO_SHARE) * reference_kbps
-        crossing = STILL_CROSSING_MAX_S if until_ended else nbytes * 8.0 / 1000.0 / room + STILL_MARGIN_S
         with self._lock:
-            self._until = max(self._until, now + crossing)
+            self._until = max(self._until, now + STILL_CROSSING_MAX_S)
             self._cap_kbps = STILL_H264_VIDEO_SHARE * reference_kbps
             return self._until
 
