@@ -123,14 +123,15 @@ class StillOutput:
 
     async def _on_capture(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Start the still on the worker and await its publication (the executor goes on meanwhile)."""
-        if self.pub is None:
+        pub = self.pub
+        if pub is None:
             response.success, response.message = False, self.unavailable
             return response
         done: Future = Future()
 
         def finished(outcome: StillOutcome) -> None:  # worker thread
             try:
-                message = self._publish(outcome)
+                message = self._publish(pub, outcome)
             except Exception as err:  # noqa: BLE001 - the answer must come whatever happened
                 message = f"still failed: could not publish it ({type(err).__name__})"
                 outcome = StillOutcome(None, message)
@@ -138,7 +139,7 @@ class StillOutput:
             if not self._closed.is_set():
                 self._wake.trigger()
             if outcome.still is not None:
-                self._wait_crossed()
+                self._wait_crossed(pub)
 
         refusal = self.taker.start(finished)
         if refusal is not None:
@@ -151,8 +152,8 @@ class StillOutput:
             self._log(message)
         return response
 
-    def _publish(self, outcome: StillOutcome) -> str:
-        """Worker thread: publish the still (counted against the budget first); the answer's message."""
+    def _publish(self, pub: Publisher, outcome: StillOutcome) -> str:
+        """Worker thread: publish the still on ``pub`` (counted against the budget first); the answer's message."""
         still = outcome.still
         if still is None:
             return outcome.error
@@ -164,19 +165,16 @@ class StillOutput:
         msg.format = jpeg_format(still.components)
         msg._data = still.jpeg  # noqa: SLF001 - the immutable bytes as they are (as the live images)
         self._count(time.monotonic(), len(still.jpeg))
-        if self.pub is None:  # never: a request is refused before its fetch
-            return self.unavailable
-        self.pub.publish(msg)
+        pub.publish(msg)
         return still_summary(still)
 
-    def _wait_crossed(self) -> None:
+    def _wait_crossed(self, pub: Publisher) -> None:
         """Worker thread, after the answer: wait until every reader has acknowledged the still (asked every
         :data:`ACK_POLL_S` without waiting in rclpy, so the GIL stays free and closing the node ends it), at most
         :data:`~axis_ptz_ros2.streaming.still.STILL_CROSSING_MAX_S`; then tell ``crossed``. A second request
         meanwhile is refused (the taker is busy until this returns)."""
         deadline = time.monotonic() + STILL_CROSSING_MAX_S
-        pub = self.pub
-        while pub is not None and time.monotonic() < deadline:
+        while time.monotonic() < deadline:
             if pub.wait_for_all_acked(NO_WAIT) or self._closed.wait(ACK_POLL_S):
                 break
         self._crossed(time.monotonic())

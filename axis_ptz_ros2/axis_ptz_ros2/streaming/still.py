@@ -241,17 +241,16 @@ class StillWindow:
         self._cap_kbps = 0.0
         self._lock = threading.Lock()
 
-    def start(self, now: float, reference_kbps: float) -> float:
-        """A still goes out at ``now`` on a link of about ``reference_kbps`` (> 0); returns until when (monotonic s)
-        it is taken to be crossing: until :meth:`end` says it has crossed (every reader acknowledged it), at most
-        :data:`STILL_CROSSING_MAX_S`. Not an estimate from its size: on 2 Mbit/s + 2 % a 245 kB still took 1.8-5.0 s
-        where 1.85 s was estimated, and the encoder back at its full rate under the rest of it read as congestion."""
+    def start(self, now: float, reference_kbps: float) -> None:
+        """A still goes out at ``now`` on a link of about ``reference_kbps`` (> 0): it is taken to be crossing until
+        :meth:`end` says it has crossed (every reader acknowledged it), at most :data:`STILL_CROSSING_MAX_S`. Not an
+        estimate from its size: on 2 Mbit/s + 2 % a 245 kB still took 1.8-5.0 s where 1.85 s was estimated, and the
+        encoder back at its full rate under the rest of it read as congestion."""
         if reference_kbps <= 0:
             raise ValueError("reference_kbps must be positive")
         with self._lock:
             self._until = max(self._until, now + STILL_CROSSING_MAX_S)
             self._cap_kbps = STILL_H264_VIDEO_SHARE * reference_kbps
-            return self._until
 
     def end(self, now: float) -> None:
         """The still has crossed (or will not): the cap ends now."""
