@@ -5,19 +5,23 @@ stills and saying why."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import signal
+import subprocess
 import sys
 import textwrap
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("rclpy")
 
+from rclpy.node import Node  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
@@ -25,12 +29,11 @@ from axis_ptz_ros2.nodes.common import LATCHED_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.stream_still import UNAVAILABLE  # noqa: E402
 from axis_ptz_ros2.streaming.still import BUSY  # noqa: E402
 from tests.ros.processes import node_process  # noqa: E402
+from tests.support.fastdds_profile import PROFILE, flow_controllers, pace  # noqa: E402
 from tests.support.stream_node import make_stream_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
-ROOT = Path(__file__).resolve().parents[2]
-PROFILE = str(ROOT / "config" / "fastdds_weak_link.xml")
 BIN = Path(sys.executable).parent
 
 #: a reader of still/compressed in a process of its own, which the test then stops (SIGSTOP): it never acknowledges
@@ -107,34 +110,47 @@ def test_live_video_goes_on_while_a_reader_has_not_acknowledged_the_still(ros, c
             os.kill(reader.pid, signal.SIGCONT)
 
 
-def _stream_env(mode: str) -> dict[str, str]:
-    return dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=PROFILE, RMW_FASTRTPS_PUBLICATION_MODE=mode)
+@contextlib.contextmanager
+def stream_process(ros, camera, mode: str) -> Iterator[tuple[subprocess.Popen[bytes], Node, Counter]]:  # noqa: ANN001
+    """``axis_stream`` as a process with the weak-link profile and ``RMW_FASTRTPS_PUBLICATION_MODE=mode``, streaming
+    352x288 at 10 fps to a probe: (the process, the probe, the live images' counter) once 5 have arrived."""
+    argv = [str(BIN / "axis_stream"), "--ros-args", "-p", f"port:={camera.port}", "-p", "fps:=10",
+            "-p", "resolution:=352x288", "-p", "lazy:=false"]  # fmt: skip
+    env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE), RMW_FASTRTPS_PUBLICATION_MODE=mode)
+    with node_process(argv, env=env) as proc:
+        probe = ros.probe()
+        live = Counter()
+        probe.create_subscription(CompressedImage, "image_raw/compressed", live.on, STREAM_QOS)
+        ros.wait_for(lambda: len(live.times) >= 5, timeout=20)
+        yield proc, probe, live
+
+
+def call_still(ros, probe: Node) -> Trigger.Response:  # noqa: ANN001
+    """``still/capture`` once; its answer."""
+    client = probe.create_client(Trigger, "still/capture")
+    assert client.wait_for_service(timeout_sec=10)
+    fut = client.call_async(Trigger.Request())
+    ros.wait_for(fut.done, timeout=10)
+    return fut.result()
 
 
 def test_weak_link_profile_paces_the_still_and_the_live_video_goes_on(ros, camera):
     """``axis_stream`` with the weak-link profile and AUTO: the still arrives whole, no sooner than its bytes at
     the profile's pace allow (unpaced it takes milliseconds on loopback), and live frames arrive while it crosses."""
-    argv = [str(BIN / "axis_stream"), "--ros-args", "-p", f"port:={camera.port}", "-p", "fps:=10",
-            "-p", "resolution:=352x288", "-p", "lazy:=false"]  # fmt: skip
-    with node_process(argv, env=_stream_env("AUTO")) as proc:
-        probe = ros.probe()
-        live, still = Counter(), Counter()
+    (controller,) = flow_controllers()
+    nbytes, period_s = pace(controller)
+    with stream_process(ros, camera, "AUTO") as (proc, probe, live):
+        still = Counter()
         sizes: list[int] = []
-        probe.create_subscription(CompressedImage, "image_raw/compressed", live.on, STREAM_QOS)
         probe.create_subscription(
             CompressedImage, "still/compressed", lambda m: (sizes.append(len(m.data)), still.on(m)), LATCHED_QOS
         )
-        ros.wait_for(lambda: len(live.times) >= 5, timeout=20)
-        client = probe.create_client(Trigger, "still/capture")
-        assert client.wait_for_service(timeout_sec=10)
         t0 = time.monotonic()
-        fut = client.call_async(Trigger.Request())
-        ros.wait_for(fut.done, timeout=10)
-        assert fut.result().success, fut.result().message
+        res = call_still(ros, probe)
+        assert res.success, res.message
         ros.wait_for(lambda: len(still.times) == 1, timeout=20)
         took = still.times[0] - t0
-        pace_bps = 2800 * 8 / 0.014  # the profile's still_pace flow controller
-        assert took >= 0.8 * sizes[0] * 8 / pace_bps, f"{sizes[0]} bytes in {took:.2f} s: not paced"
+        assert took >= 0.8 * sizes[0] * period_s / nbytes, f"{sizes[0]} bytes in {took:.2f} s: not paced"
         assert live.between(t0, still.times[0]) >= 1, "no live frame while the still crossed"
         assert proc.poll() is None
 
@@ -142,18 +158,8 @@ def test_weak_link_profile_paces_the_still_and_the_live_video_goes_on(ros, camer
 def test_weak_link_profile_without_auto_leaves_the_node_running_without_stills(ros, camera):
     """Without AUTO rmw_fastrtps makes the still's writer synchronous and Fast DDS refuses its flow controller: the
     node logs why, keeps streaming, and answers every still request with the reason."""
-    argv = [str(BIN / "axis_stream"), "--ros-args", "-p", f"port:={camera.port}", "-p", "fps:=10",
-            "-p", "resolution:=352x288", "-p", "lazy:=false"]  # fmt: skip
-    with node_process(argv, env=_stream_env("SYNCHRONOUS")) as proc:
-        probe = ros.probe()
-        live = Counter()
-        probe.create_subscription(CompressedImage, "image_raw/compressed", live.on, STREAM_QOS)
-        ros.wait_for(lambda: len(live.times) >= 5, timeout=20)
-        client = probe.create_client(Trigger, "still/capture")
-        assert client.wait_for_service(timeout_sec=10)
-        fut = client.call_async(Trigger.Request())
-        ros.wait_for(fut.done, timeout=10)
-        res = fut.result()
+    with stream_process(ros, camera, "SYNCHRONOUS") as (proc, probe, live):
+        res = call_still(ros, probe)
         assert not res.success
         assert res.message.startswith(UNAVAILABLE), res.message
         assert "RMW_FASTRTPS_PUBLICATION_MODE=AUTO" in res.message

@@ -4,10 +4,9 @@ benches measured for the H.264 writers. ROS-free: the XML is read, not loaded in
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
-PROFILE = Path(__file__).resolve().parents[2] / "config" / "fastdds_weak_link.xml"
-NS = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+from tests.support.fastdds_profile import NS, PROFILE, flow_controllers, pace
+
 H264_WRITERS = ("/image_raw/ffmpeg", "/image_raw/foxglove")  # the stream node's H.264 topics (nodes/stream_node.py)
 
 
@@ -55,12 +54,10 @@ def test_only_the_still_writer_is_paced_and_its_pace_leaves_the_live_video_room(
     mode = modes["/still/compressed"]
     assert mode is not None
     assert mode.findtext("f:kind", namespaces=NS) == "ASYNCHRONOUS"
-    defaults = [p for p in root.iterfind(".//f:participant", NS) if p.get("is_default_profile") == "true"]
-    controllers = defaults[0].findall(".//f:flow_controller_descriptor", NS)
+    controllers = flow_controllers()
     assert [c.findtext("f:name", namespaces=NS) for c in controllers] == [
         mode.findtext("f:flow_controller_name", namespaces=NS)
     ]
-    nbytes = int(controllers[0].findtext("f:max_bytes_per_period", namespaces=NS) or 0)
-    period_s = int(controllers[0].findtext("f:period_ms", namespaces=NS) or 0) / 1000
+    nbytes, period_s = pace(controllers[0])
     assert nbytes >= 1400, "a period must carry at least one datagram (maxMessageSize 1400)"
     assert 0.5e6 <= nbytes * 8 / period_s < 2.0e6
