@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import acuity  # noqa: E402
 import acuity_chart as chart  # noqa: E402
-from report import inputs, row  # noqa: E402  (bench/report.py)
+from report import SIM_CONFIG, inputs, row  # noqa: E402  (bench/report.py)
 
 from axis_ptz_ros2.sim.camera_model import PicturePool  # noqa: E402
 from axis_ptz_ros2.sim.persona import AXIS_214  # noqa: E402
@@ -44,8 +44,7 @@ def main(argv: list[str] | None = None) -> int:
         "bench/acuity.py",
         "bench/acuity_chart.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
         "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
         "axis_ptz_ros2/axis_ptz_ros2/optics.py",

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 import httpx
-from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+from report import SIM_CONFIG, inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support
 
@@ -139,8 +139,7 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/sim/scene.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim/frames.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim/camera.py",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "axis_ptz_ros2/axis_ptz_ros2/sim/http/mjpeg.py",
         "tests/support/picture.py",
         "config/sim_world.yaml",

@@ -43,7 +43,7 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from report import inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
+from report import SIM_CONFIG, inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
     PoseCommand,
@@ -253,8 +253,7 @@ def main() -> int:
         "axis_ptz_ros2/camera_info.py",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/laser_sim.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "config/sim_world.yaml",
         "bench/bench_calibration_e2e.py",
         "tests/support/sim_picker.py",

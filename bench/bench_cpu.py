@@ -40,7 +40,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests.support (the pipelines' subscriber uses it)
 import pipelines  # noqa: E402
 from pipelines import ROOT, Proc, Recorder, Subscriber, fps_of, wait_until
-from report import inputs, row  # noqa: E402
+from report import SIM_CONFIG, inputs, row  # noqa: E402
 
 MODEL_214 = str(ROOT / "config" / "axis214.yaml")  # explicit: no ament index lookup needed
 RESULTS: list[tuple[str, bool]] = []
@@ -446,8 +446,7 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/ptz",
         "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "bench/bench_cpu.py",
         "bench/pipelines.py",
         "bench/minimal_pipeline.py",

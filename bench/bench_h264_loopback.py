@@ -29,7 +29,7 @@ from typing import Any
 
 from capture_match import lag_summary, match, sends_of
 from pipelines import BIN, Proc, Subscriber, pct, wait_until
-from report import inputs, row
+from report import SIM_CONFIG, inputs, row
 
 SIZE = "1920x1080"
 HERE = Path(__file__).resolve().parent
@@ -152,8 +152,7 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/nodes/stream_node.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "config/sim_world.yaml",
     )
     sub = Subscriber()

@@ -456,7 +456,7 @@ def plot(runs: list[Run], path: Path, title: str) -> None:
 
 def readme_rows(r: dict[str, Any], fixed: list[dict[str, Any]]) -> None:
     """The README's "Measured" rows (bench/report.py)."""
-    from report import inputs, row
+    from report import SIM_CONFIG, inputs, row
 
     inputs(
         "bench/bench_link.py",
@@ -466,8 +466,7 @@ def readme_rows(r: dict[str, Any], fixed: list[dict[str, Any]]) -> None:
         "axis_ptz_ros2/axis_ptz_ros2/nodes/ptz_node.py",
         "tests/support/link.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "config/sim_world.yaml",
     )
     f = fixed[0] if fixed else None

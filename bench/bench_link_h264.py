@@ -110,6 +110,7 @@ from link_h264_results import (  # noqa: E402
     still_max,
 )
 from link_h264_roles import robot_sim, viewer  # noqa: E402
+from report import SIM_CONFIG  # noqa: E402  (bench/report.py)
 
 SIM_PORT = 8080
 #: the repository paths whose changes can move this bench's figures (``bench/report.py``)
@@ -126,8 +127,7 @@ INPUTS = (
     "tests/support/link.py",
     "config/fastdds_weak_link.xml",
     "axis_ptz_ros2/axis_ptz_ros2/sim",  # the pictures: their content sets the bytes
-    "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-    "config/q6075.yaml",
+    *SIM_CONFIG,
     "config/sim_world.yaml",
 )
 #: the link's rate each way (kbit/s; ``--rate-kbit``): the thesis's link is 2000, issue 21's second case 1000

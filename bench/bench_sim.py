@@ -20,7 +20,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
-from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+from report import SIM_CONFIG, inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.support
 from tests.support.sim import parts  # noqa: E402
@@ -78,8 +78,7 @@ def main() -> int:
         q = "resolution=704x576&fps=30"
         inputs(
             "axis_ptz_ros2/axis_ptz_ros2/sim",
-            "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-            "config/q6075.yaml",
+            *SIM_CONFIG,
             "axis_ptz_ros2/axis_ptz_ros2/geometry.py",
             "axis_ptz_ros2/axis_ptz_ros2/transforms.py",
             "axis_ptz_ros2/axis_ptz_ros2/optics.py",

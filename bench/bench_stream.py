@@ -52,7 +52,7 @@ from pipelines import (
     subscribed,
     wait_until,
 )
-from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+from report import SIM_CONFIG, inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 RESULTS: list[tuple[str, bool, str]] = []
 STALL_LIMIT_S = 1.5  # the one recovery criterion: reboot (port open -> frame) and stall (raw gap, watchdog included)
@@ -270,8 +270,7 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/nodes/runner.py",
         "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "bench/bench_stream.py",
         "bench/pipelines.py",
         "bench/cpu_compare.py",

@@ -27,7 +27,7 @@ from pathlib import Path
 from bench_stream import measure_load  # bench/bench_stream.py: the same load measurement
 from cpu_compare import SHARED_WINDOWS, measure_cpu_both_orders
 from pipelines import BIN, ROOT, Proc, Subscriber, fps_of, subscribed, wait_until
-from report import inputs, row
+from report import SIM_CONFIG, inputs, row
 
 SIZE = "1920x1080"
 
@@ -91,8 +91,7 @@ def main() -> int:
         "axis_ptz_ros2/axis_ptz_ros2/camera_models.py",
         "axis_ptz_ros2/axis_ptz_ros2/vapix",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "bench/bench_stream_1080p.py",
         "bench/bench_stream.py",
         "bench/pipelines.py",

@@ -24,7 +24,7 @@ import av
 import cv2
 import numpy as np
 from machine import cpu_s, loadavg  # bench/machine.py (bench/ is on sys.path when run)
-from report import inputs, row  # bench/report.py (bench/ is on sys.path when run)
+from report import SIM_CONFIG, inputs, row  # bench/report.py (bench/ is on sys.path when run)
 
 from axis_ptz_ros2.media.encoder import H264Encoder
 from axis_ptz_ros2.media.h264_settings import H264Settings
@@ -110,8 +110,7 @@ def main() -> None:
     inputs(
         "axis_ptz_ros2/axis_ptz_ros2/media",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "axis_ptz_ros2/axis_ptz_ros2/streaming/h264.py",
         "bench/bench_transcode.py",
         "bench/machine.py",

@@ -16,6 +16,9 @@ import json
 
 ROW_PREFIX = "README-ROW "
 INPUTS_PREFIX = "BENCH-INPUTS "
+#: the files the simulator reads its cameras' facts from (zoom, limits, head: issue 38): an input of every bench that
+#: runs the simulator, beside ``axis_ptz_ros2/axis_ptz_ros2/sim``
+SIM_CONFIG = ("config/axis214.yaml", "config/q6075.yaml")
 
 
 def inputs(*paths: str) -> None:

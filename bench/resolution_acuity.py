@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import acuity  # noqa: E402
-from report import inputs, row  # noqa: E402  (bench/report.py)
+from report import SIM_CONFIG, inputs, row  # noqa: E402  (bench/report.py)
 from resolution_tradeoff import noisy  # noqa: E402  (bench/resolution_tradeoff.py)
 
 from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
@@ -51,8 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         "bench/acuity_chart.py",
         "axis_ptz_ros2/axis_ptz_ros2/media/encoder.py",
         "axis_ptz_ros2/axis_ptz_ros2/sim",
-        "config/axis214.yaml",  # the simulated cameras' facts (zoom, limits): read by the simulator
-        "config/q6075.yaml",
+        *SIM_CONFIG,
         "config/sim_world.yaml",
     )
     fps, gop = args.fps, args.gop or args.fps
