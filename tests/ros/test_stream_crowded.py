@@ -5,6 +5,8 @@
 * A report about the MJPEG topic does not judge the link the H.264 stream is held to.
 * A plain H.264 viewer that missed the new subscriber's first IDRs (replaced in the keep-last queue on a crowded
   link) still gets a start point (``streaming/start_points.py``), and a viewer that reports pictures stops them.
+* The encoder's intra-refresh wave is the keyframe interval asked for while every H.264 viewer reports its losses
+  (the link monitor), one second of frames again as soon as one that does not (rviz, a plain subscription) joins.
 """
 
 from __future__ import annotations
@@ -18,14 +20,18 @@ import pytest
 pytest.importorskip("rclpy")
 
 from ffmpeg_image_transport_msgs.msg import FFMPEGPacket  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import CompressedImage  # noqa: E402
 
 from axis_ptz_interfaces.msg import LinkFeedback  # noqa: E402
+from axis_ptz_ros2.media import annexb  # noqa: E402
+from axis_ptz_ros2.media.annexb import NalType  # noqa: E402
 from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
+from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: E402
 from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
-from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S  # noqa: E402
+from axis_ptz_ros2.streaming.start_points import REPORTING_FOR_S, START_IDR_REPEATS_S  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.stream_node import make_stream_node  # noqa: E402
 
@@ -189,3 +195,57 @@ def test_start_point_repeats_stop_once_every_viewer_reports_pictures(ros: RosHar
     pub.publish(msg)
     ros.wait_for(lambda: not node._pipeline.starts._repeats, timeout=START_IDR_REPEATS_S[1])
     assert node._pipeline.starts.start_repeats < len(START_IDR_REPEATS_S)
+
+
+class Waves:
+    """The pts of the access units received that begin a refresh wave: those that carry SPS/PPS (x264 puts them
+    on each wave's recovery point, a P-picture) and of the IDRs."""
+
+    def __init__(self) -> None:
+        self.starts: list[tuple[int, bool]] = []  # (pts, IDR)
+        self.units = 0
+        self._lock = threading.Lock()
+
+    def on_packet(self, msg: FFMPEGPacket) -> None:
+        types = annexb.nal_types(bytes(msg.data))
+        with self._lock:
+            self.units += 1
+            if NalType.SPS in types:
+                self.starts.append((int(msg.pts), NalType.IDR in types))
+
+    def intervals_after(self, pts: int) -> list[int]:
+        """Frames between consecutive wave starts after ``pts`` with no IDR at the second (a wave of its own)."""
+        with self._lock:
+            starts = [s for s in self.starts if s[0] > pts]
+        return [b - a for (a, _), (b, idr) in zip(starts, starts[1:], strict=False) if not idr]
+
+    @property
+    def last_pts(self) -> int:
+        with self._lock:
+            return self.starts[-1][0] if self.starts else -1
+
+
+def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a_silent_one_joins(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """Real link monitor, real encoder, over DDS: with only the monitor watching (it reports every 0.5 s) the
+    encoder's waves are ``h264_keyframe_interval`` (50) frames long; a plain subscriber joins and they are one
+    second (25 frames) again, at once."""
+    node = make_stream_node(ros, camera, **H264, h264_keyframe_interval=50)
+    monitor = ros.add(LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter("codec", value="h264")]))
+    waves = Waves()  # the monitor's own second subscription: its node is the one reporting
+    ros.wait_for(lambda: monitor.codec == "h264", timeout=10)
+    monitor.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", waves.on_packet, STREAM_QOS)
+    ros.wait_for(lambda: node._pipeline.h264_settings().viewers_report, timeout=REPORTING_FOR_S + 10)
+    lifted_at = waves.last_pts
+    ros.wait_for(lambda: len(waves.intervals_after(lifted_at)) >= 1, timeout=15)
+    assert waves.intervals_after(lifted_at)[0] == 50, waves.starts[-4:]
+
+    viewer = ros.probe("plain_viewer")  # a viewer that does not report (rviz, rqt_image_view)
+    got = Received()
+    viewer.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", got.on_packet, STREAM_QOS)
+    ros.wait_for(lambda: not node._pipeline.h264_settings().viewers_report, timeout=5)
+    joined_at = waves.last_pts
+    ros.wait_for(lambda: len(waves.intervals_after(joined_at)) >= 3, timeout=15)
+    assert set(waves.intervals_after(joined_at)) <= set(range(1, 26)), waves.starts[-6:]
+    assert node._pipeline.h264_settings().effective_keyframe_interval == 25

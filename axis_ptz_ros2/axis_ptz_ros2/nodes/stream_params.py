@@ -106,8 +106,9 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _h264(
         "keyframe_interval",
-        "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand), or between a camera's "
-        "own IDRs when passed through (at most fps, one second, applies)",
+        "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand) while every H.264 "
+        "subscriber reports its losses on video/feedback; at most fps (one second) applies while one does not, "
+        "and between a camera's own IDRs when passed through",
         "frames",
         int_range=KEYFRAME_RANGE,
     ),

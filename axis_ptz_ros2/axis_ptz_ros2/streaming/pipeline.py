@@ -53,6 +53,7 @@ from axis_ptz_ros2.streaming.status import (
     h264_diagnostic_values,
     h264_mode_line,
     reader_event_line,
+    wave_line,
 )
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix import VapixClient
@@ -222,11 +223,15 @@ class VideoPipeline:
         one written was decided last)."""
         with self._push_lock:
             h264 = self.video.h264_settings()
+            h264 = replace(h264, viewers_report=self.starts.all_report(time.monotonic()))
             params = self.video.current
             if self._stream_size is not None:
                 params = replace(params, resolution=self._stream_size)
+            wave = self._h264.effective_keyframe_interval
             self._h264 = h264
             self._rtsp_request = media_request(params, h264)
+        if self.transcode and h264.refresh == "intra" and h264.effective_keyframe_interval != wave:
+            self._log(LogLine("info", wave_line(h264)))
 
     def _decide(self) -> None:
         """Re-decide what the H.264 side is to do; passed through with ``resolution`` auto and the camera's sizes
@@ -368,6 +373,7 @@ class VideoPipeline:
             self.rtsp.supported,
             s.h264.bitrate_kbps,
             s.h264.max_bitrate_kbps,
+            self._h264.effective_keyframe_interval if self.transcode else self._h264.gop_frames,
         )
         share = self.video.mjpeg
         if not share.active:

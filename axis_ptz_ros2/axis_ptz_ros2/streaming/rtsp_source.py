@@ -133,7 +133,7 @@ def media_request(params: VideoParams, h264: H264Settings) -> MediaStreamRequest
     return MediaStreamRequest(
         resolution=f"{res.width}x{res.height}",
         fps=max(1, int(params.fps)),
-        keyframe_interval=h264.effective_keyframe_interval,
+        keyframe_interval=h264.gop_frames,
         max_bitrate_kbps=h264.bitrate_kbps,
     )
 

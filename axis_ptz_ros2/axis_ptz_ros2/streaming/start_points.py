@@ -7,6 +7,12 @@ repaired, and the viewer then waits forever (issue 40: 331 access units in 20 s,
 is also sent an IDR at each of :data:`START_IDR_REPEATS_S` after it appeared, unless every H.264 subscriber has by
 then reported on ``video/feedback`` that it shows pictures (frames, no decode errors: it has had a start point); a
 consumer that does report asks for more itself through its decode errors (:meth:`StartPoints.report`).
+
+The same bookkeeping says whether every H.264 viewer reports (:meth:`StartPoints.all_report`): each of them has
+reported on ``video/feedback`` about the H.264 stream for :data:`REPORTING_FOR_S` without a gap of more than
+:data:`REPORT_GAP_S`. Then every loss asks for an IDR, and the encoder's intra-refresh wave need not heal anyone:
+it may be longer than a second (:attr:`~axis_ptz_ros2.media.h264_settings.H264Settings.viewers_report`). A new
+viewer that does not report, or a reporter that falls silent or leaves, ends it at once.
 """
 
 from __future__ import annotations
@@ -23,6 +29,12 @@ from axis_ptz_ros2.streaming.h264 import H264Stage
 #: 2 s a viewer's first picture may take, the last ~5 s of congestion out; at least 1.2 s apart so that an intra
 #: refresh wave (one per second of frames) still begins between them, and each costs one squeezed picture
 START_IDR_REPEATS_S: Final = (1.2, 2.4, 4.8)
+#: s: a viewer counts as reporting once it has reported this long without a gap (the link monitor reports every
+#: 0.5 s): a wave that changes re-opens the encoder (an IDR), so a viewer's first report does not yet change it
+REPORTING_FOR_S: Final = 5.0
+#: s: a gap between a viewer's reports longer than this and it no longer counts as reporting (six of the link
+#: monitor's periods: a few reports lost on a weak link do not make the wave flap)
+REPORT_GAP_S: Final = 3.0
 
 
 class StartPoints:
@@ -37,29 +49,37 @@ class StartPoints:
         self._repeats: deque[float] = deque()  # when the next start-point IDRs are due (monotonic)
         self._viewers: frozenset[str] = frozenset()  # the H.264 subscribers' nodes (fully qualified)
         self._showing: set[str] = set()  # consumers whose last H.264 report shows pictures without errors
+        self._reporting: dict[str, tuple[float, float]] = {}  # consumer: (first, last) H.264 report of its streak
         self.start_repeats = 0  # start-point IDRs asked for by the repeats
 
     def count(self, subscribers: int, viewers: Callable[[], frozenset[str]]) -> None:
         """The H.264 subscribers now; more than before: a new viewer, who needs a start point (an IDR now, another
-        0.4 s later, and the repeats). ``viewers()``: their nodes, asked only then."""
+        0.4 s later, and the repeats). ``viewers()``: their nodes, asked only when the count changed."""
+        if subscribers == self.subscribers:
+            return
+        names = viewers()
         if subscribers > self.subscribers:
             self._stage.new_subscriber()
-            names = viewers()
             now = self._clock()
             with self._lock:
-                self._viewers = names
                 self._repeats = deque(now + t for t in START_IDR_REPEATS_S)
+        with self._lock:
+            self._viewers = names
+            self._reporting = {k: v for k, v in self._reporting.items() if k in names}
         self.subscribers = subscribers
 
     def report(self, consumer: str, frames: int, errors: int) -> None:
         """A consumer's report about the H.264 stream: its count of access units it could not show (its report's
         window), when it grew (new losses), asks for a start point now (:meth:`H264Stage.consumer_errors`);
         pictures without errors mean it has had one."""
+        now = self._clock()
         with self._lock:
             if frames > 0 and errors == 0:
                 self._showing.add(consumer)
             else:
                 self._showing.discard(consumer)
+            first, last = self._reporting.get(consumer, (now, now))
+            self._reporting[consumer] = (now if now - last > REPORT_GAP_S else first, now)
         if self._stage.active:
             self._stage.consumer_errors(consumer, errors)
 
@@ -75,6 +95,17 @@ class StartPoints:
                 return False
             self.start_repeats += 1
         return True
+
+    def all_report(self, now: float) -> bool:
+        """Whether every H.264 viewer (at the last count) reports (see the module docstring); False with none."""
+        with self._lock:
+            if not self._viewers or self.subscribers <= 0:
+                return False
+            for name in self._viewers:
+                first, last = self._reporting.get(name, (now, -1e18))
+                if now - last > REPORT_GAP_S or last - first < REPORTING_FOR_S:
+                    return False
+            return True
 
     @property
     def pending(self) -> bool:

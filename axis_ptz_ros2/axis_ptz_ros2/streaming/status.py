@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.h264 import StageStats
 from axis_ptz_ros2.streaming.meter import Rate
 from axis_ptz_ros2.streaming.reader import ReaderStats, StreamState
@@ -128,6 +129,17 @@ def h264_mode_line(camera_streams_h264: bool) -> str:
     return "codec h264: the camera does not stream H.264: its MJPEG (compression 0) is transcoded to H.264 on this host"
 
 
+def wave_line(h264: H264Settings) -> str:
+    """The encoder's intra-refresh wave changed (logged at info): how long, and why."""
+    frames = h264.effective_keyframe_interval
+    why = (
+        "every H.264 subscriber reports its losses on video/feedback (each asks for an IDR)"
+        if h264.viewers_report
+        else "an H.264 subscriber does not report its losses: the refresh heals it"
+    )
+    return f"H.264 intra-refresh wave {frames} frames ({frames / max(h264.fps, 1):.1f} s): {why}"
+
+
 def h264_diagnostic_values(
     encoding: bool,
     bitrate_kbps: int,
@@ -136,10 +148,11 @@ def h264_diagnostic_values(
     camera_streams_h264: bool | None,
     start_kbps: int = 0,
     ceiling_kbps: int = 0,
+    wave_frames: int = 0,
 ) -> dict[str, Any]:
     """The H.264 side's diagnostics values (``camera_streams_h264``: None until the camera was asked;
     ``start_kbps``/``ceiling_kbps``: ``h264_bitrate_kbps``/``h264_max_bitrate_kbps``, between which the link moves
-    the target)."""
+    the target; ``wave_frames``: the keyframe interval the encoder or the camera's stream has now)."""
     return {
         "h264 encoding": encoding,
         "h264 bitrate target [kbit/s]": bitrate_kbps,
@@ -148,6 +161,7 @@ def h264_diagnostic_values(
         "h264 access units": stage.frames,
         "h264 IDRs": stage.idrs,
         "h264 IDRs on demand": stage.idr_requests,
+        "h264 keyframe interval [frames]": wave_frames,
         "h264 dropped inputs": stage.bad_inputs,
         "h264 source": {None: "?", True: "camera (RTSP)", False: "transcoded"}[camera_streams_h264],
         "rtsp access units": rtsp.access_units,

@@ -1,0 +1,97 @@
+"""Start points and who reports (ROS-free): :meth:`StartPoints.all_report` says whether every H.264 viewer has
+reported on ``video/feedback`` long enough, without a gap, for the encoder's wave to be longer than a second."""
+
+from __future__ import annotations
+
+import pytest
+
+from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.streaming.h264 import H264Stage
+from axis_ptz_ros2.streaming.start_points import REPORT_GAP_S, REPORTING_FOR_S, StartPoints
+from axis_ptz_ros2.streaming.status import wave_line
+
+pytestmark = pytest.mark.unit
+
+MONITOR = "/operator/link_monitor"
+RVIZ = "/rviz2"
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 50.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def _starts() -> tuple[StartPoints, Clock]:
+    clock = Clock()
+    stage = H264Stage(H264Settings, lambda _f: None, clock=clock)
+    return StartPoints(stage, clock), clock
+
+
+def _report_for(starts: StartPoints, clock: Clock, consumer: str, seconds: float, period: float = 0.5) -> None:
+    for _ in range(round(seconds / period)):
+        clock.t += period
+        starts.report(consumer, 12, 0)
+
+
+def test_every_viewer_reporting_long_enough_without_a_gap_is_all_reporting() -> None:
+    starts, clock = _starts()
+    assert not starts.all_report(clock.t)  # no viewer: nothing to say
+    starts.count(1, lambda: frozenset({MONITOR}))
+    starts.report(MONITOR, 12, 0)
+    assert not starts.all_report(clock.t)  # its first report does not yet change the wave
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S - 1.0)
+    assert not starts.all_report(clock.t)
+    _report_for(starts, clock, MONITOR, 1.0)
+    assert starts.all_report(clock.t)
+    # reports with losses are reports: the viewer asks for IDRs itself
+    _report_for(starts, clock, MONITOR, 1.0)
+    starts.report(MONITOR, 12, 3)
+    assert starts.all_report(clock.t)
+
+
+def test_a_silent_viewer_or_a_reporter_gone_quiet_ends_it() -> None:
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({MONITOR}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    assert starts.all_report(clock.t)
+    starts.count(2, lambda: frozenset({MONITOR, RVIZ}))  # rviz joins: it does not report
+    assert not starts.all_report(clock.t)
+    starts.count(1, lambda: frozenset({MONITOR}))  # ... and leaves: the monitor's streak went on meanwhile
+    _report_for(starts, clock, MONITOR, 0.5)
+    assert starts.all_report(clock.t)
+    clock.t += REPORT_GAP_S + 0.1  # the monitor falls silent
+    assert not starts.all_report(clock.t)
+    starts.report(MONITOR, 12, 0)  # back: a new streak, which must last again
+    assert not starts.all_report(clock.t)
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    assert starts.all_report(clock.t)
+
+
+def test_a_reporter_that_leaves_and_comes_back_starts_a_new_streak() -> None:
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({MONITOR}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    starts.count(0, frozenset)
+    assert not starts.all_report(clock.t)
+    starts.count(1, lambda: frozenset({MONITOR}))
+    starts.report(MONITOR, 12, 0)
+    assert not starts.all_report(clock.t)
+
+
+def test_a_report_from_a_node_that_does_not_subscribe_counts_for_nothing() -> None:
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({RVIZ}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 1.0)
+    assert not starts.all_report(clock.t)
+
+
+def test_the_wave_line_says_how_long_and_why() -> None:
+    on = wave_line(H264Settings(keyframe_interval=100, fps=25, viewers_report=True))
+    assert "100 frames (4.0 s)" in on
+    assert "reports its losses" in on
+    off = wave_line(H264Settings(keyframe_interval=100, fps=25))
+    assert "25 frames (1.0 s)" in off
+    assert "does not report" in off
