@@ -18,7 +18,10 @@ identical to the loss-free decoder's again (or ``never`` within the run). The se
   and 60 ms of the budget);
 * candidates: x264's periodic intra refresh (``intra``: one wave a second, IDRs only on request) or a long GOP
   (``gop``: one IDR at the start), each Constrained Baseline or High, under the same VBV rule;
-* ``node``: the stream node's defaults now (``H264Settings()``), under the same VBV rule;
+* ``node``: the stream node's defaults now (``H264Settings()``), under the same VBV rule, with a viewer that does
+  not report its losses (the wave at most one second);
+* ``node-reported``: the same while every viewer reports its losses (``viewers_report``: the wave
+  ``h264_keyframe_interval``, 100 pictures); ``reported-veryfast``: that wave with ``veryfast``;
 * ``reference``: x264 ``medium``, High, long GOP, VBV 150 ms of the bitrate: "what the bits allow".
 
 Targets (issue 39): 5th percentile within 1.5 dB of the median; median within 0.5 dB of the reference at the same
@@ -68,7 +71,8 @@ class Setting:
 
 
 def settings() -> list[Setting]:
-    node = H264Settings(fps=FPS)
+    node = H264Settings(fps=FPS)  # a viewer that does not report: the wave at most a second
+    reported = H264Settings(fps=FPS, viewers_report=True)  # every viewer reports its losses: the wave as set
     return [
         Setting("today", "superfast", "baseline", "idr", FPS, True),
         Setting("gop-baseline", "superfast", "baseline", "idr", LONG_GOP, True),
@@ -78,6 +82,15 @@ def settings() -> list[Setting]:
         Setting("intra-high-veryfast", "veryfast", "high", "intra", FPS, True),
         Setting("intra-high-faster", "faster", "high", "intra", FPS, True),
         Setting("node", node.preset, node.profile, node.refresh, node.effective_keyframe_interval, True),
+        Setting(
+            "node-reported",
+            reported.preset,
+            reported.profile,
+            reported.refresh,
+            reported.effective_keyframe_interval,
+            True,
+        ),
+        Setting("reported-veryfast", "veryfast", "high", "intra", reported.effective_keyframe_interval, True),
         Setting("reference", "medium", "high", "idr", LONG_GOP, False),
     ]
 
