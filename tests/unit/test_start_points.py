@@ -7,7 +7,7 @@ import pytest
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.h264 import H264Stage
-from axis_ptz_ros2.streaming.start_points import REPORT_GAP_S, REPORTING_FOR_S, StartPoints
+from axis_ptz_ros2.streaming.start_points import MAX_REPORTERS, REPORT_GAP_S, REPORTING_FOR_S, StartPoints
 from axis_ptz_ros2.streaming.status import wave_line
 
 pytestmark = pytest.mark.unit
@@ -86,6 +86,19 @@ def test_a_report_from_a_node_that_does_not_subscribe_counts_for_nothing() -> No
     starts.count(1, lambda: frozenset({RVIZ}))
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 1.0)
     assert not starts.all_report(clock.t)
+
+
+def test_consumers_that_come_and_go_are_forgotten_but_not_one_reporting_now() -> None:
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({MONITOR}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    for k in range(3 * MAX_REPORTERS):  # short-lived consumers, one report each
+        clock.t += 0.02
+        starts.report(f"/viewer_{k}", 12, 0)
+        if k % 25 == 0:
+            starts.report(MONITOR, 12, 0)
+    assert len(starts._reporting) <= MAX_REPORTERS + 1  # noqa: SLF001 - the bound is the point
+    assert starts.all_report(clock.t)  # the monitor's streak survived
 
 
 def test_the_wave_line_says_how_long_and_why() -> None:

@@ -35,6 +35,8 @@ REPORTING_FOR_S: Final = 5.0
 #: s: a gap between a viewer's reports longer than this and it no longer counts as reporting (six of the link
 #: monitor's periods: a few reports lost on a weak link do not make the wave flap)
 REPORT_GAP_S: Final = 3.0
+#: consumers' streaks kept at most (past it, those not reporting now are forgotten, then all but the viewers')
+MAX_REPORTERS: Final = 64
 
 
 class StartPoints:
@@ -80,6 +82,11 @@ class StartPoints:
                 self._showing.discard(consumer)
             first, last = self._reporting.get(consumer, (now, now))
             self._reporting[consumer] = (now if now - last > REPORT_GAP_S else first, now)
+            if len(self._reporting) > MAX_REPORTERS:  # consumers that come and go: the viewers' streaks are kept
+                kept = {k: v for k, v in self._reporting.items() if k in self._viewers or now - v[1] <= REPORT_GAP_S}
+                if len(kept) > MAX_REPORTERS:
+                    kept = {k: v for k, v in kept.items() if k in self._viewers}
+                self._reporting = kept
         if self._stage.active:
             self._stage.consumer_errors(consumer, errors)
 
