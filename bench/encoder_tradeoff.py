@@ -20,7 +20,7 @@ identical to the loss-free decoder's again (or ``never`` within the run). The se
   (``gop``: one IDR at the start), each Constrained Baseline or High, under the same VBV rule;
 * ``node``: the stream node's defaults now (``H264Settings()``), under the same VBV rule, with a viewer that does
   not report its losses (the wave at most one second);
-* ``node-reported``: the same while every viewer reports its losses (``viewers_report``: the wave
+* ``node-reported``: the same while every viewer reports its losses (``long_wave``: the wave
   ``h264_keyframe_interval``, 100 pictures); ``reported-veryfast``: that wave with ``veryfast``;
 * ``reference``: x264 ``medium``, High, long GOP, VBV 150 ms of the bitrate: "what the bits allow".
 
@@ -72,7 +72,7 @@ class Setting:
 
 def settings() -> list[Setting]:
     node = H264Settings(fps=FPS)  # a viewer that does not report: the wave at most a second
-    reported = H264Settings(fps=FPS, viewers_report=True)  # every viewer reports its losses: the wave as set
+    reported = H264Settings(fps=FPS, long_wave=True)  # every viewer reports its losses: the wave as set
     return [
         Setting("today", "superfast", "baseline", "idr", FPS, True),
         Setting("gop-baseline", "superfast", "baseline", "idr", LONG_GOP, True),

@@ -236,7 +236,7 @@ def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a
     waves = Waves()  # the monitor's own second subscription: its node is the one reporting
     ros.wait_for(lambda: monitor.codec == "h264", timeout=10)
     monitor.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", waves.on_packet, STREAM_QOS)
-    ros.wait_for(lambda: node._pipeline.h264_settings().viewers_report, timeout=REPORTING_FOR_S + 10)
+    ros.wait_for(lambda: node._pipeline.h264_settings().long_wave, timeout=REPORTING_FOR_S + 10)
     lifted_at = waves.last_pts
     ros.wait_for(lambda: len(waves.intervals_after(lifted_at)) >= 1, timeout=15)
     assert waves.intervals_after(lifted_at)[0] == 50, waves.starts[-4:]
@@ -244,7 +244,7 @@ def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a
     viewer = ros.probe("plain_viewer")  # a viewer that does not report (rviz, rqt_image_view)
     got = Received()
     viewer.create_subscription(FFMPEGPacket, "image_raw/ffmpeg", got.on_packet, STREAM_QOS)
-    ros.wait_for(lambda: not node._pipeline.h264_settings().viewers_report, timeout=5)
+    ros.wait_for(lambda: not node._pipeline.h264_settings().long_wave, timeout=5)
     joined_at = waves.last_pts
     ros.wait_for(lambda: len(waves.intervals_after(joined_at)) >= 3, timeout=15)
     assert set(waves.intervals_after(joined_at)) <= set(range(1, 26)), waves.starts[-6:]

@@ -1,5 +1,6 @@
-"""Start points and who reports (ROS-free): :meth:`StartPoints.all_report` says whether every H.264 viewer has
-reported on ``video/feedback`` long enough, without a gap, for the encoder's wave to be longer than a second."""
+"""Start points and who reports (ROS-free): :meth:`StartPoints.long_wave` says whether every H.264 viewer has
+reported on ``video/feedback`` long enough, without a gap, and none lost anything lately, for the encoder's wave to
+be longer than a second."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import pytest
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.h264 import H264Stage
-from axis_ptz_ros2.streaming.start_points import MAX_REPORTERS, REPORT_GAP_S, REPORTING_FOR_S, StartPoints
+from axis_ptz_ros2.streaming.start_points import CLEAN_FOR_S, MAX_REPORTERS, REPORT_GAP_S, REPORTING_FOR_S, StartPoints
 from axis_ptz_ros2.streaming.status import wave_line
 
 pytestmark = pytest.mark.unit
@@ -36,38 +37,52 @@ def _report_for(starts: StartPoints, clock: Clock, consumer: str, seconds: float
         starts.report(consumer, 12, 0)
 
 
-def test_every_viewer_reporting_long_enough_without_a_gap_is_all_reporting() -> None:
+def test_every_viewer_reporting_long_enough_without_a_gap_lets_the_wave_be_long() -> None:
     starts, clock = _starts()
-    assert not starts.all_report(clock.t)  # no viewer: nothing to say
+    assert not starts.long_wave(clock.t)  # no viewer: nothing to say
     starts.count(1, lambda: frozenset({MONITOR}))
     starts.report(MONITOR, 12, 0)
-    assert not starts.all_report(clock.t)  # its first report does not yet change the wave
+    assert not starts.long_wave(clock.t)  # its first report does not yet change the wave
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S - 1.0)
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
     _report_for(starts, clock, MONITOR, 1.0)
-    assert starts.all_report(clock.t)
-    # reports with losses are reports: the viewer asks for IDRs itself
-    _report_for(starts, clock, MONITOR, 1.0)
-    starts.report(MONITOR, 12, 3)
-    assert starts.all_report(clock.t)
+    assert starts.long_wave(clock.t)
+
+
+def test_a_reported_loss_ends_the_long_wave_until_the_viewers_see_none_for_a_while() -> None:
+    """Each loss costs an IDR squeezed into the link's VBV, whose blur a long wave would keep for seconds."""
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({MONITOR}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    assert starts.long_wave(clock.t)
+    clock.t += 0.5
+    starts.report(MONITOR, 12, 3)  # three access units it could not show
+    assert not starts.long_wave(clock.t)
+    _report_for(starts, clock, MONITOR, CLEAN_FOR_S - 1.0)
+    assert not starts.long_wave(clock.t)
+    _report_for(starts, clock, MONITOR, 1.5)
+    assert starts.long_wave(clock.t)
+    # any viewer's loss counts, whoever it is
+    starts.report("/operator/web_console", 12, 1)
+    assert not starts.long_wave(clock.t)
 
 
 def test_a_silent_viewer_or_a_reporter_gone_quiet_ends_it() -> None:
     starts, clock = _starts()
     starts.count(1, lambda: frozenset({MONITOR}))
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
-    assert starts.all_report(clock.t)
+    assert starts.long_wave(clock.t)
     starts.count(2, lambda: frozenset({MONITOR, RVIZ}))  # rviz joins: it does not report
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
     starts.count(1, lambda: frozenset({MONITOR}))  # ... and leaves: the monitor's streak went on meanwhile
     _report_for(starts, clock, MONITOR, 0.5)
-    assert starts.all_report(clock.t)
+    assert starts.long_wave(clock.t)
     clock.t += REPORT_GAP_S + 0.1  # the monitor falls silent
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
     starts.report(MONITOR, 12, 0)  # back: a new streak, which must last again
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
-    assert starts.all_report(clock.t)
+    assert starts.long_wave(clock.t)
 
 
 def test_a_reporter_that_leaves_and_comes_back_starts_a_new_streak() -> None:
@@ -75,17 +90,28 @@ def test_a_reporter_that_leaves_and_comes_back_starts_a_new_streak() -> None:
     starts.count(1, lambda: frozenset({MONITOR}))
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
     starts.count(0, frozenset)
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
     starts.count(1, lambda: frozenset({MONITOR}))
     starts.report(MONITOR, 12, 0)
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
+
+
+def test_a_viewer_the_graph_names_late_is_learnt_at_the_next_count() -> None:
+    """Across hosts the publisher matches a subscription before the graph knows its node: the first count lists
+    an unknown name (or none); a later count with the same number of subscribers learns the real one."""
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({"/_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_"}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    assert not starts.long_wave(clock.t)
+    starts.count(1, lambda: frozenset({MONITOR}))  # the 1 Hz count, the same number
+    assert starts.long_wave(clock.t)  # its streak was kept meanwhile
 
 
 def test_a_report_from_a_node_that_does_not_subscribe_counts_for_nothing() -> None:
     starts, clock = _starts()
     starts.count(1, lambda: frozenset({RVIZ}))
     _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 1.0)
-    assert not starts.all_report(clock.t)
+    assert not starts.long_wave(clock.t)
 
 
 def test_consumers_that_come_and_go_are_forgotten_but_not_one_reporting_now() -> None:
@@ -98,13 +124,13 @@ def test_consumers_that_come_and_go_are_forgotten_but_not_one_reporting_now() ->
         if k % 25 == 0:
             starts.report(MONITOR, 12, 0)
     assert len(starts._reporting) <= MAX_REPORTERS + 1  # noqa: SLF001 - the bound is the point
-    assert starts.all_report(clock.t)  # the monitor's streak survived
+    assert starts.long_wave(clock.t)  # the monitor's streak survived
 
 
 def test_the_wave_line_says_how_long_and_why() -> None:
-    on = wave_line(H264Settings(keyframe_interval=100, fps=25, viewers_report=True))
-    assert "100 frames (4.0 s)" in on
+    on = wave_line(H264Settings(keyframe_interval=100, fps=25, long_wave=True))
+    assert "100 frames (4.0 s at 25 fps)" in on
     assert "reports its losses" in on
     off = wave_line(H264Settings(keyframe_interval=100, fps=25))
-    assert "25 frames (1.0 s)" in off
+    assert "25 frames (1.0 s at 25 fps)" in off
     assert "does not report" in off

@@ -55,9 +55,10 @@ class H264Settings:
     profile: str = DEFAULT_PROFILE  # one of PROFILES
     refresh: str = DEFAULT_REFRESH  # one of REFRESH_MODES: x264's intra refresh (IDRs on request), or periodic IDRs
     threads: int = 1  # libx264 threads (THREADS_RANGE)
-    #: every H.264 viewer reports its losses (``video/feedback``), so each loss asks for an IDR: the intra-refresh
-    #: wave may be longer than a second (:attr:`effective_keyframe_interval`); decided by the stream node
-    viewers_report: bool = False
+    #: the intra-refresh wave may be longer than a second (:attr:`effective_keyframe_interval`): every H.264 viewer
+    #: reports its losses on ``video/feedback`` (each asks for an IDR) and none has lost any lately; decided by the
+    #: stream node (:meth:`~axis_ptz_ros2.streaming.start_points.StartPoints.long_wave`)
+    long_wave: bool = False
 
     def __post_init__(self) -> None:
         low, high = ENCODER_BITRATE_RANGE_KBPS
@@ -96,12 +97,12 @@ class H264Settings:
 
     @property
     def effective_keyframe_interval(self) -> int:
-        """The encoder's keyframe interval in frames: with intra refresh while every viewer reports its losses
-        (:attr:`viewers_report`: each loss asks for an IDR, the wave need not heal anyone) ``keyframe_interval`` as
-        asked, one wave; otherwise :attr:`gop_frames`. A longer wave spends fewer bits on intra blocks: +0.5 dB at
-        1500 and +1.0 dB at 1000 kbit/s for a 4 s wave against 1 s (``bench/encoder_tradeoff.py``,
-        docs/weak-link.md)."""
-        if self.refresh == "intra" and self.viewers_report:
+        """The encoder's keyframe interval in frames: with intra refresh and :attr:`long_wave` (every viewer reports
+        its losses, so each asks for an IDR and the wave need not heal anyone; none lost any lately)
+        ``keyframe_interval`` as asked, one wave; otherwise :attr:`gop_frames`. A longer wave spends fewer bits on
+        intra blocks: +0.5 dB at 1500 and +1.0 dB at 1000 kbit/s for a 4 s wave against 1 s
+        (``bench/encoder_tradeoff.py``, docs/weak-link.md)."""
+        if self.refresh == "intra" and self.long_wave:
             return self.keyframe_interval
         return self.gop_frames
 

@@ -223,7 +223,7 @@ class VideoPipeline:
         one written was decided last)."""
         with self._push_lock:
             h264 = self.video.h264_settings()
-            h264 = replace(h264, viewers_report=self.starts.all_report(time.monotonic()))
+            h264 = replace(h264, long_wave=self.starts.long_wave(time.monotonic()))
             params = self.video.current
             if self._stream_size is not None:
                 params = replace(params, resolution=self._stream_size)

@@ -133,11 +133,11 @@ def wave_line(h264: H264Settings) -> str:
     """The encoder's intra-refresh wave changed (logged at info): how long, and why."""
     frames = h264.effective_keyframe_interval
     why = (
-        "every H.264 subscriber reports its losses on video/feedback (each asks for an IDR)"
-        if h264.viewers_report
-        else "an H.264 subscriber does not report its losses: the refresh heals it"
+        "every H.264 subscriber reports its losses on video/feedback (each asks for an IDR) and none lost any lately"
+        if h264.long_wave
+        else "an H.264 subscriber does not report its losses, or one lost access units lately"
     )
-    return f"H.264 intra-refresh wave {frames} frames ({frames / max(h264.fps, 1):.1f} s): {why}"
+    return f"H.264 intra-refresh wave {frames} frames ({frames / max(h264.fps, 1):.1f} s at {h264.fps} fps): {why}"
 
 
 def h264_diagnostic_values(
