@@ -240,6 +240,7 @@ def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a
     lifted_at = waves.last_pts
     ros.wait_for(lambda: len(waves.intervals_after(lifted_at)) >= 1, timeout=15)
     assert waves.intervals_after(lifted_at)[0] == 50, waves.starts[-4:]
+    assert node._pipeline.diagnostics()["h264 keyframe interval [frames]"] == 50
 
     viewer = ros.probe("plain_viewer")  # a viewer that does not report (rviz, rqt_image_view)
     got = Received()
@@ -248,4 +249,4 @@ def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a
     joined_at = waves.last_pts
     ros.wait_for(lambda: len(waves.intervals_after(joined_at)) >= 3, timeout=15)
     assert set(waves.intervals_after(joined_at)) <= set(range(1, 26)), waves.starts[-6:]
-    assert node._pipeline.h264_settings().effective_keyframe_interval == 25
+    assert node._pipeline.diagnostics()["h264 keyframe interval [frames]"] == 25  # the camera's 25 fps

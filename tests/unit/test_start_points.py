@@ -129,8 +129,8 @@ def test_consumers_that_come_and_go_are_forgotten_but_not_one_reporting_now() ->
 
 def test_the_wave_line_says_how_long_and_why() -> None:
     on = wave_line(H264Settings(keyframe_interval=100, fps=25, long_wave=True))
-    assert "100 frames (4.0 s at 25 fps)" in on
+    assert "100 frames" in on
     assert "reports its losses" in on
     off = wave_line(H264Settings(keyframe_interval=100, fps=25))
-    assert "25 frames (1.0 s at 25 fps)" in off
+    assert "one second" in off
     assert "does not report" in off

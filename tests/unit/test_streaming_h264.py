@@ -156,10 +156,12 @@ def test_a_longer_wave_only_while_every_viewer_reports_and_back_at_once_with_an_
     h.stage.set_active(True)
     out = [f for f in h.feed(jpegs[:8]) if f is not None]
     assert h.made[0].keyframe_interval == 600
+    assert h.stage.keyframe_interval == 600
     assert [f.pts for f in out if f.keyframe] == [0]
     h.settings = H264Settings(keyframe_interval=600, fps=5, long_wave=False)
     out = [f for f in h.feed(jpegs[8:12]) if f is not None]
     assert h.transcoders[-1].settings.keyframe_interval == 5
+    assert h.stage.keyframe_interval == 5
     assert [f.keyframe for f in out] == [True, False, False, False]
     assert len(h.made) == 1  # the same transcoder: its encoder re-opened, not a new stage encoder
     # refresh idr: periodic IDRs heal a viewer that does not report, whoever reports

@@ -171,6 +171,12 @@ class H264Stage:
         """Whether a transcoder (an encoder) exists right now."""
         return self._transcoder is not None
 
+    @property
+    def keyframe_interval(self) -> int:
+        """The keyframe interval (frames) the open encoder has, at the rate it runs at (0 = none open)."""
+        have = self._opened_with
+        return 0 if have is None else have.effective_keyframe_interval
+
     def set_active(self, active: bool) -> None:
         """Start (the first frame is an IDR) or stop encoding; stopping drops the encoder."""
         with self._lock:

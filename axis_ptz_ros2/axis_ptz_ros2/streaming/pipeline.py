@@ -373,7 +373,7 @@ class VideoPipeline:
             self.rtsp.supported,
             s.h264.bitrate_kbps,
             s.h264.max_bitrate_kbps,
-            self._h264.effective_keyframe_interval if self.transcode else self._h264.gop_frames,
+            self.stage.keyframe_interval if self.transcode else self._rtsp_request.keyframe_interval,
         )
         share = self.video.mjpeg
         if not share.active:

@@ -130,14 +130,17 @@ def h264_mode_line(camera_streams_h264: bool) -> str:
 
 
 def wave_line(h264: H264Settings) -> str:
-    """The encoder's intra-refresh wave changed (logged at info): how long, and why."""
-    frames = h264.effective_keyframe_interval
-    why = (
-        "every H.264 subscriber reports its losses on video/feedback (each asks for an IDR) and none lost any lately"
-        if h264.long_wave
-        else "an H.264 subscriber does not report its losses, or one lost access units lately"
+    """The encoder's intra-refresh wave changed (logged at info): how long, and why. The short wave is named as
+    "one second of frames": the stage runs the encoder at the rate the camera really makes, not ``h264.fps``."""
+    if h264.long_wave:
+        return (
+            f"H.264 intra-refresh wave {h264.keyframe_interval} frames (h264_keyframe_interval): every H.264 "
+            "subscriber reports its losses on video/feedback (each asks for an IDR) and none lost any lately"
+        )
+    return (
+        "H.264 intra-refresh wave at most one second of frames: an H.264 subscriber does not report its losses, "
+        "or one lost access units lately"
     )
-    return f"H.264 intra-refresh wave {frames} frames ({frames / max(h264.fps, 1):.1f} s at {h264.fps} fps): {why}"
 
 
 def h264_diagnostic_values(
