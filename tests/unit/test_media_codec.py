@@ -217,6 +217,26 @@ def test_intra_refresh_makes_idrs_only_on_demand_and_every_picture_decodes(jpegs
     assert (enc.codec_string or "").startswith("avc1.64")  # High profile
 
 
+def test_a_new_wave_under_a_lowered_bitrate_keeps_the_ceiling_it_opened_with(jpegs: list[bytes]) -> None:
+    """Opened at the ceiling (1500 kbit/s) and lowered live to 500, a new wave re-opens x264 at 1500 still: the
+    link's budget climbing back from 500 then changes the bitrate live, not with a re-open (an IDR) at every step
+    (two-host bench, 2 -> 1 Mbit/s: re-opened at the lowered rate, the climb's IDRs kept the link congested 12 s)."""
+    images = [bgr(j) for j in jpegs[:12]]
+    enc = H264Encoder(H264Settings(bitrate_kbps=1500, fps=25, keyframe_interval=100, refresh="intra"), 704, 576)
+    for img in images[:3]:
+        enc.encode_bgr(img)
+    enc.set_bitrate(500)
+    enc.encode_bgr(images[3])
+    enc.set_keyframe_interval(25)
+    assert enc.encode_bgr(images[4]).keyframe
+    assert enc.reopens == 1
+    assert enc.opened_max_bitrate_bps == 1_500_000
+    for kbps, img in zip((700, 1000, 1400), images[5:8], strict=True):  # the budget climbs back
+        enc.set_bitrate(kbps)
+        assert not enc.encode_bgr(img).keyframe
+    assert enc.reopens == 1
+
+
 def test_intra_refresh_heals_a_silent_loss_within_a_wave(jpegs: list[bytes]) -> None:
     """A viewer that lost a P-picture and asked for nothing (FFmpeg's decoder with its default concealment, as
     the ffmpeg image_transport plugin decodes): pictures equal to a loss-free decoder's again within about one

@@ -135,7 +135,7 @@ class H264Encoder:
         if (frame.width, frame.height) != (self.width, self.height):
             raise EncoderError(f"frame is {frame.width}x{frame.height}, the encoder {self.width}x{self.height}")
         if self._reopen:
-            self._ctx = self._open(c)
+            self._ctx = self._open(c, self._maxrate)  # a new wave keeps the ceiling: no re-open per step up
             self._reopen = False
             self._reopen_at_idr = False
             self.reopens += 1
