@@ -21,7 +21,7 @@ identical to the loss-free decoder's again (or ``never`` within the run). The se
 * ``node``: the stream node's defaults now (``H264Settings()``), under the same VBV rule, with a viewer that does
   not report its losses (the wave at most one second);
 * ``node-reported``: the same while every viewer reports its losses (``long_wave``: the wave
-  ``h264_keyframe_interval``, 100 pictures); ``reported-veryfast``: that wave with ``veryfast``;
+  ``h264_reported_wave`` 100 pictures, 4 s); ``reported-veryfast``: that wave with ``veryfast``;
 * ``reference``: x264 ``medium``, High, long GOP, VBV 150 ms of the bitrate: "what the bits allow".
 
 Targets (issue 39): 5th percentile within 1.5 dB of the median; median within 0.5 dB of the reference at the same
@@ -72,7 +72,9 @@ class Setting:
 
 def settings() -> list[Setting]:
     node = H264Settings(fps=FPS)  # a viewer that does not report: the wave at most a second
-    reported = H264Settings(fps=FPS, long_wave=True)  # every viewer reports its losses: the wave as set
+    reported = H264Settings(
+        fps=FPS, long_wave=True, reported_wave=4 * FPS
+    )  # every viewer reports its losses: the wave as set
     return [
         Setting("today", "superfast", "baseline", "idr", FPS, True),
         Setting("gop-baseline", "superfast", "baseline", "idr", LONG_GOP, True),

@@ -5,8 +5,8 @@
 * A report about the MJPEG topic does not judge the link the H.264 stream is held to.
 * A plain H.264 viewer that missed the new subscriber's first IDRs (replaced in the keep-last queue on a crowded
   link) still gets a start point (``streaming/start_points.py``), and a viewer that reports pictures stops them.
-* The encoder's intra-refresh wave is the keyframe interval asked for while every H.264 viewer reports its losses
-  (the link monitor), one second of frames again as soon as one that does not (rviz, a plain subscription) joins.
+* The encoder's intra-refresh wave is ``h264_reported_wave`` while every H.264 viewer reports its losses (the link
+  monitor), one second of frames again as soon as one that does not (rviz, a plain subscription) joins.
 """
 
 from __future__ import annotations
@@ -229,9 +229,9 @@ def test_the_refresh_wave_is_long_while_every_viewer_reports_and_a_second_once_a
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
     """Real link monitor, real encoder, over DDS: with only the monitor watching (it reports every 0.5 s) the
-    encoder's waves are ``h264_keyframe_interval`` (50) frames long; a plain subscriber joins and they are one
+    encoder's waves are ``h264_reported_wave`` (50) frames long; a plain subscriber joins and they are one
     second (25 frames) again, at once."""
-    node = make_stream_node(ros, camera, **H264, h264_keyframe_interval=50)
+    node = make_stream_node(ros, camera, **H264, h264_reported_wave=50)
     monitor = ros.add(LinkMonitorNode(context=ros.context, parameter_overrides=[Parameter("codec", value="h264")]))
     waves = Waves()  # the monitor's own second subscription: its node is the one reporting
     ros.wait_for(lambda: monitor.codec == "h264", timeout=10)

@@ -35,16 +35,18 @@ def test_every_live_video_field_is_a_parameter_and_values_land_in_their_fields()
     # the h264_* parameters fill the one H.264 settings type the request carries (VideoSettings.h264)
     h264 = {s.name: s.field for s in PARAMS if s.field.startswith("h264.")}
     assert h264 == {
-        f"h264_{n}": f"h264.{n}" for n in ("bitrate_kbps", "max_bitrate_kbps", "keyframe_interval", "preset")
+        f"h264_{n}": f"h264.{n}"
+        for n in ("bitrate_kbps", "max_bitrate_kbps", "keyframe_interval", "reported_wave", "preset")
     }
     values = {**DEFAULTS, "fps": 7, "backoff_max": 0.7, "read_timeout": 3.0, "link_release": 9.0}
     values |= {
         "h264_bitrate_kbps": 700,
         "h264_max_bitrate_kbps": 900,
         "h264_keyframe_interval": 12,
+        "h264_reported_wave": 75,
         "h264_preset": "fast",
     }
-    want = H264Settings(bitrate_kbps=700, max_bitrate_kbps=900, keyframe_interval=12, preset="fast")
+    want = H264Settings(bitrate_kbps=700, max_bitrate_kbps=900, keyframe_interval=12, reported_wave=75, preset="fast")
     assert snapshot(VideoSettings, PARAMS, values) == VideoSettings(fps=7, link_release=9.0, h264=want)
     assert snapshot(ReaderConfig, PARAMS, values) == ReaderConfig(backoff_max_s=0.7, read_timeout_s=3.0)
 

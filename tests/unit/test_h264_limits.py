@@ -74,8 +74,11 @@ def test_the_encoder_opens_with_what_the_settings_say() -> None:
     target = H264Settings(bitrate_kbps=700, max_bitrate_kbps=1500, keyframe_interval=600, fps=25, vbv_kbit=90)
     opening = target.opening()
     assert (opening.bitrate_kbps, opening.keyframe_interval, opening.vbv_kbit) == (1500, 25, 90)
-    reported = replace(target, long_wave=True).opening()  # every viewer reports its losses: the wave asked for
-    assert reported.keyframe_interval == 600
+    reported = replace(
+        target, long_wave=True, reported_wave=100
+    ).opening()  # every viewer reports its losses: the wave asked for
+    assert reported.keyframe_interval == 100
+    assert replace(target, long_wave=True).opening().keyframe_interval == 25  # h264_reported_wave 0: off
     assert H264Settings(bitrate_kbps=700, max_bitrate_kbps=300).opening().bitrate_kbps == 700  # a ceiling under it
     enc = H264Encoder(opening, 64, 64)
     assert (enc.opened_max_bitrate_bps, enc.opened_vbv_bits) == (1_500_000, 90_000)
@@ -108,7 +111,12 @@ def test_the_parameter_range_lies_inside_the_encoders_and_the_policy_keeps_to_it
     request = media_request(params, H264Settings(keyframe_interval=600, fps=25))
     assert request.keyframe_interval == 25  # at most one second of frames
     # ... whoever reports: a camera's own IDRs are what heals its stream's viewers
-    assert media_request(params, H264Settings(keyframe_interval=600, fps=25, long_wave=True)).keyframe_interval == 25
+    assert (
+        media_request(
+            params, H264Settings(keyframe_interval=600, fps=25, long_wave=True, reported_wave=100)
+        ).keyframe_interval
+        == 25
+    )
 
 
 @pytest.mark.parametrize(

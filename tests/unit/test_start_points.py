@@ -8,7 +8,14 @@ import pytest
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.h264 import H264Stage
-from axis_ptz_ros2.streaming.start_points import CLEAN_FOR_S, MAX_REPORTERS, REPORT_GAP_S, REPORTING_FOR_S, StartPoints
+from axis_ptz_ros2.streaming.start_points import (
+    CALM_S,
+    CLEAN_FOR_S,
+    MAX_REPORTERS,
+    REPORT_GAP_S,
+    REPORTING_FOR_S,
+    StartPoints,
+)
 from axis_ptz_ros2.streaming.status import wave_line
 
 pytestmark = pytest.mark.unit
@@ -64,6 +71,22 @@ def test_a_reported_loss_ends_the_long_wave_until_the_viewers_see_none_for_a_whi
     assert starts.long_wave(clock.t)
     # any viewer's loss counts, whoever it is
     starts.report("/operator/web_console", 12, 1)
+    assert not starts.long_wave(clock.t)
+
+
+def test_a_loss_in_a_congestion_does_not_end_the_long_wave_but_one_after_it_does() -> None:
+    """A new wave re-opens x264 cold: not in a congestion, where that kept the link congested for seconds."""
+    starts, clock = _starts()
+    starts.count(1, lambda: frozenset({MONITOR}))
+    _report_for(starts, clock, MONITOR, REPORTING_FOR_S + 0.5)
+    starts.congested(clock.t)  # the link adapter's judgement of a report
+    starts.report(MONITOR, 12, 5)
+    assert starts.long_wave(clock.t)
+    _report_for(starts, clock, MONITOR, CALM_S - 1.0)
+    starts.report(MONITOR, 12, 2)  # the congestion's losses still in its window
+    assert starts.long_wave(clock.t)
+    _report_for(starts, clock, MONITOR, 1.5)
+    starts.report(MONITOR, 12, 1)  # a loss once the congestion has passed: random loss
     assert not starts.long_wave(clock.t)
 
 
@@ -128,9 +151,9 @@ def test_consumers_that_come_and_go_are_forgotten_but_not_one_reporting_now() ->
 
 
 def test_the_wave_line_says_how_long_and_why() -> None:
-    on = wave_line(H264Settings(keyframe_interval=100, fps=25, long_wave=True))
+    on = wave_line(H264Settings(reported_wave=100, fps=25, long_wave=True))
     assert "100 frames" in on
     assert "reports its losses" in on
-    off = wave_line(H264Settings(keyframe_interval=100, fps=25))
+    off = wave_line(H264Settings(reported_wave=100, fps=25))
     assert "one second" in off
     assert "does not report" in off

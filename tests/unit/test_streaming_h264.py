@@ -149,23 +149,28 @@ def test_intra_refresh_by_default_one_wave_a_second_and_idrs_only_on_demand(jpeg
 
 
 def test_a_longer_wave_only_while_every_viewer_reports_and_back_at_once_with_an_idr(jpegs: list[bytes]) -> None:
-    """While every H.264 viewer reports its losses (``long_wave``) the encoder's intra-refresh wave is the
-    keyframe interval asked for, not one second; when one stops reporting the wave is one second again from the
+    """While every H.264 viewer reports its losses (``long_wave``) the encoder's intra-refresh wave is
+    ``h264_reported_wave``, not one second; when one stops reporting the wave is one second again from the
     next picture, which is an IDR (x264 takes a new wave only when it opens)."""
-    h = Harness(H264Settings(keyframe_interval=600, fps=5, long_wave=True))
+    h = Harness(H264Settings(keyframe_interval=30, fps=5, reported_wave=600, long_wave=True))
     h.stage.set_active(True)
     out = [f for f in h.feed(jpegs[:8]) if f is not None]
     assert h.made[0].keyframe_interval == 600
     assert h.stage.keyframe_interval == 600
     assert [f.pts for f in out if f.keyframe] == [0]
-    h.settings = H264Settings(keyframe_interval=600, fps=5, long_wave=False)
+    h.settings = H264Settings(keyframe_interval=30, fps=5, reported_wave=600, long_wave=False)
     out = [f for f in h.feed(jpegs[8:12]) if f is not None]
     assert h.transcoders[-1].settings.keyframe_interval == 5
     assert h.stage.keyframe_interval == 5
     assert [f.keyframe for f in out] == [True, False, False, False]
     assert len(h.made) == 1  # the same transcoder: its encoder re-opened, not a new stage encoder
     # refresh idr: periodic IDRs heal a viewer that does not report, whoever reports
-    assert H264Settings(keyframe_interval=600, fps=5, refresh="idr", long_wave=True).effective_keyframe_interval == 5
+    assert (
+        H264Settings(
+            keyframe_interval=30, fps=5, refresh="idr", reported_wave=600, long_wave=True
+        ).effective_keyframe_interval
+        == 5
+    )
 
 
 def test_idr_on_demand_is_rate_limited_and_kept(jpegs: list[bytes]) -> None:

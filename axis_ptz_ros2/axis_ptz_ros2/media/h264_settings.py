@@ -33,6 +33,7 @@ from axis_ptz_ros2.media.limits import (
     PRESETS,
     PROFILES,
     REFRESH_MODES,
+    REPORTED_WAVE_RANGE,
     THREADS_RANGE,
 )
 
@@ -55,7 +56,9 @@ class H264Settings:
     profile: str = DEFAULT_PROFILE  # one of PROFILES
     refresh: str = DEFAULT_REFRESH  # one of REFRESH_MODES: x264's intra refresh (IDRs on request), or periodic IDRs
     threads: int = 1  # libx264 threads (THREADS_RANGE)
-    #: the intra-refresh wave may be longer than a second (:attr:`effective_keyframe_interval`): every H.264 viewer
+    #: frames per intra-refresh wave while :attr:`long_wave` (0: off, the wave stays :attr:`gop_frames`)
+    reported_wave: int = 0
+    #: the intra-refresh wave may be :attr:`reported_wave` (:attr:`effective_keyframe_interval`): every H.264 viewer
     #: reports its losses on ``video/feedback`` (each asks for an IDR) and none has lost any lately; decided by the
     #: stream node (:meth:`~axis_ptz_ros2.streaming.start_points.StartPoints.long_wave`)
     long_wave: bool = False
@@ -65,6 +68,7 @@ class H264Settings:
         _check_int("bitrate", self.bitrate_kbps, low, high, "kbit/s")
         _check_int("max bitrate", self.max_bitrate_kbps, low, high, "kbit/s")
         _check_int("keyframe interval", self.keyframe_interval, *KEYFRAME_RANGE, "frames")
+        _check_int("reported wave", self.reported_wave, *REPORTED_WAVE_RANGE, "frames (0: off)")
         _check_int("fps", self.fps, *ENCODER_FPS_RANGE, "pictures/s")
         _check_int("threads", self.threads, *THREADS_RANGE, "")
         if type(self.vbv_kbit) is not int or self.vbv_kbit != 0:  # 0 (the int): the default buffer
@@ -97,13 +101,13 @@ class H264Settings:
 
     @property
     def effective_keyframe_interval(self) -> int:
-        """The encoder's keyframe interval in frames: with intra refresh and :attr:`long_wave` (every viewer reports
-        its losses, so each asks for an IDR and the wave need not heal anyone; none lost any lately)
-        ``keyframe_interval`` as asked, one wave; otherwise :attr:`gop_frames`. A longer wave spends fewer bits on
-        intra blocks: +0.5 dB at 1500 and +1.0 dB at 1000 kbit/s for a 4 s wave against 1 s
-        (``bench/encoder_tradeoff.py``, docs/weak-link.md)."""
-        if self.refresh == "intra" and self.long_wave:
-            return self.keyframe_interval
+        """The encoder's keyframe interval in frames: with intra refresh, :attr:`reported_wave` set and
+        :attr:`long_wave` (every viewer reports its losses, so each asks for an IDR and the wave need not heal
+        anyone; none lost any lately) :attr:`reported_wave`; otherwise :attr:`gop_frames`. A longer wave spends
+        fewer bits on intra blocks (+0.5 dB at 1500 and +1.0 dB at 1000 kbit/s for a 4 s wave against 1 s,
+        ``bench/encoder_tradeoff.py``) but makes each IDR's blur last longer (docs/weak-link.md)."""
+        if self.refresh == "intra" and self.long_wave and self.reported_wave > 0:
+            return self.reported_wave
         return self.gop_frames
 
     def opening(self) -> H264Settings:

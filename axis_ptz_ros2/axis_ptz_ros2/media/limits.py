@@ -35,8 +35,10 @@ ENCODER_BITRATE_RANGE_KBPS: Final = (50, 50_000)
 #: kbit/s: ``h264_bitrate_kbps`` and ``h264_max_bitrate_kbps`` (the parameters'; the budgets never go under its floor)
 BITRATE_RANGE_KBPS: Final = (100, 20_000)
 MAX_KEYFRAME_INTERVAL: Final = 600
-#: frames: ``h264_keyframe_interval`` (at most one second of frames applies while a viewer does not report losses)
+#: frames: ``h264_keyframe_interval`` (at most one second of frames applies)
 KEYFRAME_RANGE: Final = (1, MAX_KEYFRAME_INTERVAL)
+#: frames: ``h264_reported_wave``, the intra-refresh wave while every viewer reports its losses (0: off)
+REPORTED_WAVE_RANGE: Final = (0, MAX_KEYFRAME_INTERVAL)
 MAX_DIMENSION: Final = 4096
 #: pictures/s the encoder runs at
 ENCODER_FPS_RANGE: Final = (1, 120)
@@ -50,10 +52,8 @@ DEFAULT_BITRATE_KBPS: Final = 1000
 #: above it). On the thesis's link (2 Mbit/s + 2 %) 1500 held 25 fps with no access unit lost, 2000 ended in a
 #: retransmission collapse (docs/weak-link.md, "The ceiling")
 DEFAULT_MAX_BITRATE_KBPS: Final = 1500
-#: frames: ``h264_keyframe_interval``, per intra-refresh wave (between IDRs with refresh ``idr``). 100: a 4 s wave at
-#: 25 fps while every viewer reports its losses (+0.5 dB at 1500 kbit/s, +1.0 dB at 1000 against a 1 s wave:
-#: ``bench/encoder_tradeoff.py``); one second of frames applies while one does not (H264Settings.gop_frames)
-DEFAULT_KEYFRAME_INTERVAL: Final = 100
+#: frames: ``h264_keyframe_interval``, per intra-refresh wave (between IDRs with refresh ``idr``)
+DEFAULT_KEYFRAME_INTERVAL: Final = 30
 #: pictures/s the encoder runs at until told otherwise (the stream node's ``fps``; the stage runs it at the rate in
 #: effect, measured at the camera)
 DEFAULT_FPS: Final = 15

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, KEYFRAME_RANGE, PRESETS
+from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS, CODECS, KEYFRAME_RANGE, PRESETS, REPORTED_WAVE_RANGE
 from axis_ptz_ros2.nodes.camera_info_service import PARAMS as CAMERA_INFO_PARAMS
 from axis_ptz_ros2.nodes.common import CONNECTION_PARAMS, ParamSpec, field_spec
 from axis_ptz_ros2.streaming import ReaderConfig
@@ -106,11 +106,18 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
     _h264(
         "keyframe_interval",
-        "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand) while every H.264 "
-        "subscriber reports its losses on video/feedback; at most fps (one second) applies while one does not, "
-        "and between a camera's own IDRs when passed through",
+        "frames per wave of x264's intra refresh when transcoding (IDRs then only on demand), or between a camera's "
+        "own IDRs when passed through (at most fps, one second, applies)",
         "frames",
         int_range=KEYFRAME_RANGE,
+    ),
+    _h264(
+        "reported_wave",
+        "frames per wave of x264's intra refresh when transcoding while every H.264 subscriber reports its losses "
+        "on video/feedback and none reported one for 30 s (0: off); more bits for the picture on a clean link, "
+        "but each IDR's blur lasts longer (docs/weak-link.md)",
+        "frames",
+        int_range=REPORTED_WAVE_RANGE,
     ),
     _h264("preset", "libx264 preset (CPU against quality)", choices=PRESETS),
     ParamSpec(

@@ -21,7 +21,9 @@ from axis_ptz_ros2.streaming.budget import BudgetConfig
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 
 #: the encoder's own parameters, which fill ``VideoSettings.h264`` (they do not change what the camera is asked for)
-H264_FIELDS: Final = frozenset({"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_preset"})
+H264_FIELDS: Final = frozenset(
+    {"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_reported_wave", "h264_preset"}
+)
 #: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
 #: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)
 H264_BUDGET_FRACTION: Final = BudgetConfig().down_fraction

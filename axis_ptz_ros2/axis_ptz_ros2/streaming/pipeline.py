@@ -190,6 +190,8 @@ class VideoPipeline:
         if self.video.h264 and about_mjpeg:
             return None
         judgement = self.video.feedback(report, subscribed)
+        if judgement is not None and judgement.decision.state == "congested":
+            self.starts.congested(time.monotonic())
         self._decide()
         return None if judgement is None else str(judgement)
 

@@ -17,7 +17,10 @@ costs an IDR squeezed into the link's small VBV buffer, and on a still scene x26
 until the refresh wave passes them, so a long wave kept each such blur for seconds (two-host bench, 1 Mbit/s +
 2 %, a loss every ~4 s: PSNR median 35.8, 5th percentile 29.7 dB with a 4 s wave, 32.2 / 31.9 with 1 s). A new
 viewer that does not report, a reporter that falls silent or leaves, or a reported loss ends the long wave at once
-(the loss's own IDR is the re-open's).
+(the loss's own IDR is the re-open's), but a loss while the link is congested, or within :data:`CALM_S` of it,
+does not: a new wave re-opens x264, whose rate control then starts cold, and re-opened in a congestion the
+2 -> 1 Mbit/s step took 11.6-12.0 s to clear instead of 2.0-3.0 s (two-host bench, two runs each). A link that
+keeps losing once the congestion has passed (random loss) ends it at its next loss.
 """
 
 from __future__ import annotations
@@ -43,6 +46,9 @@ REPORT_GAP_S: Final = 3.0
 #: s: no H.264 viewer has reported a loss for this long before the wave may be long again (a loss every ~4 s, as on
 #: 1 Mbit/s + 2 %, keeps it at one second; a link that loses nothing lengthens it once)
 CLEAN_FOR_S: Final = 30.0
+#: s: losses this soon after the link adapter judged the link congested do not end the long wave (see the module
+#: docstring)
+CALM_S: Final = 4.0
 #: consumers' streaks kept at most (past it, those not reporting now are forgotten, then all but the viewers')
 MAX_REPORTERS: Final = 64
 
@@ -61,6 +67,7 @@ class StartPoints:
         self._showing: set[str] = set()  # consumers whose last H.264 report shows pictures without errors
         self._reporting: dict[str, tuple[float, float]] = {}  # consumer: (first, last) H.264 report of its streak
         self._loss_at = -1e18  # the last H.264 report with access units its consumer could not show (monotonic)
+        self._congested_at = -1e18  # the link adapter's last "congested" (monotonic)
         self.start_repeats = 0  # start-point IDRs asked for by the repeats
 
     def count(self, subscribers: int, viewers: Callable[[], frozenset[str]]) -> None:
@@ -93,7 +100,7 @@ class StartPoints:
                 self._showing.add(consumer)
             else:
                 self._showing.discard(consumer)
-            if errors > 0:
+            if errors > 0 and now - self._congested_at >= CALM_S:
                 self._loss_at = now
             first, last = self._reporting.get(consumer, (now, now))
             self._reporting[consumer] = (now if now - last > REPORT_GAP_S else first, now)
@@ -104,6 +111,12 @@ class StartPoints:
                 self._reporting = kept
         if self._stage.active:
             self._stage.consumer_errors(consumer, errors)
+
+    def congested(self, now: float) -> None:
+        """The link adapter judged the link congested now (a consumer's report): losses until :data:`CALM_S` later
+        do not end the long wave."""
+        with self._lock:
+            self._congested_at = now
 
     def repeat_due(self, now: float) -> bool:
         """Whether a start-point IDR is due now (counted in :attr:`start_repeats`; reader or RTSP thread)."""

@@ -134,7 +134,7 @@ def wave_line(h264: H264Settings) -> str:
     "one second of frames": the stage runs the encoder at the rate the camera really makes, not ``h264.fps``."""
     if h264.long_wave:
         return (
-            f"H.264 intra-refresh wave {h264.keyframe_interval} frames (h264_keyframe_interval): every H.264 "
+            f"H.264 intra-refresh wave {h264.reported_wave} frames (h264_reported_wave): every H.264 "
             "subscriber reports its losses on video/feedback (each asks for an IDR) and none lost any lately"
         )
     return (
