@@ -21,7 +21,8 @@ says so. Decisions flow down, frames flow up:
   the RTSP request with the size :class:`~.passthrough_size.PassthroughSize` picks with ``resolution`` auto) is
   decided here whenever something it depends on changes (a parameter, a report, a budget step, the 1 Hz tick)
   and pushed down: neither the stage nor the RTSP source asks the controller per frame;
-* a new H.264 viewer gets start points (:class:`~.start_points.StartPoints`).
+* a new H.264 viewer gets start points (:class:`~.start_points.StartPoints`); whether the encoder's intra-refresh
+  wave may be long (:class:`~.long_wave.LongWave`, ``h264_reported_wave``).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from axis_ptz_ros2.streaming.discovery import CameraDiscovery
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import H264Stage
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof
+from axis_ptz_ros2.streaming.long_wave import LongWave
 from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.passthrough_size import PassthroughSize
 from axis_ptz_ros2.streaming.reader import ReaderConfig, StreamReader, StreamState
@@ -160,6 +162,7 @@ class VideoPipeline:
             on_event=lambda text: self._log(LogLine("warn", text, "rtsp", 10.0)),
         )
         self.starts = StartPoints(self.stage)
+        self.wave = LongWave()  # whether the intra-refresh wave may be h264_reported_wave
 
     # -- decisions down (any thread) ---------------------------------------------------------------------------
     def check(self, settings: VideoSettings, names: Collection[str]) -> str | None:
@@ -187,11 +190,12 @@ class VideoPipeline:
         the link in h264 mode); returns the judgement's debug line."""
         if about_h264:
             self.starts.report(report.consumer, report.frames, decode_errors)
+            self.wave.report(report.consumer, decode_errors, time.monotonic())
         if self.video.h264 and about_mjpeg:
             return None
         judgement = self.video.feedback(report, subscribed)
         if judgement is not None and judgement.decision.state == "congested":
-            self.starts.congested(time.monotonic())
+            self.wave.congested(time.monotonic())
         self._decide()
         return None if judgement is None else str(judgement)
 
@@ -225,7 +229,7 @@ class VideoPipeline:
         one written was decided last)."""
         with self._push_lock:
             h264 = self.video.h264_settings()
-            h264 = replace(h264, long_wave=self.starts.long_wave(time.monotonic()))
+            h264 = replace(h264, long_wave=self.wave.allowed(time.monotonic()))
             params = self.video.current
             if self._stream_size is not None:
                 params = replace(params, resolution=self._stream_size)
@@ -265,6 +269,7 @@ class VideoPipeline:
         self._image, self._info = image and not video_h264, info
         self._set_share(image and video_h264)
         self.starts.count(h264, self._viewers)
+        self.wave.set_viewers(self.starts.viewers if h264 > 0 else frozenset())
         self._decide()  # before the RTSP source plays: its request is decided
         # asked for: the camera is still asked whether it streams H.264 (passed through, no PyAV needed), and without
         # PyAV the stage says once what it needs
