@@ -30,8 +30,8 @@ from axis_ptz_ros2.nodes.common import FEEDBACK_QOS, STREAM_QOS  # noqa: E402
 from axis_ptz_ros2.nodes.link_monitor import LinkMonitorNode  # noqa: E402
 from axis_ptz_ros2.sim import SimulatedCamera  # noqa: E402
 from axis_ptz_ros2.streaming.jpeg import jpeg_sof  # noqa: E402
-from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
 from axis_ptz_ros2.streaming.long_wave import REPORTING_FOR_S  # noqa: E402
+from axis_ptz_ros2.streaming.mjpeg_share import MJPEG_SHARE  # noqa: E402
 from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.stream_node import make_stream_node  # noqa: E402
