@@ -60,7 +60,7 @@ class H264Settings:
     reported_wave: int = 0
     #: the intra-refresh wave may be :attr:`reported_wave` (:attr:`effective_keyframe_interval`): every H.264 viewer
     #: reports its losses on ``video/feedback`` (each asks for an IDR) and none has lost any lately; decided by the
-    #: stream node (:meth:`~axis_ptz_ros2.streaming.start_points.StartPoints.long_wave`)
+    #: stream node (:meth:`~axis_ptz_ros2.streaming.long_wave.LongWave.allowed`)
     long_wave: bool = False
 
     def __post_init__(self) -> None:
