@@ -193,6 +193,7 @@ class H264Encoder:
         ctx.thread_count = c.threads
         # periodic IDRs are this class's (keyint infinite); intra refresh is x264's, one wave per keyframe interval
         keyint = f"keyint={c.keyframe_interval}:intra-refresh=1" if c.refresh == "intra" else "keyint=infinite"
+        psy = "" if c.psy else ":psy=0"  # (H264Settings.psy)
         ctx.options = {
             "preset": c.preset,
             "tune": "zerolatency",
@@ -200,7 +201,7 @@ class H264Encoder:
             "forced-idr": "1",
             "maxrate": str(maxrate),
             "bufsize": str(bufsize),
-            "x264-params": f"{keyint}:min-keyint=1:scenecut=0:bframes=0:aq-mode=0",
+            "x264-params": f"{keyint}:min-keyint=1:scenecut=0:bframes=0:aq-mode=0{psy}",
         }
         try:
             ctx.open()
