@@ -110,8 +110,9 @@ class H264Settings:
         """The encoder's keyframe interval in frames: with intra refresh, :attr:`reported_wave` set and
         :attr:`long_wave` (every viewer reports its losses, so each asks for an IDR and the wave need not heal
         anyone; none lost any lately) :attr:`reported_wave`; otherwise :attr:`gop_frames`. A longer wave spends
-        fewer bits on intra blocks (+0.5 dB at 1500 and +1.0 dB at 1000 kbit/s for a 4 s wave against 1 s,
-        ``bench/encoder_tradeoff.py``) but makes each IDR's blur last longer (docs/weak-link.md)."""
+        fewer bits on intra blocks (a 4 s wave against 1 s, ``bench/encoder_tradeoff.py``: +0.3 dB at 1000 kbit/s,
+        none at 1500 with :attr:`psy` off; +0.5 / +1.0 dB with it on) but makes each IDR's blur last longer
+        (docs/weak-link.md)."""
         if self.refresh == "intra" and self.long_wave and self.reported_wave > 0:
             return self.reported_wave
         return self.gop_frames
