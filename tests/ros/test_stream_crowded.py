@@ -103,7 +103,13 @@ def test_mjpeg_subscriber_in_h264_mode_gets_its_share_never_compression0(
     sizes = {jpeg_sof(b)[:2] for _, b, _ in got}
     assert (704, 576) not in sizes, sizes
     assert max(len(b) for _, b, _ in got) < 100_000  # a compression-0 704x576 JPEG of this view is ~245 kB
-    assert len(got) / span >= 5.0, (len(got), span)  # the crowded-link target's rate
+    # the crowded-link target's rate (≥ 5 fps), once the ladder has settled: it opens at the level predicted from the
+    # compression-0 stream (a guess that may be under the rate, never over the share) and climbs on its own
+    # measurements, so it is judged on what it asks for last and on what arrived over the last 3 s
+    # (n pictures span n - 1 intervals)
+    assert int(second[-1]["fps"]) >= 5, second
+    late = jpegs.since(t1 - 3.0)
+    assert (len(late) - 1) / (late[-1][0] - late[0][0]) >= 0.9 * 5, (len(late), second)
     # the H.264 stream went on meanwhile
     assert len(h264.since(t0)) >= 25 * span * 0.8
 
