@@ -56,9 +56,10 @@ class H264Settings:
     profile: str = DEFAULT_PROFILE  # one of PROFILES
     refresh: str = DEFAULT_REFRESH  # one of REFRESH_MODES: x264's intra refresh (IDRs on request), or periodic IDRs
     threads: int = 1  # libx264 threads (THREADS_RANGE)
-    #: x264's psychovisual optimisations (psy-rd, psy-trellis; x264's own default is on). Off: against the simulated
-    #: 214's picture before noise, +0.7 dB at 1500 and +1.3 dB at 1000 kbit/s with superfast for no CPU
-    #: (``bench/encoder_tradeoff.py``): they spend bits keeping the sensor noise's texture, which is not the scene
+    #: x264's psychovisual optimisations (psy-rd, psy-trellis; x264's own default is on). Off, x264 codes the blocks
+    #: the intra-refresh column forces at the intra quantiser, not the P one: against the simulated 214's picture
+    #: before noise, +0.7 dB at 1500 and +1.3 dB at 1000 kbit/s with superfast, for no CPU
+    #: (``bench/encoder_tradeoff.py``)
     psy: bool = False
     #: frames per intra-refresh wave while :attr:`long_wave` (0: off, the wave stays :attr:`gop_frames`)
     reported_wave: int = 0

@@ -23,14 +23,7 @@ from axis_ptz_ros2.streaming.video_types import VideoSettings
 #: the encoder's own parameters, which fill ``VideoSettings.h264``. They change what the camera is asked for only
 #: when its own H.264 is passed through (its bitrate and GOP: :func:`~.rtsp_source.media_request`), never its JPEGs
 H264_FIELDS: Final = frozenset(
-    {
-        "h264_bitrate_kbps",
-        "h264_max_bitrate_kbps",
-        "h264_keyframe_interval",
-        "h264_reported_wave",
-        "h264_preset",
-        "h264_subme",
-    }
+    {"h264_bitrate_kbps", "h264_max_bitrate_kbps", "h264_keyframe_interval", "h264_reported_wave", "h264_preset"}
 )
 #: above ``h264_bitrate_kbps`` the encoder targets at most this fraction of the link adapter's budget (the MJPEG
 #: ladder's aim after a step down, :attr:`~.budget.BudgetConfig.down_fraction`)

@@ -30,8 +30,8 @@ class VideoSettings:
     link_release: float = 30.0  # s
     codec: str = "mjpeg"  # mjpeg | h264 (see :mod:`.controller`)
     # the encoder's: h264_bitrate_kbps (without feedback), h264_max_bitrate_kbps (the most a clear link may raise it
-    # to), h264_keyframe_interval (<= 1 s applies), h264_reported_wave, h264_preset, h264_subme; the other fields
-    # keep H264Settings' defaults
+    # to), h264_keyframe_interval (<= 1 s applies), h264_reported_wave, h264_preset; the other fields keep
+    # H264Settings' defaults
     h264: H264Settings = field(default_factory=H264Settings)
 
     def budget_config(self) -> BudgetConfig:
