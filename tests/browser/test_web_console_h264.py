@@ -8,7 +8,6 @@ own canvas pixels; the MJPEG fallback (no WebCodecs in the browser) is checked o
 from __future__ import annotations
 
 import base64
-import math
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -29,6 +28,7 @@ from axis_ptz_ros2.sim.ptz import Speeds  # noqa: E402
 from tests.support.console_rig import start_console_rig
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.idr import idr_granted_at_once  # noqa: E402
+from tests.support.picture import psnr_db  # noqa: E402
 from tests.support.waiting import wait_until  # noqa: E402
 
 from .test_web_console_browser import shot, wait_for, wait_js  # noqa: E402
@@ -94,11 +94,6 @@ def _canvas(pg: Any) -> np.ndarray:
     return img
 
 
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
-
-
 def _corr(a: np.ndarray, b: np.ndarray) -> float:
     x = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY).astype(np.float64).ravel()
     y = cv2.cvtColor(b, cv2.COLOR_BGR2GRAY).astype(np.float64).ravel()
@@ -120,7 +115,7 @@ def _matches_truth(pg: Any, cam: SimulatedCamera, timeout: float = 15.0, w: int 
         got = _canvas(pg)
         if got.shape != truth.shape:
             return False
-        best = (_psnr(got, truth), _corr(got, truth))
+        best = (psnr_db(got, truth), _corr(got, truth))
         return best[0] >= 26.0 and best[1] >= 0.95
 
     if wait_until(shows_truth, timeout, 0.2, scaled=False, raises=False):
@@ -187,8 +182,8 @@ def test_h264_decoded_on_the_canvas_shows_the_scene_and_follows_a_move(
     wait_for(lambda: cam.state.moving() or cam.position() != pose, 10.0, "the head to move", pg)
     psnr2, corr2 = _matches_truth(pg, cam)
     after = _canvas(pg)
-    print(f"after the click: PSNR {psnr2:.1f} dB, corr {corr2:.3f}; vs before: PSNR {_psnr(after, before):.1f} dB")
-    assert _psnr(after, before) < psnr2 - 3.0, "the canvas did not change with the view"
+    print(f"after the click: PSNR {psnr2:.1f} dB, corr {corr2:.3f}; vs before: PSNR {psnr_db(after, before):.1f} dB")
+    assert psnr_db(after, before) < psnr2 - 3.0, "the canvas did not change with the view"
     assert not errors, f"JavaScript errors on the page: {errors}"
 
 

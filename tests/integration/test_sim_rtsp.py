@@ -21,6 +21,7 @@ from axis_ptz_ros2.media import annexb
 from axis_ptz_ros2.sim.camera import SimulatedCamera
 from axis_ptz_ros2.sim.frames import MAX_COMPRESSION, MAX_FPS
 from axis_ptz_ros2.sim.rtsp.server import RtspListener
+from tests.support.picture import psnr_db
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.integration
@@ -42,11 +43,6 @@ def _url(cam: SimulatedCamera, query: str = QUERY, password: str = PASSWORD) -> 
     return f"rtsp://root:{password}@127.0.0.1:{cam.rtsp.port}/axis-media/media.amp?{query}"
 
 
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return 99.0 if mse == 0 else 10 * np.log10(255.0**2 / mse)
-
-
 # ---- FFmpeg (PyAV) as the client ---------------------------------------------------------------------------------
 def test_pyav_plays_frames_of_the_asked_size_matching_the_mjpeg_snapshot(cam: SimulatedCamera) -> None:
     with av.open(_url(cam), options=OPEN, timeout=(8, 5)) as c:
@@ -60,10 +56,10 @@ def test_pyav_plays_frames_of_the_asked_size_matching_the_mjpeg_snapshot(cam: Si
                 break
     snapshot = cv2.imdecode(np.frombuffer(cam.frame_jpeg(640, 360, 0), np.uint8), cv2.IMREAD_COLOR)
     assert all(f.shape == (360, 640, 3) for f in frames)
-    psnr = _psnr(frames[-1], snapshot)
+    psnr = psnr_db(frames[-1], snapshot)
     assert psnr >= 30.0, f"the H.264 picture is not the MJPEG view: {psnr:.1f} dB"
     other = cv2.imdecode(np.frombuffer(cam.frames.frame_jpeg(640, 360, 0, "x" * 40), np.uint8), cv2.IMREAD_COLOR)
-    assert _psnr(frames[-1], np.roll(other, 64, axis=1)) < psnr  # the check can fail: a shifted view scores less
+    assert psnr_db(frames[-1], np.roll(other, 64, axis=1)) < psnr  # the check can fail: a shifted view scores less
 
 
 def test_pyav_probe_lists_the_stream(cam: SimulatedCamera) -> None:

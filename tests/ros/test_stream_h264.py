@@ -40,6 +40,7 @@ from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING  # noqa: E402
 from tests.support.adapter_watch import wait_for_climb  # noqa: E402
 from tests.support.harness import RosHarness  # noqa: E402
 from tests.support.idr import idr_granted_at_once  # noqa: E402
+from tests.support.picture import psnr_db  # noqa: E402
 from tests.support.sim import FAST_STREAM_PARAMS  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -139,11 +140,6 @@ def decode_all(packets: list[Packet]) -> list[tuple[Packet, np.ndarray]]:
     return out
 
 
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return 99.0 if mse == 0 else 10.0 * np.log10(255.0**2 / mse)
-
-
 # --------------------------------------------------------------------------------------------------------
 def test_h264_frames_decode_at_full_size_and_quality(ros: RosHarness, camera: SimulatedCamera) -> None:
     node = make_node(ros, camera, **H264, h264_bitrate_kbps=1500)
@@ -164,8 +160,8 @@ def test_h264_frames_decode_at_full_size_and_quality(ros: RosHarness, camera: Si
     clean = AXIS_214_PICTURE.soften(camera.renderer.render(0.0, 0.0, 1.0, 704, 576), 1.0)
     # ... and what it sends at compression 0 (one noisy frame of the view)
     jpeg0 = cv2.imdecode(np.frombuffer(camera.frame_jpeg(704, 576, 0), np.uint8), cv2.IMREAD_COLOR)
-    scores = [psnr(img, clean) for _p, img in decoded[15:]]  # after the first second (still camera)
-    vs_jpeg = [psnr(img, jpeg0) for _p, img in decoded[15:]]
+    scores = [psnr_db(img, clean) for _p, img in decoded[15:]]  # after the first second (still camera)
+    vs_jpeg = [psnr_db(img, jpeg0) for _p, img in decoded[15:]]
     print(  # noqa: T201
         f"PSNR median {statistics.median(scores):.1f} dB (min {min(scores):.1f}) against the picture before noise, "
         f"{statistics.median(vs_jpeg):.1f} dB against a compression-0 JPEG, {len(scores)} frames"

@@ -15,6 +15,7 @@ SSIM is Wang et al. 2004 (11×11 Gaussian window, σ 1.5); 30 dB and 0.90 are th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
@@ -28,6 +29,12 @@ COMPRESSIONS = (0, 10, 30, 60, 80, 100)
 SAME_AS_0 = 0.95  #: SSIM against the compression-0 frame: "almost indistinguishable"
 USABLE_SSIM = 0.90  #: SSIM against the noise-free view: at least this to be "usable"
 USABLE_PSNR_DB = 30.0  #: PSNR against the noise-free view: at least this to be "usable"
+
+
+def psnr_db(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR of two 8-bit-range pictures of one shape (any dtype), in dB; inf when identical."""
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return math.inf if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
 
 
 def luma(img: np.ndarray) -> np.ndarray:

@@ -23,6 +23,7 @@ from axis_ptz_ros2.sim.persona import AXIS_214
 from axis_ptz_ros2.sim.renderer import PtzRenderer, encode_jpeg
 from axis_ptz_ros2.sim.scene import shared_scene
 from axis_ptz_ros2.sim.world import load_world
+from tests.support.picture import psnr_db
 
 pytestmark = pytest.mark.unit
 
@@ -378,10 +379,17 @@ def test_bad_encoder_parameters_are_refused(kwargs: dict[str, object], reason: s
 
 
 def _x264_options(access_unit: bytes) -> dict[str, str]:
-    """The options libx264 wrote into its version SEI (``x264 - core … options: a=1 b=2 …``)."""
-    text = access_unit.decode("latin-1")
-    assert "options: " in text, "no x264 version SEI in the first access unit"
-    opts = text.split("options: ", 1)[1].split("\x00", 1)[0].split("\x80", 1)[0]
+    """The options libx264 wrote into its version SEI (user data unregistered: a 16-byte UUID, then
+    ``x264 - core … options: a=1 b=2 …``)."""
+    texts = [
+        payload[16:].decode("latin-1")
+        for nal in annexb.split_nal_units(access_unit)
+        if annexb.nal_type(nal) == NalType.SEI
+        for ptype, payload in annexb.sei_messages(nal)
+        if ptype == 5 and b"options: " in payload
+    ]
+    assert texts, "no x264 version SEI in the access unit"
+    opts = texts[0].split("options: ", 1)[1].rstrip("\x00")
     return dict(kv.split("=", 1) for kv in opts.split() if "=" in kv)
 
 
@@ -393,7 +401,7 @@ def test_psy_off_codes_the_refresh_column_sharper_at_the_same_bitrate(views: lis
     pool = PicturePool(AXIS_214.picture)
     view = views[0]
     jpegs = [pool.jpeg(("still", i), lambda: view, 1.0, 0) for i in range(75)]
-    clean = [AXIS_214.picture.soften(view, 1.0).astype(np.float32)] * len(jpegs)
+    clean = AXIS_214.picture.soften(view, 1.0)
     results = {}
     for psy in (False, True):
         tc = MjpegTranscoder(H264Settings(bitrate_kbps=1000, fps=25, psy=psy))
@@ -407,8 +415,7 @@ def test_psy_off_codes_the_refresh_column_sharper_at_the_same_bitrate(views: lis
             pic = dec.decode(out.data)
             assert pic is not None
             if i >= 25:  # after the first second (the first IDR, the rate control's start)
-                mse = float(np.mean((pic.image.astype(np.float32) - clean[i]) ** 2))
-                psnr.append(10 * np.log10(255**2 / mse))
+                psnr.append(psnr_db(pic.image, clean))
         results[psy] = (statistics.median(psnr), 8 * sum(sizes) / len(sizes) * 25 / 1000, opts)
     (off_db, off_kbps, off_opts), (on_db, on_kbps, on_opts) = results[False], results[True]
     print(f"psy off: {off_db:.2f} dB at {off_kbps:.0f} kbit/s; on: {on_db:.2f} dB at {on_kbps:.0f} kbit/s")
