@@ -1,7 +1,12 @@
 """End-to-end extrinsic calibration against the simulated camera and laser over real DDS (loopback), over seeds.
 
 The loop of ``tests/ros/test_calibration_e2e.py``: simulated Axis 214 (in-process HTTP on 127.0.0.1) + stream
-node + PTZ node running the NOMINAL mount (config/mount.yaml) + laser sim node with range noise; the
+node + PTZ node running the NOMINAL mount (config/mount.yaml) + laser sim node with range noise (``noise_per_scan``
+false: before each view the bench sets the laser's ``seed`` to one made of the run's seed and the view's number, so
+each view gets its own noise draw and a seed gives the same clouds and 3-D points in every run; with the sim's
+per-scan noise, which draw a view got depended on when its scan came, and world config seed 0 read 0.28 … 2.77 cm.
+The camera's temporal noise is still drawn per frame, and which frame a view gets depends on timing: the picked
+pixels move by ≤ 0.03 px run to run, the figures by ≤ 0.01 cm, 0.001°); the
 ``axis_calibrate capture`` logic commands the poses (jittered per seed), records state, frame and
 laser snapshot per view and picks the board dots with the simulated-board picker plug-in the e2e test passes
 to ``axis_calibrate capture --picker`` (``tests/support/sim_picker.py``; ``--pick-mode`` default ``blob``, the
@@ -46,6 +51,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from report import SIM_CONFIG, inputs, row  # noqa: E402  (bench/report.py; bench/ is on sys.path when run)
 
 from axis_ptz_ros2.calibration.capture import (  # noqa: E402
+    CapturedView,
     PoseCommand,
     capture_views,
     next_view_names,
@@ -118,6 +124,33 @@ def _jittered(poses: list[PoseCommand], rng: np.random.Generator, deg: float) ->
     return [PoseCommand(p.pan + rng.uniform(-j, j), p.tilt + rng.uniform(-j, j), p.zoom) for p in poses]
 
 
+def _laser_seed(seed: int, view: int) -> int:
+    """The laser sim's noise seed for one view of one run (distinct over runs and views)."""
+    return 1000 * seed + view
+
+
+class _SeededLaserViews:
+    """The capture session, with the laser's fixed noise reseeded before each move: view k gets the noise of
+    ``_laser_seed(seed, k)`` whichever scan it takes (the set publishes a scan at once, long before the head
+    stops and the capture accepts a scan)."""
+
+    def __init__(self, session: CaptureSession, laser: Node, seed: int) -> None:
+        self.session, self.laser, self.seed, self.views = session, laser, seed, 0
+
+    def wait_ready(self, timeout: float | None = None) -> None:
+        self.session.wait_ready(timeout)
+
+    def move(self, pose: PoseCommand) -> None:
+        res = self.laser.set_parameters([Parameter("seed", value=_laser_seed(self.seed, self.views))])[0]
+        if not res.successful:
+            raise RuntimeError(f"laser seed refused: {res.reason}")
+        self.views += 1
+        self.session.move(pose)
+
+    def capture(self, name: str) -> CapturedView:
+        return self.session.capture(name)
+
+
 def _errors(T: Transform, truth: Transform) -> tuple[float, float]:
     return float(np.linalg.norm(T.t - truth.t)) * 100.0, math.degrees(rotation_angle(truth.R.T @ T.R))
 
@@ -175,13 +208,14 @@ def run_once(
                 ],
             )
         )
-        h.add(
+        laser = h.add(
             LaserSim(
                 context=h.context,
                 parameter_overrides=[
                     Parameter("rate", value=5.0),
                     Parameter("range_noise", value=args.range_noise),
-                    Parameter("seed", value=seed),
+                    Parameter("noise_per_scan", value=False),
+                    Parameter("seed", value=_laser_seed(seed, 0)),
                     Parameter("world_file", value=str(world_file)),
                 ],
             )
@@ -194,7 +228,8 @@ def run_once(
         session.wait_ready()
         picker = SimBoardPicker(model, nominal.transform, mode=args.pick_mode, world_file=world_file)
         t1 = time.monotonic()
-        report = capture_views(session, out, next_view_names(out, len(poses)), poses=poses, picker=picker, log=log)
+        views = _SeededLaserViews(session, laser, seed)
+        report = capture_views(views, out, next_view_names(out, len(poses)), poses=poses, picker=picker, log=log)
         t_capture = time.monotonic() - t1
         session.close()
     finally:

@@ -166,3 +166,40 @@ def test_laser_range_noise_is_gaussian_with_the_configured_sigma(ros):
     ua = a[:, :3] / ra[:, None]
     ub = b[:, :3] / rb[:, None]
     assert float(np.max(np.abs(ua - ub))) < 1e-5
+
+
+def test_laser_fixed_noise_does_not_depend_on_which_scan_a_consumer_takes(ros):
+    """With ``noise_per_scan`` false the noise is a function of ``seed`` and ``range_noise`` alone: a consumer
+    gets the same cloud whenever it takes a scan. (The calibration capture takes the first scan after the head
+    stopped, whose number since start depends on timing: with per-scan noise, one seed gave other clouds, so other
+    calibrations, run to run.) A live change of ``seed`` publishes a scan with the new noise at once."""
+    noisy = [Parameter("range_noise", value=0.02), Parameter("noise_per_scan", value=False)]
+    early = ros.add(
+        LaserSim(context=ros.context, namespace="early", parameter_overrides=[*noisy, Parameter("seed", value=7)])
+    )
+    probe = ros.probe()
+    got: dict[str, list[PointCloud2]] = {"early": [], "late": []}
+    for ns, clouds in got.items():
+        probe.create_subscription(PointCloud2, f"/{ns}/laser/points", clouds.append, LATCHED_QOS)
+    ros.wait_for(lambda: len(got["early"]) >= 2, timeout=15)  # its first scan and a later one (1 Hz)
+    # A node started later with another seed, scanning every 20 s: only its first scan and the one a live
+    # change publishes arrive here.
+    late = ros.add(
+        LaserSim(
+            context=ros.context,
+            namespace="late",
+            parameter_overrides=[*noisy, Parameter("seed", value=8), Parameter("rate", value=0.05)],
+        )
+    )
+    ros.wait_for(lambda: got["late"], timeout=15)
+    a = cloud_points(got["early"][0])
+    assert not np.array_equal(cloud_points(got["late"][0]), a)  # another seed, other noise
+    assert late.set_parameters([Parameter("seed", value=7)])[0].successful
+    ros.wait_for(lambda: len(got["late"]) >= 2, timeout=5)  # published at once, not at the next period
+    for msg in got["early"][1:] + got["late"][1:]:
+        np.testing.assert_array_equal(cloud_points(msg), a)
+    # and the noise is there: σ 2 cm against the exact ranges
+    r = np.linalg.norm(a[:, :3].astype(np.float64), axis=1)
+    r0 = np.linalg.norm(early._returns.points(), axis=1)  # noqa: SLF001 - the exact ranges it traced
+    mid = (r0 > 1.0) & (r0 < 29.0)
+    assert math.isclose(float(np.std(r[mid] - r0[mid])), 0.02, rel_tol=0.05)

@@ -90,6 +90,13 @@ def test_scans_are_exact_without_noise_and_clipped_gaussian_with_it():
     # the same seed gives the same scans
     again = StaticScan.trace(GroundOnly(), T, dirs, 1.0, 5.0, seed=3)
     np.testing.assert_array_equal(again.points(0.05), a)
+    # noise from a generator the caller gives: a fresh one of the same seed gives the same noise in every scan,
+    # and leaves the scan source's own stream where it was
+    fixed = scan.points(0.05, np.random.default_rng(11))
+    np.testing.assert_array_equal(scan.points(0.05, np.random.default_rng(11)), fixed)
+    assert not np.array_equal(fixed, a)
+    np.testing.assert_array_equal(again.points(0.05), b)
+    np.testing.assert_array_equal(scan.points(0.05), again.points(0.05))  # both at their third draw
 
 
 def test_the_simulated_scene_returns_ground_at_its_true_range():

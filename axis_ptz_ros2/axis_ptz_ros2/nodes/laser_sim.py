@@ -3,18 +3,26 @@
 The scanner's maths is :mod:`axis_ptz_ros2.sim.laser`: rays on a regular elevation × azimuth grid from the
 scanner's true pose (``SimWorld.T_base_laser``) traced through the scene (targets, ground, skyline); returns within
 ``[min_range, max_range]`` become points (x, y, z in ``laser_link``, metres; intensity = luminance of the hit
-surface, 0…1), optionally with Gaussian range noise drawn anew for every scan. This node publishes them as
-``sensor_msgs/PointCloud2`` on ``laser/points`` (latched: a late subscriber gets the newest scan) plus the scanner
-pose as latched ``laser/transform``.
+surface, 0…1), optionally with Gaussian range noise. This node publishes them as ``sensor_msgs/PointCloud2`` on
+``laser/points`` (latched: a late subscriber gets the newest scan) plus the scanner pose as latched
+``laser/transform``.
 
-The scene is static, so the geometry is traced once; each scan gets its own stamp and (with noise) its own
-noise draw, like a real scanner looking at a static scene.
+The scene is static, so the geometry is traced once; each scan gets its own stamp and, with ``noise_per_scan``
+(the default), its own noise draw from the stream ``seed`` starts, like a real scanner looking at a static scene.
+Which draw a consumer gets then depends on when it takes a scan: the n-th scan since the node started, n set by
+timing (a calibration capture takes the first scan after the head stopped; with the same seed its clouds, so its
+result, differed run to run). With ``noise_per_scan`` false the noise is a function of ``seed`` and
+``range_noise`` alone, the same in every scan, so a run is reproducible; a test or bench that wants independent
+noise per view sets another ``seed`` before each view (a change of ``seed``, ``range_noise`` or
+``noise_per_scan`` publishes a scan at once, so every scan received after the set carries the new noise).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import threading
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -46,7 +54,10 @@ PARAMS: tuple[ParamSpec, ...] = (
               float_range=(0.5, 500.0)),
     ParamSpec("range_noise", 0.0, "standard deviation of Gaussian range noise (0 = exact)", "m",
               float_range=(0.0, 1.0)),
-    ParamSpec("seed", 0, "random seed of the range noise", "", read_only=True),
+    ParamSpec("seed", 0, "random seed of the range noise (a change restarts the noise from it)", "",
+              int_range=(0, 2**31 - 1)),
+    ParamSpec("noise_per_scan", True, "draw the range noise anew for every scan (false: the same noise in every "
+              "scan, a function of seed and range_noise alone)"),
     ParamSpec("frame_id", "laser_link", "frame of the points", read_only=True),
     ParamSpec("parent_frame", "base_link", "parent frame of laser/transform", read_only=True),
     ParamSpec("world_file", "", "simulated world YAML ('' = config/sim_world.yaml)", read_only=True),
@@ -86,7 +97,8 @@ class LaserSim(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("axis_laser_sim", **kwargs)
-        self._live = LiveParams(self, PARAMS)  # range_noise: read from the snapshot at each scan
+        # range_noise, seed, noise_per_scan: read from the snapshot at each scan; a change publishes a scan at once
+        self._live = LiveParams(self, PARAMS, on_change=self._on_change)
         p = self._live.params
         if p["max_elevation"] < p["min_elevation"]:
             raise ValueError("max_elevation must not be below min_elevation")
@@ -99,6 +111,7 @@ class LaserSim(Node):
         self._returns = StaticScan.trace(
             shared_scene(world), world.T_base_laser, dirs, p["min_range"], p["max_range"], int(p["seed"])
         )
+        self._lock = threading.Lock()  # a scan by the timer and one on a parameter change, one after the other
         self.get_logger().info(f"{dirs.shape[0]} rays, {self._returns.ranges.size} returns per scan")
         self._pub = publisher(self, PointCloud2, "laser/points", LATCHED_QOS)
         self._tf_pub = publish_fixed_transform(
@@ -108,8 +121,19 @@ class LaserSim(Node):
         self._timer = self.create_timer(1.0 / float(p["rate"]), self._scan)
 
     def _scan(self) -> None:
-        pts = self._returns.points(float(self._live.params["range_noise"]))
-        self._pub.publish(cloud_msg(pts, self._returns.intensity, self._frame_id, self.get_clock().now().to_msg()))
+        with self._lock:  # the parameters read inside: a scan published after a set carries the new values
+            p = self._live.params
+            rng = None if p["noise_per_scan"] else np.random.default_rng(int(p["seed"]))
+            pts = self._returns.points(float(p["range_noise"]), rng)
+            stamp = self.get_clock().now().to_msg()
+            self._pub.publish(cloud_msg(pts, self._returns.intensity, self._frame_id, stamp))
+
+    def _on_change(self, names: frozenset[str]) -> None:
+        if "seed" in names:
+            with self._lock:
+                self._returns = replace(self._returns, rng=np.random.default_rng(int(self._live.params["seed"])))
+        if names & {"seed", "range_noise", "noise_per_scan"}:
+            self._scan()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -4,7 +4,8 @@ Rays lie on a regular elevation × azimuth grid in the scanner frame and are tra
 through :meth:`~axis_ptz_ros2.sim.scene.Scene.raycast` (targets, ground, skyline); returns within
 ``[min_range, max_range]`` are kept, with intensity = luminance of the hit surface (0…1). The scene is static, so
 the geometry is traced once (:meth:`StaticScan.trace`); each scan (:meth:`StaticScan.points`) draws its own
-Gaussian range noise, like a real scanner looking at a static scene. The ``axis_laser_sim`` node publishes the
+Gaussian range noise, like a real scanner looking at a static scene, or takes it from a generator the caller
+gives (a fresh ``default_rng(seed)`` each time: the same noise in every scan). The ``axis_laser_sim`` node publishes the
 scans (``nodes/laser_sim.py``).
 """
 
@@ -69,10 +70,12 @@ class StaticScan:
         dirs, ranges, intensity = trace_scan(scene, T_base_laser, dirs_laser, min_range, max_range)
         return cls(dirs, ranges, intensity, float(min_range), float(max_range), np.random.default_rng(seed))
 
-    def points(self, range_noise: float = 0.0) -> FloatArray:
-        """One scan: the returns as (M, 3) points in the scanner frame, each range with fresh Gaussian noise of
-        standard deviation ``range_noise`` (m; 0 = exact), clipped into ``[min_range, max_range]``."""
+    def points(self, range_noise: float = 0.0, rng: np.random.Generator | None = None) -> FloatArray:
+        """One scan: the returns as (M, 3) points in the scanner frame, each range with Gaussian noise of standard
+        deviation ``range_noise`` (m; 0 = exact) drawn from ``rng`` (default: this scan source's own stream, so
+        fresh noise at every call), clipped into ``[min_range, max_range]``."""
         r = self.ranges
         if range_noise > 0.0:
-            r = np.clip(r + self.rng.normal(0.0, range_noise, r.shape), self.min_range, self.max_range)
+            gen = self.rng if rng is None else rng
+            r = np.clip(r + gen.normal(0.0, range_noise, r.shape), self.min_range, self.max_range)
         return np.asarray(self.directions * r[:, None], dtype=np.float64)
