@@ -193,7 +193,7 @@ def stop(proc: Any) -> None:
 def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: str) -> Session:
     from tests.netns.hosts import TwoHosts, host_env, wait_for
 
-    hosts = TwoHosts(f"h264{s.name.replace('-', '')[:6]}", logs)
+    hosts = TwoHosts(s.name.replace("-", "")[:20], logs)  # the whole name: one log per session
     link = hosts.link
     env = host_env(FASTRTPS_DEFAULT_PROFILES_FILE=profile) if profile else host_env()
     refdir = logs / f"ref-{s.name}"

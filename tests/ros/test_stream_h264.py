@@ -568,6 +568,40 @@ def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one
     assert node._video.state().link_state == "congested"
 
 
+def test_a_queue_seen_in_the_median_delay_lowers_the_bitrate_where_the_p95_alone_reads_steady(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """``LinkFeedback.delay_p50_s`` reaches the adapter: with the p95 300 ms over its minimum (between the H.264
+    thresholds: steady) a median 20 ms over it is the link's repairs (held), a median 150 ms over it is a queue
+    (congested: the encoder's bitrate comes down)."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=400)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
+    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
+    consumer = probe.get_fully_qualified_name()
+
+    def report(median_s: float) -> None:
+        sent = node._video._h264_meter.rate(time.monotonic())
+        pub.publish(
+            LinkFeedback(
+                consumer=consumer, window_s=1.0, frames=max(int(sent.fps), 10), fps=sent.fps, kbps=sent.kbps,
+                delay_p95_s=1.31, delay_p50_s=1.01 + median_s, delay_min_s=1.01, gap_s=0.02,
+            )
+        )  # fmt: skip
+
+    start = node._video.h264_settings().bitrate_kbps
+
+    def judged(state: str, median_s: float) -> bool:
+        report(median_s)
+        return node._video.state().link_state == state
+
+    ros.wait_for(lambda: judged("steady", 0.02), timeout=5, period=0.3)
+    assert node._video.h264_settings().bitrate_kbps == start
+    ros.wait_for(lambda: judged("congested", 0.15), timeout=5, period=0.3)
+    assert node._video.h264_settings().bitrate_kbps < start
+
+
 def test_the_default_ceiling_lets_a_clear_link_raise_the_start_by_half_and_a_start_above_the_ceiling_is_no_raising(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
