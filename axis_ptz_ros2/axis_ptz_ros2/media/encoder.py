@@ -14,7 +14,11 @@ What viewers and a weak link need, and how it is had (facts in docs/…/h264.md,
   IDR); a new VBV buffer (:meth:`H264Encoder.set_vbv`) re-opens it at the next IDR it makes anyway (periodic or
   requested), with the same ``maxrate``, so a buffer that follows the link costs no extra IDR. Until then the
   buffer opened with stays: x264 keeps it when only ``bit_rate`` is lowered (opened at 1000 kbit/s and lowered
-  to 600, its IDRs stayed 86 kbit against 73 kbit for one opened at 600).
+  to 600, its IDRs stayed 86 kbit against 73 kbit for one opened at 600). Every open, a re-open too, is at
+  ``maxrate`` with the target set live after it: x264 follows a live bitrate only when it opened as CBR
+  (``maxrate`` <= bitrate); opened under a higher ``maxrate`` it keeps the bitrate it opened with for good (re-opened
+  at 275 kbit/s under a 1350 ceiling, a live 1000 kbit/s gave 280; on the two-host 1 Mbit/s link x264 sent 310
+  kbit/s under a budget climbing to 1105).
 - Keyframes: x264's own are off (``scenecut=0``); this class forces an IDR on request (``forced-idr=1`` +
   ``PictureType.I``) and, with :attr:`H264Settings.refresh` ``idr``, every ``keyframe_interval`` frames (x264's
   ``keyint=infinite``), so the interval is live too. With ``intra`` x264's periodic intra refresh
@@ -192,7 +196,10 @@ class H264Encoder:
         ctx.pix_fmt = "yuv420p"
         ctx.time_base = Fraction(1, c.fps)
         ctx.framerate = Fraction(c.fps, 1)
-        ctx.bit_rate = c.bitrate_bps
+        # opened at maxrate (x264's CBR), the target set live below: x264 follows a live bitrate only in the mode it
+        # opened in as CBR (maxrate <= bitrate); opened with maxrate above the bitrate it keeps that bitrate for good
+        # ("We don't support changing the ABR bitrate right now", x264's ratecontrol.c)
+        ctx.bit_rate = maxrate
         ctx.max_b_frames = 0
         ctx.thread_count = c.threads
         # periodic IDRs are this class's (keyint infinite); intra refresh is x264's, one wave per keyframe interval
@@ -211,5 +218,6 @@ class H264Encoder:
             ctx.open()
         except av.error.FFmpegError as err:
             raise EncoderError(f"libx264 did not open {self.width}x{self.height} with {c}: {err}") from err
+        ctx.bit_rate = c.bitrate_bps  # live from the first frame on (libavcodec reconfigures x264 before each frame)
         self._maxrate, self._bufsize = maxrate, bufsize
         return ctx
