@@ -213,6 +213,7 @@ class LinkAdapter:
         self._last_report = -1e18
         self._reports: dict[str, tuple[float, FeedbackReport]] = {}
         self._bad_kbps = 0.0  # what was sent when the link last congested ...
+        self._drained_kbps = 0.0  # ... and what the consumers received at its last congested report (the link full)
         self._bad_until = -1e18  # ... and until when not to try it again
         self._backoff = self.config.probe_backoff_s
         self._good: deque[tuple[float, float]] = deque()  # (when, what was sent) of the recent clear reports
@@ -282,6 +283,7 @@ class LinkAdapter:
         queued = cfg.median_high_s > 0 and median > cfg.median_high_s
         if queue > cfg.delay_high_s or delivery < cfg.delivery_low or lossy or queued:
             state = "congested"
+            self._drained_kbps = received  # the link full: what it delivers is its capacity now
             if now - self._last_decrease >= cfg.decrease_hold_s:
                 current = self._budget if self._budget > 0 else max(sent_kbps, received)
                 # the link delivered ``received``: stay a margin under it; if almost nothing arrives (the sender
@@ -334,12 +336,19 @@ class LinkAdapter:
                 # the decrease (weak-link bench at a2bf677, the 2 -> 1 Mbit/s step: the next report read "sent 894
                 # kbit/s" against 856 that congested, the rate was forgotten and the budget went 594 -> 1350 kbit/s
                 # in 2.5 s, ×1.2 per report, while the queue was still 240 ms)
-                self._bad_kbps = 0.0
+                self._bad_kbps = self._drained_kbps = 0.0
             base = self._budget if self._budget > 0 else grow_from_kbps
             if careful and now - self._last_decrease < cfg.decrease_hold_s:
                 base = 0.0  # the report still covers the congestion just answered: no growth on it
-            # near the rate that last congested (the back-off over), growth by ``probe_increase``
-            probing = careful and base >= cfg.decrease * self._bad_kbps > 0
+            # near the rate that last congested (the back-off over), growth by ``probe_increase``; so from a margin
+            # over what the link delivered while full, too, where that is less: a link that stepped down carries
+            # less than ``decrease`` x the rate that congested it (2 -> 1 Mbit/s step at 859821a, debug log: 1302
+            # kbit/s congested, 599 delivered at the drain's last congested report; x1.2 per report from 486 to
+            # 1042, 812 sent, congested again, 11 s)
+            careful_from = cfg.decrease * self._bad_kbps
+            if self._drained_kbps > 0:
+                careful_from = min(careful_from, cfg.good_margin * self._drained_kbps)
+            probing = careful and base >= careful_from > 0
             # past the start, and when probing, one step per report window: each is judged on a window of its own
             # (the sender's rate follows the budget at once, and a report covers the last ``window_s``)
             climbing = probing or (grow_from_kbps > 0 and base >= grow_from_kbps)
