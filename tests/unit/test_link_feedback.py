@@ -614,20 +614,22 @@ def test_h264_a_queue_between_the_p95_thresholds_is_congestion_by_its_median():
     def adapter() -> LinkAdapter:
         a = LinkAdapter(h264_adapter_config())
         for k in range(10):  # 5 s clear at 1000 kbit/s
-            a.report(10.0 + 0.5 * k, _report(fps=25.0, kbps=1000.0, queue=0.03, frames=50, median=0.01), 25, 1000)
+            clear = _report(fps=25.0, kbps=1000.0, queue=0.03, frames=50, median=0.01)
+            a.report(10.0 + 0.5 * k, clear, 25, 1000, 1667.0, 1000)
+        assert a.budget_kbps > 1000.0  # clear: grown past the start
         return a
 
     a = adapter()
     budget = a.budget_kbps
     repairs = _report(fps=25.0, kbps=1000.0, queue=0.34, frames=50, median=0.023)
-    assert a.report(15.0, repairs, 25, 1000).state == "steady"  # the repairs' tail: no cut
+    assert a.report(15.0, repairs, 25, 1000, 1667.0, 1000).state == "steady"  # the repairs' tail: no cut
     assert a.budget_kbps == budget
     creeping = _report(fps=25.0, kbps=780.0, queue=0.3, frames=50, median=0.12)
-    d = a.report(15.5, creeping, 25, 800)
+    d = a.report(15.5, creeping, 25, 800, 1667.0, 1000)
     assert (d.state, d.median_queue_s) == ("congested", pytest.approx(0.12))
     assert a.budget_kbps == pytest.approx(0.8 * 780.0)
     unmeasured = _report(fps=25.0, kbps=780.0, queue=0.3, frames=50)  # the same queue, no median reported
-    assert adapter().report(15.5, unmeasured, 25, 800).state == "steady"
+    assert adapter().report(15.5, unmeasured, 25, 800, 1667.0, 1000).state == "steady"
     # MJPEG's adapter does not judge the median (its p95 threshold is 150 ms already)
     assert AdapterConfig().median_high_s == 0.0
 
