@@ -11,6 +11,7 @@ import statistics
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 from urllib.parse import parse_qsl
 
 import av
@@ -527,6 +528,23 @@ def test_a_clear_link_raises_the_bitrate_past_the_start_up_to_the_ceiling(
     assert video_args(camera.request_counts.video_log[-1].query)["compression"] == "0"  # the camera's ask: as is
 
 
+def _report_all_sent(pub: Any, node: StreamNode, consumer: str, **figures: Any) -> None:
+    """A feedback report of ``consumer`` that received, over a 1 s window, every byte and picture the node sent,
+    with the delay figures (and ``lost``) given."""
+    sent = node._video._h264_meter.rate(time.monotonic())
+    pub.publish(
+        LinkFeedback(
+            consumer=consumer,
+            window_s=1.0,
+            frames=max(int(sent.fps), 10),
+            fps=sent.fps,
+            kbps=sent.kbps,
+            gap_s=0.02,
+            **figures,
+        )
+    )
+
+
 def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one_hold_it(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
@@ -542,13 +560,7 @@ def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one
     consumer = probe.get_fully_qualified_name()
 
     def report(lost: int, queue_s: float = 0.01) -> None:
-        sent = node._video._h264_meter.rate(time.monotonic())  # what the node sent: every byte arrived
-        pub.publish(
-            LinkFeedback(
-                consumer=consumer, window_s=1.0, frames=max(int(sent.fps), 10), fps=sent.fps, kbps=sent.kbps,
-                delay_p95_s=0.01 + queue_s, delay_min_s=0.01, gap_s=0.02, lost=lost,
-            )
-        )  # fmt: skip
+        _report_all_sent(pub, node, consumer, delay_p95_s=0.01 + queue_s, delay_min_s=0.01, lost=lost)
 
     seen: list[int] = []
 
@@ -582,13 +594,7 @@ def test_a_queue_seen_in_the_median_delay_lowers_the_bitrate_where_the_p95_alone
     consumer = probe.get_fully_qualified_name()
 
     def report(median_s: float) -> None:
-        sent = node._video._h264_meter.rate(time.monotonic())
-        pub.publish(
-            LinkFeedback(
-                consumer=consumer, window_s=1.0, frames=max(int(sent.fps), 10), fps=sent.fps, kbps=sent.kbps,
-                delay_p95_s=1.31, delay_p50_s=1.01 + median_s, delay_min_s=1.01, gap_s=0.02,
-            )
-        )  # fmt: skip
+        _report_all_sent(pub, node, consumer, delay_p95_s=1.31, delay_p50_s=1.01 + median_s, delay_min_s=1.01)
 
     start = node._video.h264_settings().bitrate_kbps
 
