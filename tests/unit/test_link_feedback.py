@@ -7,7 +7,8 @@ import math
 import pytest
 
 from axis_ptz_ros2.streaming import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
-from axis_ptz_ros2.streaming.feedback import AdapterConfig, FeedbackReport, LinkAdapter, ReceiveMeter
+from axis_ptz_ros2.streaming.feedback import AdapterConfig, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.receive_meter import ReceiveMeter
 from axis_ptz_ros2.vapix import Resolution, VideoParams
 
 pytestmark = pytest.mark.unit

@@ -49,7 +49,7 @@ from axis_ptz_ros2.nodes.common import (
 )
 from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
-from axis_ptz_ros2.streaming.feedback import ReceiveMeter
+from axis_ptz_ros2.streaming.receive_meter import ReceiveMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver, PtsGaps
 
 #: s: reports of a loss that just began at most this often (besides the periodic ones)

@@ -49,8 +49,6 @@ cost without it).
 
 from __future__ import annotations
 
-import math
-import threading
 from collections import deque
 from dataclasses import dataclass
 
@@ -71,59 +69,6 @@ class FeedbackReport:
     window_s: float = 1.0  # the window ``frames``/``fps``/``kbps`` cover
     lost: int = 0  # H.264: access units that never arrived (pts gaps), a running count since it began watching
     delay_p50_s: float = 0.0  # median delay in the window; 0 = not measured (a consumer that does not fill it)
-
-
-class ReceiveMeter:
-    """The consumer's side: what arrives, and how late (thread-safe).
-
-    ``add(rx_s, stamp_s, nbytes)`` per frame received (``rx_s`` and ``stamp_s`` on the wall clocks of the
-    consumer and of the stream node: their offset cancels in the queueing delay the adapter uses);
-    ``report(now_s)`` summarises the last ``window_s`` seconds, with the smallest delay of the last
-    ``base_window_s`` seconds as the reference.
-    """
-
-    def __init__(self, consumer: str, window_s: float = 2.0, base_window_s: float = 10.0) -> None:
-        """``window_s`` > 0, ``base_window_s`` >= ``window_s``."""
-        if window_s <= 0 or base_window_s < window_s:
-            raise ValueError("need 0 < window_s <= base_window_s")
-        self.consumer = consumer
-        self.window_s = window_s
-        self.base_window_s = base_window_s
-        self._frames: deque[tuple[float, float, int]] = deque()  # (rx, delay, bytes)
-        self._lock = threading.Lock()
-
-    def add(self, rx_s: float, stamp_s: float, nbytes: int) -> None:
-        """One frame stamped ``stamp_s`` by the sender arrived at ``rx_s``."""
-        with self._lock:
-            self._frames.append((rx_s, rx_s - stamp_s, nbytes))
-            cutoff = rx_s - self.base_window_s
-            while self._frames and self._frames[0][0] < cutoff:
-                self._frames.popleft()
-
-    def report(self, now_s: float) -> FeedbackReport:
-        """The last ``window_s`` seconds as a :class:`FeedbackReport`."""
-        with self._lock:
-            frames = list(self._frames)
-        recent = [f for f in frames if f[0] > now_s - self.window_s]
-        gap = now_s - frames[-1][0] if frames else math.inf
-        base = [f[1] for f in frames if f[0] > now_s - self.base_window_s]
-        if not recent:
-            return FeedbackReport(self.consumer, 0, 0.0, 0.0, 0.0, min(base) if base else 0.0, gap, self.window_s)
-        delays = sorted(f[1] for f in recent)
-        p95 = delays[min(len(delays) - 1, int(math.ceil(0.95 * len(delays))) - 1)]
-        p50 = delays[(len(delays) - 1) // 2]
-        nbytes = sum(f[2] for f in recent)
-        return FeedbackReport(
-            consumer=self.consumer,
-            frames=len(recent),
-            fps=len(recent) / self.window_s,
-            kbps=nbytes * 8.0 / 1000.0 / self.window_s,
-            delay_p95_s=p95,
-            delay_min_s=min(base),
-            gap_s=gap,
-            window_s=self.window_s,
-            delay_p50_s=p50,
-        )
 
 
 @dataclass(frozen=True, slots=True)
