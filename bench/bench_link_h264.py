@@ -61,12 +61,18 @@ robot side already running; for H.264 without feedback the viewer is started ``-
 ``bench/bench_acuity_link.py`` runs these sessions with the camera aimed at an acuity chart (its acuity mode: the
 ``Session`` fields ``aim``, ``acuity_every``, ``rate_kbit``, ``diagnostics``, ``on_saved``).
 
+For a study of one run: ``BENCH_LINK_LOG_LEVEL=debug`` (the stream node's log, with the link adapter's decision on
+every report, in ``artifacts/bench_link_h264/<session>-axis_camera.log``), ``BENCH_LINK_ROBOT_ARGS`` (more
+``-p name:=value`` for the stream node), ``BENCH_LINK_DUMP=DIR`` (every shown picture's record -- ``rx``, ``cap`` the
+camera's send, ``bytes`` -- the stills, and the link's events of each session in ``DIR/<session>.jsonl``).
+
 Needs root (network namespaces); installs nftables if missing.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -281,6 +287,11 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
         print(f"  {s.name}: {rekey(s.pics, sends, refdir / 'pics')}", flush=True)
     if s.pan_speed:
         panning_psnr(s, refdir)
+    dump = os.environ.get("BENCH_LINK_DUMP")
+    if dump:  # for a study of one run (the module docstring)
+        with open(Path(dump) / f"{s.name}.jsonl", "w", encoding="utf-8") as f:
+            f.write(json.dumps({"t": "events", "t0": s.t0, **s.events}) + "\n")
+            f.writelines(json.dumps(r) + "\n" for r in [*s.pics, *s.stills])
     return s
 
 
