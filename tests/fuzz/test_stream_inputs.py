@@ -107,7 +107,7 @@ def test_parameter_sets(rig: Any, changes: list[tuple[str, Any]]) -> None:
 
 @ros_settings
 @given(
-    st.tuples(*[st.floats(allow_nan=True, allow_infinity=True, width=32)] * 7),
+    st.tuples(*[st.floats(allow_nan=True, allow_infinity=True, width=32)] * 8),
     st.integers(0, 2**32 - 1),
     st.text(max_size=30),
 )
@@ -115,7 +115,8 @@ def test_feedback_reports(rig: Any, figures: tuple[float, ...], frames: int, con
     ros, cam, _node, probe, _arrivals = rig
     pub = probe.__dict__.setdefault("_feedback", probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS))
     msg = LinkFeedback(consumer=consumer, frames=frames)
-    msg.window_s, msg.fps, msg.kbps, msg.delay_p95_s, msg.delay_min_s, msg.gap_s, msg.delay_p50_s = figures
+    (msg.window_s, msg.fps, msg.kbps, msg.delay_p95_s, msg.delay_min_s, msg.gap_s, msg.delay_p50_s,
+     msg.delay_floor_s) = figures  # fmt: skip
     msg.header.frame_id = "image_raw/compressed"
     pub.publish(msg)
     _camera_saw_only_valid_requests(cam)

@@ -608,6 +608,43 @@ def test_a_queue_seen_in_the_median_delay_lowers_the_bitrate_where_the_p95_alone
     assert node._video.h264_settings().bitrate_kbps < start
 
 
+def test_a_queue_seen_in_the_delay_floor_near_a_rate_that_congested_lowers_the_bitrate(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """``LinkFeedback.delay_floor_s`` reaches the adapter: after a congestion, growing back near the rate that
+    congested, a floor 30 ms over its minimum with the p95 and the median clear is the link's edge (congested: the
+    bitrate comes down); the same report with the floor not measured (0) reads clear."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=400)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
+    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
+    consumer = probe.get_fully_qualified_name()
+
+    def judged(state: str, queue_s: float, floor_s: float = 0.0) -> bool:
+        _report_all_sent(
+            pub,
+            node,
+            consumer,
+            delay_p95_s=1.01 + queue_s,
+            delay_p50_s=1.01 + min(queue_s, 0.02),
+            delay_min_s=1.01,
+            delay_floor_s=1.01 + floor_s if floor_s else 0.0,
+        )
+        return node._video.state().link_state == state
+
+    start = node._video.h264_settings().bitrate_kbps
+    ros.wait_for(lambda: judged("congested", 0.6), timeout=5, period=0.3)  # swamped: the rate that congested
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps < start, timeout=3)
+    ros.wait_for(lambda: judged("clear", 0.06), timeout=5, period=0.3)
+    time.sleep(3.0)  # past the decrease's hold: a report now judges the rate sent now
+    eased = node._video.h264_settings().bitrate_kbps
+    ros.wait_for(lambda: judged("clear", 0.06, 0.0), timeout=5, period=0.3)  # the floor not measured: clear
+    assert node._video.h264_settings().bitrate_kbps >= eased
+    ros.wait_for(lambda: judged("congested", 0.06, 0.03), timeout=5, period=0.3)
+    ros.wait_for(lambda: node._video.h264_settings().bitrate_kbps < eased, timeout=3)
+
+
 def test_the_default_ceiling_lets_a_clear_link_raise_the_start_by_half_and_a_start_above_the_ceiling_is_no_raising(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:

@@ -64,6 +64,33 @@ def test_receive_meter_median_sees_a_queue_not_the_few_frames_behind_a_repaired_
     assert ReceiveMeter("x").report(1.0).delay_p50_s == 0.0  # nothing received: not measured
 
 
+def test_receive_meter_floor_sees_a_queue_that_stands_now_not_the_repairs_nor_an_earlier_one():
+    """The floor is the smallest delay of the window's last half: a repaired loss delays only the frames behind it
+    (the floor stays at the minimum); a queue standing for the last second delays every frame, the quickest too; a
+    queue in the window's first half only, drained since, is not in it."""
+    repairs = ReceiveMeter("op", window_s=2.0)
+    for i in range(50):  # 25 fps; every 10th frame and the two behind it waited 150 ms more for a repair
+        rx = 10.0 + i / 25.0
+        repairs.add(rx, rx - 0.03 - (0.15 if i % 10 < 3 else 0.0), 6000)
+    r = repairs.report(10.0 + 49 / 25.0)
+    assert r.delay_floor_s - r.delay_min_s == pytest.approx(0.0)
+    standing = ReceiveMeter("op", window_s=2.0)
+    drained = ReceiveMeter("op", window_s=2.0)
+    for i in range(100):  # 4 s at 25 fps: the last second 20-44 ms late (standing), or the second before (drained)
+        rx = 10.0 + i / 25.0
+        late = 0.02 + 0.001 * (i - 75) if i >= 75 else 0.0
+        standing.add(rx, rx - 0.03 - late, 6000)
+        early = 0.02 + 0.001 * (i - 50) if 50 <= i < 75 else 0.0
+        drained.add(rx, rx - 0.03 - early, 6000)
+    r = standing.report(10.0 + 99 / 25.0)
+    assert r.delay_floor_s - r.delay_min_s == pytest.approx(0.02)
+    assert r.delay_p50_s - r.delay_min_s < 0.02  # the median over 2 s is still half in the time before the queue
+    r = drained.report(10.0 + 99 / 25.0)
+    assert r.delay_floor_s - r.delay_min_s == pytest.approx(0.0)
+    assert r.delay_p95_s - r.delay_min_s > 0.03  # the drained queue is still in the p95
+    assert ReceiveMeter("x").report(1.0).delay_floor_s == 0.0  # nothing received: not measured
+
+
 # -- LinkAdapter ----------------------------------------------------------------------------------------------
 def test_congestion_sets_the_budget_under_what_arrived_once_per_hold():
     a = LinkAdapter(AdapterConfig(decrease=0.8, decrease_hold_s=1.5))
@@ -555,6 +582,7 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     steps = []  # the back-off ended at 30: (when, budget) at each growth
     while now < 37.0:
         before = a.budget_kbps
+        sent = 0.97 * before  # the encoder follows its budget
         assert a.report(now, rep(sent), 25, sent, 1000).state == "clear"
         if a.budget_kbps != before:
             steps.append((now, a.budget_kbps / before))
@@ -562,6 +590,16 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     assert len(steps) == 3  # 5 % per report window (2 s), not x1.2 per report
     assert all(k == pytest.approx(1.05) for _t, k in steps)
     assert all(b[0] - a_[0] >= 2.0 for a_, b in zip(steps, steps[1:], strict=False))
+    # the same creep with an encoder that sends 500 kbit/s whatever its budget (x264 on a still scene): a probe is
+    # judged at what is sent, so the budget grows to at most 1.1 x that (already under the budget: held)
+    held = LinkAdapter(h264_adapter_config())
+    held.report(10.0, rep(860), 25, 860, step_up_kbps=1000)
+    held.report(20.0, rep(725, lost=3, queue=0.3), 25, 860, 1000)
+    t = 22.5
+    while t < 37.0:
+        held.report(t, rep(500.0), 25, 500.0, 1000)
+        t += 0.5
+    assert held.budget_kbps == pytest.approx(0.8 * 860)
     # what is sent reaches the rate that congested, cleanly: forgotten, the usual x1.2 per report
     a.report(now, rep(870), 25, 870, 1000)
     grown = a.budget_kbps
@@ -663,7 +701,7 @@ def test_h264_the_decreases_of_one_drain_keep_the_rate_that_congested_first():
         assert a.report(now, _report(fps=25.0, kbps=sent, queue=0.03, frames=50), 25, sent, 1667.0, 1000).state == (
             "clear"
         )
-        if before >= 1.15 * 604.0:  # a margin over what the link delivered full (the drain's last report): careful
+        if before >= 604.0:  # what the link delivered full (the drain's last report, its capacity): careful
             assert a.budget_kbps <= 1.05 * before + 1e-9
         now += 0.5
     assert a.budget_kbps < 0.8 * 1263.0
@@ -674,3 +712,66 @@ def test_h264_the_decreases_of_one_drain_keep_the_rate_that_congested_first():
         a.report(now, _report(fps=25.0, kbps=sent, queue=0.03, frames=50), 25, sent, 1667.0, 1000)
         assert a.budget_kbps <= 1.05 * before + 1e-9
         now += 0.5
+
+
+def test_h264_a_floor_raised_while_probing_near_a_rate_that_congested_is_congestion():
+    """After the link stepped down, careful growth probes back towards the rate that congested; the link's edge
+    there shows first as a queue every frame waits in, the quickest too, while the p95 (wide for the repairs' tails)
+    and the 2 s median still read clear (2 -> 1 Mbit/s step, debug log at 4d035e4: the floor 16-22 ms over its
+    minimum for 1.5 s at 755-781 kbit/s sent, the median 33-39 ms; then the queue grew to 400 ms within 2 s). A
+    floor over ``floor_high_s`` (15 ms) there is congestion: the budget to 0.8 x what was received. On a ramp with no
+    congestion behind it the larger frames' own transmission raises the floor without a queue (15 ms at 1208
+    kbit/s, 6 s after 727): not judged. A consumer that does not report its floor (0) is not judged by it."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    def floor_report(kbps: float, floor: float, reported: bool = True) -> FeedbackReport:
+        return FeedbackReport(
+            "op", 50, 25.0, kbps, 100.06, 100.0, gap_s=0.01, delay_p50_s=100.035,
+            delay_floor_s=100.0 + floor if reported else 0.0,
+        )  # fmt: skip
+
+    cfg = h264_adapter_config()
+    assert cfg.floor_high_s == pytest.approx(0.015)
+    ramp = LinkAdapter(cfg)
+    for k in range(6):
+        ramp.report(10.0 + 0.5 * k, floor_report(1000.0, 0.002), 25, 1000.0, 1667.0, 1000)
+    before = ramp.budget_kbps
+    assert ramp.report(13.0, floor_report(1200.0, 0.016), 25, 1208.0, 1667.0, 1000).state == "clear"
+    assert ramp.budget_kbps >= before  # a ramp, no congestion behind it: the floor not judged
+
+    def stepped_down() -> tuple[LinkAdapter, float]:
+        a = LinkAdapter(cfg)
+        now = 10.0
+        while now < 20.0:  # steady at 1280 kbit/s
+            a.report(now, _report(fps=25.0, kbps=1280.0, queue=0.04, frames=50), 25, 1280.0, 1667.0, 1000)
+            now += 0.5
+        swamped = _report(fps=16.0, kbps=600.0, queue=0.48, frames=32, median=0.3)
+        assert a.report(now, swamped, 25, 1280.0, 1667.0, 1000).state == "congested"
+        now += 3.0
+        while a.budget_kbps < 800.0:  # clear again: growing back, careful from 1.15 x 600 kbit/s on
+            assert now < 60.0
+            sent = min(0.97 * a.budget_kbps, 755.0)
+            assert a.report(now, floor_report(sent, 0.003), 25, sent, 1667.0, 1000).state == "clear"
+            now += 0.5
+        return a, now
+
+    a, now = stepped_down()
+    d = a.report(now, floor_report(755.0, 0.016), 25, 755.0, 1667.0, 1000)
+    assert (d.state, d.floor_queue_s) == ("congested", pytest.approx(0.016))
+    assert a.budget_kbps == pytest.approx(0.8 * 755.0)
+    # the next report still covers the edge's rate, received in full: no sign that the link carries it without a
+    # queue, so the rate is not forgotten (it was, and the budget grew x1.2 per report from 634 to 1315 kbit/s)
+    eased = a.budget_kbps
+    assert a.report(now + 0.5, floor_report(756.0, 0.003), 25, 756.0, 1667.0, 1000).state == "clear"
+    for k in range(2, 16):
+        sent = 0.97 * a.budget_kbps
+        assert a.report(now + 0.5 * k, floor_report(sent, 0.003), 25, sent, 1667.0, 1000).state == "clear"
+    assert a.budget_kbps <= eased * 1.05**4 + 1e-6  # careful: 5 % per report window at most
+    a, now = stepped_down()
+    budget = a.budget_kbps
+    assert a.report(now, floor_report(755.0, 0.016, reported=False), 25, 755.0, 1667.0, 1000).state == "clear"
+    assert a.budget_kbps >= budget
+    a, now = stepped_down()
+    assert a.report(now, floor_report(755.0, 0.012), 25, 755.0, 1667.0, 1000).state == "clear"  # under 15 ms
+    # MJPEG's adapter does not judge the floor
+    assert AdapterConfig().floor_high_s == 0.0

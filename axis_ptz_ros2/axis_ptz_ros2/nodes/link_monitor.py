@@ -174,6 +174,7 @@ class FeedbackPublisher:
         msg.kbps = float(r.kbps)
         msg.delay_p95_s = float(r.delay_p95_s)
         msg.delay_p50_s = float(r.delay_p50_s)
+        msg.delay_floor_s = float(r.delay_floor_s)
         msg.delay_min_s = float(r.delay_min_s)
         msg.gap_s = float(min(r.gap_s, now - since))
         msg.decode_errors = sum(n for _t, n in self._errors)

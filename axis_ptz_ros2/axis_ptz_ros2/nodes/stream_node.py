@@ -297,6 +297,7 @@ class StreamNode(Node):
             kbps=float(msg.kbps),
             delay_p95_s=float(msg.delay_p95_s),
             delay_p50_s=float(msg.delay_p50_s),
+            delay_floor_s=float(msg.delay_floor_s),
             delay_min_s=float(msg.delay_min_s),
             gap_s=float(msg.gap_s),
             window_s=float(msg.window_s) if msg.window_s > 0 else 1.0,

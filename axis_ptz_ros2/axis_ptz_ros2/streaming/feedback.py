@@ -69,6 +69,7 @@ class FeedbackReport:
     window_s: float = 1.0  # the window ``frames``/``fps``/``kbps`` cover
     lost: int = 0  # H.264: access units that never arrived (pts gaps), a running count since it began watching
     delay_p50_s: float = 0.0  # median delay in the window; 0 = not measured (a consumer that does not fill it)
+    delay_floor_s: float = 0.0  # smallest delay in the window's last half; 0 = not measured
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,6 +112,13 @@ class AdapterConfig:
     # repaired loss only the few behind it, so the median sees a queue that the p95 thresholds, set wide for the
     # repairs' tails, read as steady (H.264, :func:`h264_adapter_config`)
     median_high_s: float = 0.0
+    # the *floor* (the smallest delay of the report's last half) over its minimum above this while growing back near
+    # a rate that congested: a queue stands, so the sender is at the link's edge: congested (0: not judged). Every
+    # frame waits in a standing queue, the quickest too, while a repaired loss delays only the slow ones; and the
+    # floor covers the last second only, so it sees the queue a second before the median does
+    floor_high_s: float = 0.0
+    # while growing back near a rate that congested, the budget grows to at most this x what is sent (0: ``headroom``)
+    probe_headroom: float = 0.0
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -132,6 +140,8 @@ class AdapterConfig:
             raise ValueError("need probe_increase 0 (= increase) or 1 < probe_increase <= increase")
         if self.median_high_s < 0 or self.median_high_s >= self.delay_high_s:
             raise ValueError("need 0 <= median_high_s < delay_high_s (0 = the median not judged)")
+        if self.floor_high_s < 0 or (self.probe_headroom != 0.0 and not 1.0 < self.probe_headroom <= self.headroom):
+            raise ValueError("need floor_high_s >= 0 (0 = not judged), probe_headroom 0 or in (1, headroom]")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -145,6 +155,7 @@ class Decision:
     queue_delay_s: float  # the deciding consumer's p95 delay over its minimum
     delivery: float
     median_queue_s: float = 0.0  # its median delay over its minimum (0: not reported)
+    floor_queue_s: float = 0.0  # the largest floor over its minimum among the consumers (0: not reported)
 
 
 class LinkAdapter:
@@ -219,6 +230,7 @@ class LinkAdapter:
         )
         queue = self._queue_delay(worst)
         median = max((self._median_queue(r) for _t, r in self._reports.values()), default=0.0)
+        floor = max((self._floor_queue(r) for _t, r in self._reports.values()), default=0.0)
         delivery = self._judge_delivery(worst, sent_fps, sent_kbps)
         received = min(r.kbps for _t, r in self._reports.values())
         # an access unit lost with a queue standing: the queue outlasted the writer's history (congestion); lost
@@ -226,7 +238,12 @@ class LinkAdapter:
         lost_news = cfg.lost_congested > 0 and lost >= cfg.lost_congested
         lossy = lost_news and queue >= cfg.delay_low_s
         queued = cfg.median_high_s > 0 and median > cfg.median_high_s
-        if queue > cfg.delay_high_s or delivery < cfg.delivery_low or lossy or queued:
+        # judged while probing near a rate that congested: there the frames' size hardly changes within the floor's
+        # reference window, while a ramp from a lower rate raises the floor by its larger frames' own transmission
+        # (the step bench's 2 Mbit/s ramp, debug log: 15 ms at 1208 kbit/s sent 6 s after 727, no queue)
+        near = 0 < self._careful_from() <= self._budget
+        edge = cfg.floor_high_s > 0 and floor > cfg.floor_high_s and near
+        if queue > cfg.delay_high_s or delivery < cfg.delivery_low or lossy or queued or edge:
             state = "congested"
             self._drained_kbps = received  # the link full: what it delivers is its capacity now
             if now - self._last_decrease >= cfg.decrease_hold_s:
@@ -275,24 +292,27 @@ class LinkAdapter:
             while self._good and now - self._good[0][0] > cfg.good_memory_s:
                 self._good.popleft()
             careful = 0.0 < cfg.probe_increase < cfg.increase
-            if careful and 0 < self._bad_kbps <= received:
+            settled = now - self._last_decrease >= cfg.decrease_hold_s
+            if careful and 0 < self._bad_kbps <= received and settled:
                 # the link now carries what congested it: nothing to be careful of. Judged by what arrived, not by
                 # what was sent: the sender's window still holds the rate that congested for a report or two after
                 # the decrease (weak-link bench at a2bf677, the 2 -> 1 Mbit/s step: the next report read "sent 894
                 # kbit/s" against 856 that congested, the rate was forgotten and the budget went 594 -> 1350 kbit/s
                 # in 2.5 s, ×1.2 per report, while the queue was still 240 ms)
+                # Nor within ``decrease_hold_s`` of the decrease: a report there still covers the rate that congested
+                # (the link's edge, found by the floor, is received in full: at 4d035e4 plus the floor rule, 736
+                # kbit/s eased, the next report read 756 received, the rate was forgotten and the budget grew x1.2
+                # per report from 634 to 1315 kbit/s into a 440 ms queue)
                 self._bad_kbps = self._drained_kbps = 0.0
             base = self._budget if self._budget > 0 else grow_from_kbps
             if careful and now - self._last_decrease < cfg.decrease_hold_s:
                 base = 0.0  # the report still covers the congestion just answered: no growth on it
-            # near the rate that last congested (the back-off over), growth by ``probe_increase``; so from a margin
-            # over what the link delivered while full, too, where that is less: a link that stepped down carries
+            # near the rate that last congested (the back-off over), growth by ``probe_increase``; so from what
+            # the link delivered while full, too, where that is less: a link that stepped down carries
             # less than ``decrease`` x the rate that congested it (2 -> 1 Mbit/s step at 859821a, debug log: 1302
             # kbit/s congested, 599 delivered at the drain's last congested report; x1.2 per report from 486 to
             # 1042, 812 sent, congested again, 11 s)
-            careful_from = cfg.decrease * self._bad_kbps
-            if self._drained_kbps > 0:
-                careful_from = min(careful_from, cfg.good_margin * self._drained_kbps)
+            careful_from = self._careful_from()
             probing = careful and base >= careful_from > 0
             # past the start, and when probing, one step per report window: each is judged on a window of its own
             # (the sender's rate follows the budget at once, and a report covers the last ``window_s``)
@@ -305,11 +325,17 @@ class LinkAdapter:
                 ceiling = max(cfg.headroom * max(sent_kbps, received, cfg.min_kbps), cfg.step_margin * step_up_kbps)
                 if now < self._bad_until and self._bad_kbps > 0:
                     ceiling = min(ceiling, cfg.decrease * self._bad_kbps)
+                if probing and cfg.probe_headroom > 0:
+                    # a probe is judged at the rate the encoder sends: a budget far over it (x264 on a still scene
+                    # sends 65 % of a 1112 kbit/s target) is no probe, and lets a change of scene jump past the edge
+                    # at once (1 Mbit/s + 2 %, debug log at 4d035e4 plus the floor rule: sent 728 -> 794 kbit/s
+                    # within a second under a budget of 1112, a 450 ms queue)
+                    ceiling = min(ceiling, cfg.probe_headroom * max(sent_kbps, received, cfg.min_kbps))
                 self._budget = min(base * (cfg.probe_increase if probing else cfg.increase), max(ceiling, base))
         else:
             state = "steady"
         self.state = state
-        return Decision(self._budget, state, queue, delivery, median)
+        return Decision(self._budget, state, queue, delivery, median, floor)
 
     def tick(self, now: float) -> Decision:
         """Called periodically without a report: hold the budget through a silence, release it after
@@ -326,6 +352,18 @@ class LinkAdapter:
                 self._budget = max(min(self._budget, cfg.good_margin * self._sent_kbps), cfg.min_kbps)
             self.state = "silent"
         return Decision(self._budget, self.state, 0.0, 1.0)
+
+    def _careful_from(self) -> float:
+        """The rate from which growth is careful (``probe_increase``): a margin under the rate that last congested,
+        or what the link delivered while full where that is less: a draining queue arrives at the link's capacity,
+        so nothing past it is safe to grow into quickly (the 2 -> 1 Mbit/s step at 4d035e4, debug log: 732 kbit/s
+        arrived at the drain's last congested report; x1.2 per report to 1.15 x that, 844, and the queue stood
+        again at 736 kbit/s sent). 0 when nothing congested."""
+        cfg = self.config
+        careful_from = cfg.decrease * self._bad_kbps
+        if self._drained_kbps > 0:
+            careful_from = min(careful_from, self._drained_kbps)
+        return careful_from
 
     def _steady_before(self, now: float, sent_kbps: float) -> bool:
         """Whether the clear reports of the last ``stable_s`` and more (since the last congestion, within
@@ -348,6 +386,13 @@ class LinkAdapter:
         if r.frames == 0 or r.delay_p50_s <= 0:
             return 0.0
         return max(r.delay_p50_s - r.delay_min_s, 0.0)
+
+    @staticmethod
+    def _floor_queue(r: FeedbackReport) -> float:
+        """The floor over its minimum; 0 when nothing arrived or not reported."""
+        if r.frames == 0 or r.delay_floor_s <= 0:
+            return 0.0
+        return max(r.delay_floor_s - r.delay_min_s, 0.0)
 
     def _judge_delivery(self, r: FeedbackReport, sent_fps: float, sent_kbps: float) -> float:
         """Fraction delivered: of the bytes sent (``delivery_by_bytes``), else of the frames."""
@@ -408,4 +453,6 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
         probe_backoff_max_s=40.0,
         probe_increase=1.05,
         median_high_s=0.08,
+        floor_high_s=0.015,
+        probe_headroom=1.1,
     )

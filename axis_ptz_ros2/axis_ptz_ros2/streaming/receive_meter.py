@@ -51,6 +51,8 @@ class ReceiveMeter:
         delays = sorted(f[1] for f in recent)
         p95 = delays[min(len(delays) - 1, int(math.ceil(0.95 * len(delays))) - 1)]
         p50 = delays[(len(delays) - 1) // 2]
+        # the last half: the queue standing now, not one the report's earlier half saw drain
+        floor = min((f[1] for f in recent if f[0] > now_s - self.window_s / 2), default=0.0)
         nbytes = sum(f[2] for f in recent)
         return FeedbackReport(
             consumer=self.consumer,
@@ -62,4 +64,5 @@ class ReceiveMeter:
             gap_s=gap,
             window_s=self.window_s,
             delay_p50_s=p50,
+            delay_floor_s=floor,
         )

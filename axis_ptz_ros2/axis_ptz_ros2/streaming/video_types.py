@@ -89,6 +89,6 @@ class LinkJudgement:
         return (
             f"link {d.state}: budget {d.budget_kbps:.0f} kbit/s; {r.consumer} received "
             f"{r.fps:.1f} fps {r.kbps:.0f} kbit/s (queue {d.queue_delay_s * 1000:.0f} ms p95 "
-            f"{d.median_queue_s * 1000:.0f} ms p50, "
+            f"{d.median_queue_s * 1000:.0f} ms p50 {d.floor_queue_s * 1000:.0f} ms floor, "
             f"delivery {d.delivery:.2f}); sent {s.fps:.1f} fps {s.kbps:.0f} kbit/s; level {self.level}"
         )
