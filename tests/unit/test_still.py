@@ -231,6 +231,7 @@ def test_h264_a_still_reported_crossed_holds_the_cap_until_then_not_by_an_estima
     """The cap lasts until the node says every reader acknowledged the still (a 245 kB still took 1.8-5.0 s on
     2 Mbit/s + 2 % where 1.85 s was estimated from its size), at most STILL_CROSSING_MAX_S."""
     from axis_ptz_ros2.media.h264_settings import H264Settings
+    from axis_ptz_ros2.media.limits import BITRATE_RANGE_KBPS
     from axis_ptz_ros2.streaming.still import STILL_CROSSING_MAX_S, STILL_H264_VIDEO_SHARE, StillWindow
 
     clock = _Clock()
@@ -239,7 +240,8 @@ def test_h264_a_still_reported_crossed_holds_the_cap_until_then_not_by_an_estima
     ctl.set_h264_possible(True)
     ctl.on_still(clock.t, 245_000)
     capped = ctl.h264_settings().bitrate_kbps
-    assert capped == int(STILL_H264_VIDEO_SHARE * 1000)  # of h264_bitrate_kbps without feedback
+    # of h264_bitrate_kbps without feedback, never under the parameters' lowest bitrate
+    assert capped == max(BITRATE_RANGE_KBPS[0], int(STILL_H264_VIDEO_SHARE * 1000))
     assert 0 < capped < 1000
     clock.t += 4.5  # past its 1960 kbit over the rest of 1000 kbit/s (2.2 s), not yet acknowledged
     assert ctl.h264_settings().bitrate_kbps == capped

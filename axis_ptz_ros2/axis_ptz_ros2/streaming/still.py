@@ -218,13 +218,17 @@ class ExtraBytes:
 
 
 #: h264 mode: while a still crosses the link the live H.264 gets at most this fraction of the reference rate (the
-#: link's budget, or ``h264_bitrate_kbps`` without feedback), so the still has the rest. H.264 at an eighth of its
-#: rate keeps its picture rate (the picture gets softer for a second or two); the MJPEG ladder would have to step
+#: link's budget, or ``h264_bitrate_kbps`` without feedback), so the still has the rest. H.264 at a small share of
+#: its rate keeps its picture rate (the picture gets softer for a second or two); the MJPEG ladder would have to step
 #: down in size or rate instead, so MJPEG keeps :data:`~.controller.STILL_SHARE` of its budget for one meter window.
-#: Two-host bench, 2 Mbit/s + 2 %, the still paced at 1.6 Mbit/s (config/fastdds_weak_link.xml), six stills: with
-#: 0.2 stills took 1.9 s (the pace had to be 1.3 Mbit/s to leave the video its room), with 0.12 1.55 s and the
-#: live video kept 23 fps, age p95 176 ms (0.3 before the pacing, when the GIL-holding wait starved the video)
-STILL_H264_VIDEO_SHARE = 0.12
+#: Two-host bench, 2 Mbit/s + 2 %, six stills a run: paced at 1.6 Mbit/s (config/fastdds_weak_link.xml), 0.2 took
+#: 1.9 s a still (the pace had to be 1.3 Mbit/s to leave the video its room), 0.12 1.55 s with the live video at
+#: 23 fps, age p95 176 ms (0.3 before the pacing, when the GIL-holding wait starved the video). With the encoder
+#: following its target again (after a re-open too, 859821a) 0.12 read 270-330 ms; paced at 1.5 Mbit/s, the home
+#: view (245 kB) with 0.12: 1.61 s a still, live age p95 253 ms, 380-390 kbit/s of live video; with 0.06: 1.55-1.57 s,
+#: 111 and 180 ms, 270-320 kbit/s (x264 does not go much lower at 704x576 and 25 fps); the acuity chart's (171 kB)
+#: 1.10 s, 92 and 182 ms (ad hoc at 3b6c4b5)
+STILL_H264_VIDEO_SHARE = 0.06
 #: s: the longest a still is taken to be crossing when its end is reported (acknowledged by every reader)
 STILL_CROSSING_MAX_S = 10.0
 
