@@ -40,7 +40,9 @@ reads as a p95 queueing delay of 100-200 ms on 2 Mbit/s with 2 % loss; judged by
 was "congested" report after report and the budget sank to its floor (124 kbit/s of a 1000 kbit/s request on
 that link, weak-link bench at 8ff4f08). A queue that the sender builds grows past those tails within a report;
 one that builds slowly is seen in the *median* delay (``median_high_s``): a queue delays every picture, a repair
-only the few behind it.
+only the few behind it. Growing back near a rate that congested, where the link's edge is, the *floor* (the smallest
+delay of the report's last second, ``floor_high_s``) sees a standing queue a second before the median does, and
+the budget leads what the encoder sends by at most ``probe_headroom``.
 After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
 covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
 it again, not when the sender's lagging window still reads it (:func:`h264_adapter_config` says what each rule
