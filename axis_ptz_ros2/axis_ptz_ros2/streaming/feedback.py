@@ -231,8 +231,8 @@ class LinkAdapter:
             key=lambda r: (self._queue_delay(r), -self._judge_delivery(r, sent_fps, sent_kbps)),
         )
         queue = self._queue_delay(worst)
-        median = max((self._median_queue(r) for _t, r in self._reports.values()), default=0.0)
-        floor = max((self._floor_queue(r) for _t, r in self._reports.values()), default=0.0)
+        median = max((self._over_min(r, r.delay_p50_s) for _t, r in self._reports.values()), default=0.0)
+        floor = max((self._over_min(r, r.delay_floor_s) for _t, r in self._reports.values()), default=0.0)
         delivery = self._judge_delivery(worst, sent_fps, sent_kbps)
         received = min(r.kbps for _t, r in self._reports.values())
         # an access unit lost with a queue standing: the queue outlasted the writer's history (congestion); lost
@@ -383,18 +383,12 @@ class LinkAdapter:
         return max(r.delay_p95_s - r.delay_min_s, 0.0)
 
     @staticmethod
-    def _median_queue(r: FeedbackReport) -> float:
-        """The median delay over its minimum; 0 when nothing arrived (the gap judges that) or not reported."""
-        if r.frames == 0 or r.delay_p50_s <= 0:
+    def _over_min(r: FeedbackReport, delay_s: float) -> float:
+        """One of the report's delays (its median, its floor) over its minimum; 0 when nothing arrived (the gap
+        judges that) or the consumer did not measure it (0)."""
+        if r.frames == 0 or delay_s <= 0:
             return 0.0
-        return max(r.delay_p50_s - r.delay_min_s, 0.0)
-
-    @staticmethod
-    def _floor_queue(r: FeedbackReport) -> float:
-        """The floor over its minimum; 0 when nothing arrived or not reported."""
-        if r.frames == 0 or r.delay_floor_s <= 0:
-            return 0.0
-        return max(r.delay_floor_s - r.delay_min_s, 0.0)
+        return max(delay_s - r.delay_min_s, 0.0)
 
     def _judge_delivery(self, r: FeedbackReport, sent_fps: float, sent_kbps: float) -> float:
         """Fraction delivered: of the bytes sent (``delivery_by_bytes``), else of the frames."""
