@@ -545,6 +545,16 @@ def _report_all_sent(pub: Any, node: StreamNode, consumer: str, **figures: Any) 
     )
 
 
+def _reporting_consumer(ros: RosHarness, camera: SimulatedCamera, max_kbps: int) -> tuple[StreamNode, Any, str]:
+    """An H.264 stream node (start 400 kbit/s, ceiling ``max_kbps``) with a consumer whose image subscription the
+    node has discovered and is streaming to: (node, its ``video/feedback`` publisher, its fully qualified name)."""
+    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=max_kbps)
+    probe = ros.probe()
+    rec, _ = subscribe(probe)
+    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
+    return node, probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS), probe.get_fully_qualified_name()
+
+
 def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one_hold_it(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:
@@ -552,12 +562,7 @@ def test_access_units_lost_behind_a_queue_lower_the_bitrate_and_lost_without_one
     its history before their repair finished) while a queue stands (p95 250 ms over its minimum, under the 500 ms
     that is congestion by itself) is congested: the encoder's bitrate comes down at once. The same losses with no
     queue are the link's random loss: the bitrate is held (steady), not cut; a steady count lets it climb."""
-    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=600)
-    probe = ros.probe()
-    rec, _ = subscribe(probe)  # the consumer's image subscription, discovered by the stream node
-    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
-    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
-    consumer = probe.get_fully_qualified_name()
+    node, pub, consumer = _reporting_consumer(ros, camera, 600)
 
     def report(lost: int, queue_s: float = 0.01) -> None:
         _report_all_sent(pub, node, consumer, delay_p95_s=0.01 + queue_s, delay_min_s=0.01, lost=lost)
@@ -586,12 +591,7 @@ def test_a_queue_seen_in_the_median_delay_lowers_the_bitrate_where_the_p95_alone
     """``LinkFeedback.delay_p50_s`` reaches the adapter: with the p95 300 ms over its minimum (between the H.264
     thresholds: steady) a median 20 ms over it is the link's repairs (held), a median 150 ms over it is a queue
     (congested: the encoder's bitrate comes down)."""
-    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=400)
-    probe = ros.probe()
-    rec, _ = subscribe(probe)
-    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
-    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
-    consumer = probe.get_fully_qualified_name()
+    node, pub, consumer = _reporting_consumer(ros, camera, 400)
 
     def report(median_s: float) -> None:
         _report_all_sent(pub, node, consumer, delay_p95_s=1.31, delay_p50_s=1.01 + median_s, delay_min_s=1.01)
@@ -614,12 +614,7 @@ def test_a_queue_seen_in_the_delay_floor_near_a_rate_that_congested_lowers_the_b
     """``LinkFeedback.delay_floor_s`` reaches the adapter: after a congestion, growing back near the rate that
     congested, a floor 30 ms over its minimum with the p95 and the median clear is the link's edge (congested: the
     bitrate comes down); the same report with the floor not measured (0) reads clear."""
-    node = make_node(ros, camera, **H264, h264_bitrate_kbps=400, h264_max_bitrate_kbps=400)
-    probe = ros.probe()
-    rec, _ = subscribe(probe)
-    ros.wait_for(lambda: rec.count() >= 15, timeout=10)
-    pub = probe.create_publisher(LinkFeedback, "video/feedback", FEEDBACK_QOS)
-    consumer = probe.get_fully_qualified_name()
+    node, pub, consumer = _reporting_consumer(ros, camera, 400)
 
     def judged(state: str, queue_s: float, floor_s: float = 0.0) -> bool:
         _report_all_sent(

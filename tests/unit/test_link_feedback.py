@@ -53,12 +53,17 @@ def test_receive_meter_sees_a_growing_queue_and_a_gap():
     assert math.isinf(ReceiveMeter("x").report(1.0).gap_s)
 
 
-def test_receive_meter_median_sees_a_queue_not_the_few_frames_behind_a_repaired_loss():
+def _repaired_losses() -> FeedbackReport:
+    """2 s at 25 fps in which every 10th frame and the two behind it waited 150 ms more for a repair."""
     m = ReceiveMeter("op", window_s=2.0)
-    for i in range(50):  # 25 fps; every 10th frame and the two behind it waited 150 ms more for a repair
+    for i in range(50):
         rx = 10.0 + i / 25.0
         m.add(rx, rx - 0.03 - (0.15 if i % 10 < 3 else 0.0), 6000)
-    r = m.report(10.0 + 49 / 25.0)
+    return m.report(10.0 + 49 / 25.0)
+
+
+def test_receive_meter_median_sees_a_queue_not_the_few_frames_behind_a_repaired_loss():
+    r = _repaired_losses()
     assert r.delay_p95_s - r.delay_min_s == pytest.approx(0.15)
     assert r.delay_p50_s - r.delay_min_s == pytest.approx(0.0)
     assert ReceiveMeter("x").report(1.0).delay_p50_s == 0.0  # nothing received: not measured
@@ -68,11 +73,7 @@ def test_receive_meter_floor_sees_a_queue_that_stands_now_not_the_repairs_nor_an
     """The floor is the smallest delay of the window's last half: a repaired loss delays only the frames behind it
     (the floor stays at the minimum); a queue standing for the last second delays every frame, the quickest too; a
     queue in the window's first half only, drained since, is not in it."""
-    repairs = ReceiveMeter("op", window_s=2.0)
-    for i in range(50):  # 25 fps; every 10th frame and the two behind it waited 150 ms more for a repair
-        rx = 10.0 + i / 25.0
-        repairs.add(rx, rx - 0.03 - (0.15 if i % 10 < 3 else 0.0), 6000)
-    r = repairs.report(10.0 + 49 / 25.0)
+    r = _repaired_losses()
     assert r.delay_floor_s - r.delay_min_s == pytest.approx(0.0)
     standing = ReceiveMeter("op", window_s=2.0)
     drained = ReceiveMeter("op", window_s=2.0)
