@@ -126,8 +126,8 @@ def test_after_all_that_the_node_streams_with_a_valid_request(rig: Any) -> None:
     ros, cam, node, probe, arrivals = rig
     client = probe.create_client(SetParameters, f"/{node.get_name()}/set_parameters")
     request = SetParameters.Request()
-    # codec too: the fuzz may have left ``h264`` (a valid value), and with only an MJPEG subscriber the node then
-    # does not re-ask the camera at all (a known defect, 2026-12-06, not this test's subject; see the closing note)
+    # codec too: the fuzz may have left ``h264`` (a valid value), and then the MJPEG topic is the share's stream,
+    # whose ladder may rightly ask for less than 352x288 (tests/ros/test_stream_crowded.py covers that case)
     settings = (
         ("codec", "mjpeg"),
         ("resolution", "352x288"),

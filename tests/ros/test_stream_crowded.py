@@ -130,6 +130,41 @@ def test_mjpeg_subscriber_leaving_gives_the_encoder_its_bitrate_back(ros: RosHar
     assert node._video.h264_settings().bitrate_kbps == full
 
 
+def test_an_mjpeg_subscriber_in_h264_mode_follows_a_new_request_with_no_h264_viewer(
+    ros: RosHarness, camera: SimulatedCamera
+) -> None:
+    """A request set while the codec is h264 and only the MJPEG topic is watched reaches the camera: the MJPEG
+    share's stream reconnects with its new ladder (it used to keep its first request for good)."""
+    # a share the new request fits (its ladder never steps: only the new request can re-ask the camera)
+    node = make_stream_node(ros, camera, h264_bitrate_kbps=20000)  # codec mjpeg at first
+    probe = ros.probe()
+    jpegs = Received()
+    probe.create_subscription(CompressedImage, "image_raw/compressed", jpegs.on_jpeg, STREAM_QOS)
+    ros.wait_for(lambda: len(jpegs.since(0.0)) >= 3, timeout=15)
+    assert node.set_parameters([Parameter("codec", value="h264")])[0].successful
+    ros.wait_for(lambda: node._video.h264 and node._video.mjpeg.active, timeout=5)
+    # the share's stream has opened (its first request) before the new request is set
+    ros.wait_for(lambda: len(camera.request_counts.video_log) >= 2, timeout=10)
+    t_set = time.time()
+    results = node.set_parameters_atomically(
+        [Parameter("resolution", value="352x288"), Parameter("fps", value=10), Parameter("compression", value=30)]
+    )
+    assert results.successful, results.reason
+
+    def asked_after_set() -> list[dict[str, str]]:
+        return [dict(parse_qsl(e.query)) for e in list(camera.request_counts.video_log) if e.t_wall >= t_set]
+
+    # the share's stream: the new request under the share's ladder (no larger, no faster, no finer than asked)
+    ros.wait_for(lambda: any(q.get("compression") != "0" for q in asked_after_set()), timeout=10)
+    share = [q for q in asked_after_set() if q.get("compression") != "0"]
+    assert share, asked_after_set()
+    assert all(int(q["fps"]) <= 10 and int(q["compression"]) >= 30 for q in share), share
+    assert all(tuple(int(v) for v in q["resolution"].split("x"))[0] <= 352 for q in share), share
+    # and pictures of it arrive
+    t1 = time.monotonic()
+    ros.wait_for(lambda: len(jpegs.since(t1)) >= 3, timeout=10)
+
+
 def test_a_report_about_the_mjpeg_topic_does_not_squeeze_the_h264_stream(
     ros: RosHarness, camera: SimulatedCamera
 ) -> None:

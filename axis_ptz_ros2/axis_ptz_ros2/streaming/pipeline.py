@@ -218,9 +218,10 @@ class VideoPipeline:
         self._decide()
 
     def _on_decision(self) -> None:
-        """The controller's announcement (any thread, serialised): the readers follow, the H.264 side is told,
-        the node publishes ``video/params``."""
+        """The controller's announcement (any thread, serialised): the readers follow (the MJPEG share's too: a new
+        request rebuilds its ladder), the H.264 side is told, the node publishes ``video/params``."""
         self.reader.refresh()
+        self.share_reader.refresh()
         self._push()
         self._on_params()
 
