@@ -78,3 +78,25 @@ def test_the_ladder_steps_down_when_the_stream_measures_over_its_share() -> None
             break
     assert stepped is not None, start
     assert s._ladder.level > level, (start, stepped)  # noqa: SLF001
+
+
+def test_a_new_request_while_the_stream_runs_starts_under_the_share_from_its_own_pictures() -> None:
+    clock = Clock()
+    s = share(clock=clock)
+    s.active = True
+    before = s.start(C0, C0_BYTES)
+    for _ in range(8):  # the running stream measures its own pictures: 4 kB each at its rate
+        clock.t += 1.0 / before.fps
+        s.meter.add(clock.t, 4_000)
+    s.configure(VideoParams(PAL, 25, 10), None, 60)
+    p = s.current
+    # never the request as asked (704x576 at compression 10 is megabits a second): under the 300 kbit/s share
+    assert p != VideoParams(PAL, 25, 10)
+    assert p.resolution == Resolution(176, 144), p
+    assert 4_000 * p.fps * 8 / 1000 <= 1000 * MJPEG_SHARE, p
+
+
+def test_a_new_request_while_the_stream_is_off_is_the_ladder_from_its_top() -> None:
+    s = share()
+    s.configure(VideoParams(Resolution(352, 288), 10, 30), None, 60)
+    assert s.current == VideoParams(Resolution(352, 288), 10, 30)

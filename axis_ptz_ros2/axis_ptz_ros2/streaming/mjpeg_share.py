@@ -89,13 +89,19 @@ class MjpegShare:
         return self._share() if self.active else 0.0
 
     def configure(self, requested: VideoParams, resolutions: Sequence[Resolution] | None, max_compression: int) -> None:
-        """A new request or the camera's own resolution list: the ladder is rebuilt (started again by
-        :meth:`start` when the stream is active)."""
+        """A new request or the camera's own resolution list: the ladder is rebuilt. While the stream runs, its
+        first level is predicted from this stream's own measured pictures (as :meth:`start` does from the
+        compression-0 stream's), never the request as asked: the owner's reader then reconnects with it."""
         with self._lock:
             if resolutions:
                 self._resolutions = tuple(resolutions)
             self._requested, self._max_compression = requested, int(max_compression)
+            old = self._ladder.current
             self._ladder = self._new_ladder()
+            if self.active:
+                now = self._clock()
+                self._ladder.fit_from(old, self.meter.rate(now).bytes_per_frame, now)
+                self.meter.reset()
 
     def start(self, ref: VideoParams, ref_bytes_per_frame: float) -> VideoParams:
         """The stream is about to open: its first level, predicted from the compression-0 stream (``ref`` at
