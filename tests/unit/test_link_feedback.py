@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -558,6 +559,62 @@ def test_h264_a_steady_stream_whose_link_drops_is_cut_by_what_arrives_not_back_t
     assert a.budget_kbps == pytest.approx(0.8 * 796.0)  # not the 1000 kbit/s start
 
 
+def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
+    """A steady stream's link drops (2 -> 1 Mbit/s): the decrease sets 0.8 x what arrives, and the budget then does
+    not grow for ``step_down_hold_s`` however clear the reports (a probe would reach the new edge within seconds),
+    and stands at most at what the link delivered while full (the drain); after the hold it grows again. A
+    congestion that was a probe (no steady stream before it) sets no hold."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    cfg = h264_adapter_config()
+    assert cfg.step_down_hold_s > 0
+    a = LinkAdapter(cfg)
+    now = 10.0
+    while now < 30.0:  # 20 s clear at ~1260 kbit/s sent
+        a.report(now, _report(fps=25.0, kbps=1260.0, queue=0.04, frames=50), 25, 1260.0, 0.0, 1000)
+        now += 0.5
+    assert a.report(now, _report(fps=16.0, kbps=796.0, queue=0.6, frames=32), 25, 1257.0, 0.0, 1000).state == (
+        "congested"
+    )
+    assert a.budget_kbps == pytest.approx(0.8 * 796.0)  # the decrease: its received rate's window began before
+    stepped, now = now, now + 0.5
+    # the queue drains (the next congested report, within the decrease's hold: no second decrease): the link full
+    # delivers 560 kbit/s, its capacity now
+    assert a.report(now, _report(fps=18.0, kbps=560.0, queue=0.6, frames=36), 25, 700.0, 0.0, 1000).state == (
+        "congested"
+    )
+    assert a.budget_kbps == pytest.approx(0.8 * 796.0)
+    now += 0.5
+    while now < stepped + cfg.step_down_hold_s:  # clear reports at what the budget lets through: no growth
+        sent = 0.97 * a.budget_kbps
+        assert a.report(now, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000).state == "clear"
+        now += 0.5
+    held = a.budget_kbps
+    assert held == pytest.approx(560.0)  # held at what the link delivered full, not over it
+    for _ in range(6):  # the hold over: it probes again
+        sent = 0.97 * a.budget_kbps
+        a.report(now, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000)
+        now += 0.5
+    assert a.budget_kbps > held
+    # a probe that congests (a ramp, not a steady stream): no hold, the careful growth starts after decrease_hold_s
+    b = LinkAdapter(cfg)
+    t = 10.0
+    for k in range(8):  # ramping up under the start: 400, 450, ... kbit/s sent
+        b.report(t, _report(fps=25.0, kbps=400.0 + 50 * k, queue=0.04, frames=50), 25, 400.0 + 50 * k, 0.0, 1000)
+        t += 0.5
+    assert b.report(t, _report(fps=16.0, kbps=500.0, queue=0.6, frames=32), 25, 760.0, 0.0, 1000).state == ("congested")
+    after, congested = b.budget_kbps, t
+    t += 0.5
+    while t < congested + cfg.probe_backoff_s + 3.0:  # past the back-off, well within what a hold would be
+        sent = 0.97 * b.budget_kbps
+        b.report(t, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000)
+        t += 0.5
+    assert cfg.probe_backoff_s + 3.0 < cfg.step_down_hold_s
+    assert b.budget_kbps > after
+    with pytest.raises(ValueError, match="step_down_hold_s"):
+        AdapterConfig(step_down_hold_s=-1.0)
+
+
 def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congested():
     """The link drops under what is sent (2 -> 1 Mbit/s): the budget falls with the received rate, stays under
     0.8 x the rate that congested for the back-off (10 s), then grows by 5 % per report window only, not x1.2 per
@@ -569,7 +626,9 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
         r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
         return FeedbackReport(**{**{f: getattr(r, f) for f in r.__slots__}, "lost": lost})  # type: ignore[attr-defined]
 
-    a = LinkAdapter(h264_adapter_config())
+    # (one clear report 10 s before reads as a steady stream: the hold after a step down, its own test, is off here)
+    creep = dataclasses.replace(h264_adapter_config(), step_down_hold_s=0.0)
+    a = LinkAdapter(creep)
     assert a.report(10.0, rep(860), 25, 860, step_up_kbps=1000).state == "clear"
     assert a.budget_kbps == 0.0  # at the start with the ceiling there: no budget on a clear link
     d = a.report(20.0, rep(725, lost=3, queue=0.3), 25, 860, 1000)  # the queue past the history: losses
@@ -593,7 +652,7 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     assert all(b[0] - a_[0] >= 2.0 for a_, b in zip(steps, steps[1:], strict=False))
     # the same creep with an encoder that sends 500 kbit/s whatever its budget (x264 on a still scene): a probe is
     # judged at what is sent, so the budget grows to at most 1.1 x that (already under the budget: held)
-    held = LinkAdapter(h264_adapter_config())
+    held = LinkAdapter(creep)
     held.report(10.0, rep(860), 25, 860, step_up_kbps=1000)
     held.report(20.0, rep(725, lost=3, queue=0.3), 25, 860, 1000)
     t = 22.5
@@ -681,10 +740,11 @@ def test_h264_the_decreases_of_one_drain_keep_the_rate_that_congested_first():
     step at e5828d4: 1263, 918, 773, 662 kbit/s, the last forgotten at 679 received, the budget to 2250 and the age
     p95 near 100 ms to the end). The back-off is not doubled within one drain either. And from a margin over what the
     link delivered while full (the drain's last congested report) the growth is careful: a link that stepped down
-    carries less than 0.8 x the rate that congested it (at 859821a: x1.2 per report to 1042, congested again)."""
+    carries less than 0.8 x the rate that congested it (at 859821a: x1.2 per report to 1042, congested again).
+    (The hold after a step down, its own test, is off here: this is the drain's bookkeeping.)"""
     from axis_ptz_ros2.streaming.feedback import h264_adapter_config
 
-    a = LinkAdapter(h264_adapter_config())
+    a = LinkAdapter(dataclasses.replace(h264_adapter_config(), step_down_hold_s=0.0))
     now = 10.0
     while now < 30.0:
         a.report(now, _report(fps=25.0, kbps=1263.0, queue=0.04, frames=50), 25, 1263.0, 1667.0, 1000)

@@ -43,6 +43,8 @@ one that builds slowly is seen in the *median* delay (``median_high_s``): a queu
 only the few behind it. Growing back near a rate that congested, where the link's edge is, the *floor* (the smallest
 delay of the report's last second, ``floor_high_s``) sees a standing queue a second before the median does, and
 the budget leads what the encoder sends by at most ``probe_headroom``.
+When the link itself steps down under a steady stream, nothing grows for ``step_down_hold_s`` and the budget stands at
+most at what the link delivered while full.
 After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
 covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
 it again, not when the sender's lagging window still reads it (:func:`h264_adapter_config` says what each rule
@@ -121,6 +123,9 @@ class AdapterConfig:
     floor_high_s: float = 0.0
     # while growing back near a rate that congested, the budget grows to at most this x what is sent (0: ``headroom``)
     probe_headroom: float = 0.0
+    # after a congestion of a steady stream (the link itself stepped down, see ``stable_s``) the budget does not grow
+    # for this long (0: no hold; decreases go on): a link that just stepped down is probed again only then
+    step_down_hold_s: float = 0.0
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -144,6 +149,8 @@ class AdapterConfig:
             raise ValueError("need 0 <= median_high_s < delay_high_s (0 = the median not judged)")
         if self.floor_high_s < 0 or (self.probe_headroom != 0.0 and not 1.0 < self.probe_headroom <= self.headroom):
             raise ValueError("need floor_high_s >= 0 (0 = not judged), probe_headroom 0 or in (1, headroom]")
+        if self.step_down_hold_s < 0:
+            raise ValueError("need step_down_hold_s >= 0 (0 = no hold)")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -179,6 +186,7 @@ class LinkAdapter:
         self._last_climb = -1e18  # when the budget last grew past ``grow_from_kbps``
         self._lost = ConsumerCounts()  # each consumer's running count of access units lost, at its last report
         self._clear_since_decrease = True  # a clear report since the last decrease (else a decrease is the same drain)
+        self._hold_until = -1e18  # the link stepped down: no growth until then (``step_down_hold_s``)
         self.state = "off"
 
     @property
@@ -193,6 +201,7 @@ class LinkAdapter:
         self._last_report = -1e18
         self._good.clear()
         self._lost.forget()
+        self._hold_until = -1e18
         self.state = "off"
 
     def heard(self, now: float) -> None:
@@ -258,7 +267,8 @@ class LinkAdapter:
                 if good:  # a step up congested: the rate before it was received cleanly, go back there
                     new = max(new, min(cfg.good_margin * max(good), cfg.decrease * sent_kbps))
                 probe = 0 < grow_from_kbps < current and sent_kbps >= grow_from_kbps
-                if probe and not self._steady_before(now, sent_kbps):
+                steady = self._steady_before(now, sent_kbps)
+                if probe and not steady:
                     # a probe past the start (H.264 above h264_bitrate_kbps) congested: back towards the start, the
                     # rate that runs without any feedback, one ``decrease`` step at most, not to what the swamped link
                     # delivered meanwhile (weak-link bench at 4d580ab: a probe to 1300 kbit/s fell to 280-600 kbit/s
@@ -273,6 +283,8 @@ class LinkAdapter:
                     new = max(new, min(grow_from_kbps, cfg.decrease * current))
                 self._good.clear()
                 self._budget = max(new, cfg.min_kbps)
+                if steady and cfg.step_down_hold_s > 0:
+                    self._hold_until = now + cfg.step_down_hold_s
                 # remember the rate that congested; a new try soon after that congests again backs off longer.
                 # A decrease with no clear report since the last one is the same congestion draining: the rate that
                 # congested stays the highest of it (the drain's own lower rates are no limit of the link, and the
@@ -309,6 +321,17 @@ class LinkAdapter:
             base = self._budget if self._budget > 0 else grow_from_kbps
             if careful and now - self._last_decrease < cfg.decrease_hold_s:
                 base = 0.0  # the report still covers the congestion just answered: no growth on it
+            if now < self._hold_until:
+                # the link stepped down under a steady stream: the decreases set a margin under what it delivers now,
+                # and growth past that reaches the new edge within seconds (2 -> 1 Mbit/s step at 78a1e7f, debug log:
+                # from 637 kbit/s by 5 % per 2 s to 766 sent 16 s after the step, a 200 ms queue; the 1 s windows'
+                # age p95 at 106-130 ms already from 655 kbit/s sent, the repairs' tails on a fuller link). A link
+                # that stepped down seldom steps back up within seconds: no growth until the hold ends, and nothing
+                # over what the link delivered while full (the drain's last congested report: a decrease's received
+                # rate covers a window from before the step, 762-893 kbit/s where 650-700 run clean, debug logs)
+                base = 0.0
+                if self._drained_kbps > 0:
+                    self._budget = max(min(self._budget, self._drained_kbps), cfg.min_kbps)
             # near the rate that last congested (the back-off over), growth by ``probe_increase``; so from what
             # the link delivered while full, too, where that is less: a link that stepped down carries
             # less than ``decrease`` x the rate that congested it (2 -> 1 Mbit/s step at 859821a, debug log: 1302
@@ -451,4 +474,5 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
         median_high_s=0.08,
         floor_high_s=0.015,
         probe_headroom=1.1,
+        step_down_hold_s=20.0,
     )
