@@ -213,6 +213,9 @@ def test_the_most_constrained_consumer_decides_and_stale_ones_are_forgotten():
         {"climb_hold_s": -1.0},
         {"median_high_s": -0.1},
         {"median_high_s": 0.15},  # at the p95's threshold (0.15 by default): the median would judge nothing new
+        {"step_down_hold_s": -1.0},
+        {"drain_floor_s": -0.1},
+        {"drain_recheck_s": 0.0},
     ],
 )
 def test_adapter_config_refuses_settings_that_cannot_converge(kwargs):
@@ -611,8 +614,42 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
         t += 0.5
     assert cfg.probe_backoff_s + 3.0 < cfg.step_down_hold_s
     assert b.budget_kbps > after
-    with pytest.raises(ValueError, match="step_down_hold_s"):
-        AdapterConfig(step_down_hold_s=-1.0)
+
+
+def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again():
+    """The link steps down: the first decrease answers a received rate whose window began before the step (967
+    kbit/s where ~600 run clean), so the queue does not drain; a second later every picture still waits in it (the
+    floor 370 ms over its minimum): decrease again at once, not after ``decrease_hold_s`` (2 -> 1 Mbit/s step,
+    debug log at 42a68a5: 774 kbit/s set at +0.8 s, the floor 190-370 ms until the next decrease at +3.5 s, the
+    queue gone only at +5 s). A floor under ``drain_floor_s``, or none reported, waits for the hold."""
+    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+
+    cfg = h264_adapter_config()
+    assert cfg.drain_floor_s == pytest.approx(0.1)
+    assert cfg.drain_recheck_s < cfg.decrease_hold_s
+
+    def queued(kbps: float, floor: float, reported: bool = True) -> FeedbackReport:
+        return FeedbackReport(
+            "op", 25, 12.5, kbps, 100.45, 100.0, gap_s=0.01, delay_p50_s=100.3,
+            delay_floor_s=100.0 + floor if reported else 0.0,
+        )  # fmt: skip
+
+    def stepped(floor: float, reported: bool = True) -> LinkAdapter:
+        a = LinkAdapter(cfg)
+        now = 10.0
+        while now < 30.0:
+            a.report(now, _report(fps=25.0, kbps=1280.0, queue=0.04, frames=50), 25, 1280.0, 0.0, 1000)
+            now += 0.5
+        assert a.report(30.0, queued(967.0, 0.001), 25, 1280.0, 0.0, 1000).state == "congested"
+        assert a.budget_kbps == pytest.approx(0.8 * 967.0)
+        assert a.report(30.5, queued(665.0, floor, reported), 25, 1130.0, 0.0, 1000).state == "congested"
+        assert a.budget_kbps == pytest.approx(0.8 * 967.0)  # half a second: the decrease's own effect not seen yet
+        a.report(31.0 + 1e-6, queued(500.0, floor, reported), 25, 960.0, 0.0, 1000)
+        return a
+
+    assert stepped(0.37).budget_kbps == pytest.approx(0.8 * 500.0)
+    assert stepped(0.05).budget_kbps == pytest.approx(0.8 * 967.0)
+    assert stepped(0.37, reported=False).budget_kbps == pytest.approx(0.8 * 967.0)
 
 
 def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congested():

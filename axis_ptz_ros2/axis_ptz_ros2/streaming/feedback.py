@@ -43,8 +43,9 @@ one that builds slowly is seen in the *median* delay (``median_high_s``): a queu
 only the few behind it. Growing back near a rate that congested, where the link's edge is, the *floor* (the smallest
 delay of the report's last second, ``floor_high_s``) sees a standing queue a second before the median does, and
 the budget leads what the encoder sends by at most ``probe_headroom``.
-When the link itself steps down under a steady stream, nothing grows for ``step_down_hold_s`` and the budget stands at
-most at what the link delivered while full.
+When the link itself steps down under a steady stream, for ``step_down_hold_s`` the budget stands at most at what that
+decrease set and what the link delivered while full; a floor still over ``drain_floor_s`` ``drain_recheck_s`` after a
+decrease (the queue not draining) decreases again at once.
 After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
 covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
 it again, not when the sender's lagging window still reads it (:func:`h264_adapter_config` says what each rule
@@ -123,9 +124,14 @@ class AdapterConfig:
     floor_high_s: float = 0.0
     # while growing back near a rate that congested, the budget grows to at most this x what is sent (0: ``headroom``)
     probe_headroom: float = 0.0
-    # after a congestion of a steady stream (the link itself stepped down, see ``stable_s``) the budget does not grow
-    # for this long (0: no hold; decreases go on): a link that just stepped down is probed again only then
+    # after a congestion of a steady stream (the link itself stepped down, see ``stable_s``) the budget stays at most at
+    # what that decrease set and at what the link delivered while full for this long (0: no hold; decreases go on): a
+    # link that just stepped down is probed again only then
     step_down_hold_s: float = 0.0
+    # a floor still over this ``drain_recheck_s`` after a decrease (no clear report between): decrease again before
+    # ``decrease_hold_s`` (0: not judged)
+    drain_floor_s: float = 0.0
+    drain_recheck_s: float = 1.0
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -149,8 +155,8 @@ class AdapterConfig:
             raise ValueError("need 0 <= median_high_s < delay_high_s (0 = the median not judged)")
         if self.floor_high_s < 0 or (self.probe_headroom != 0.0 and not 1.0 < self.probe_headroom <= self.headroom):
             raise ValueError("need floor_high_s >= 0 (0 = not judged), probe_headroom 0 or in (1, headroom]")
-        if self.step_down_hold_s < 0:
-            raise ValueError("need step_down_hold_s >= 0 (0 = no hold)")
+        if self.step_down_hold_s < 0 or self.drain_floor_s < 0 or self.drain_recheck_s <= 0:
+            raise ValueError("need step_down_hold_s >= 0, drain_floor_s >= 0 (0 = not judged), drain_recheck_s > 0")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -186,7 +192,8 @@ class LinkAdapter:
         self._last_climb = -1e18  # when the budget last grew past ``grow_from_kbps``
         self._lost = ConsumerCounts()  # each consumer's running count of access units lost, at its last report
         self._clear_since_decrease = True  # a clear report since the last decrease (else a decrease is the same drain)
-        self._hold_until = -1e18  # the link stepped down: no growth until then (``step_down_hold_s``)
+        self._hold_until = -1e18  # the link stepped down: nothing over ``_hold_kbps`` and the drained rate until then
+        self._hold_kbps = 0.0
         self.state = "off"
 
     @property
@@ -201,7 +208,7 @@ class LinkAdapter:
         self._last_report = -1e18
         self._good.clear()
         self._lost.forget()
-        self._hold_until = -1e18
+        self._hold_until, self._hold_kbps = -1e18, 0.0
         self.state = "off"
 
     def heard(self, now: float) -> None:
@@ -257,7 +264,16 @@ class LinkAdapter:
         if queue > cfg.delay_high_s or delivery < cfg.delivery_low or lossy or queued or edge:
             state = "congested"
             self._drained_kbps = received  # the link full: what it delivers is its capacity now
-            if now - self._last_decrease >= cfg.decrease_hold_s:
+            since = now - self._last_decrease
+            # a queue that still stands a while after a decrease, every picture waiting in it: that decrease was not
+            # under what the link carries now (its received rate's window began before the link stepped down)
+            stuck = (
+                cfg.drain_floor_s > 0
+                and not self._clear_since_decrease
+                and since >= cfg.drain_recheck_s
+                and floor > cfg.drain_floor_s
+            )
+            if since >= cfg.decrease_hold_s or stuck:
                 current = self._budget if self._budget > 0 else max(sent_kbps, received)
                 # the link delivered ``received``: stay a margin under it; if almost nothing arrives (the sender
                 # swamps the link), halve until something does
@@ -284,7 +300,7 @@ class LinkAdapter:
                 self._good.clear()
                 self._budget = max(new, cfg.min_kbps)
                 if steady and cfg.step_down_hold_s > 0:
-                    self._hold_until = now + cfg.step_down_hold_s
+                    self._hold_until, self._hold_kbps = now + cfg.step_down_hold_s, self._budget
                 # remember the rate that congested; a new try soon after that congests again backs off longer.
                 # A decrease with no clear report since the last one is the same congestion draining: the rate that
                 # congested stays the highest of it (the drain's own lower rates are no limit of the link, and the
@@ -321,17 +337,17 @@ class LinkAdapter:
             base = self._budget if self._budget > 0 else grow_from_kbps
             if careful and now - self._last_decrease < cfg.decrease_hold_s:
                 base = 0.0  # the report still covers the congestion just answered: no growth on it
+            hold = 0.0
             if now < self._hold_until:
-                # the link stepped down under a steady stream: the decreases set a margin under what it delivers now,
-                # and growth past that reaches the new edge within seconds (2 -> 1 Mbit/s step at 78a1e7f, debug log:
-                # from 637 kbit/s by 5 % per 2 s to 766 sent 16 s after the step, a 200 ms queue; the 1 s windows'
-                # age p95 at 106-130 ms already from 655 kbit/s sent, the repairs' tails on a fuller link). A link
-                # that stepped down seldom steps back up within seconds: no growth until the hold ends, and nothing
-                # over what the link delivered while full (the drain's last congested report: a decrease's received
-                # rate covers a window from before the step, 762-893 kbit/s where 650-700 run clean, debug logs)
-                base = 0.0
-                if self._drained_kbps > 0:
-                    self._budget = max(min(self._budget, self._drained_kbps), cfg.min_kbps)
+                # the link stepped down under a steady stream: growth past what it delivers now reaches the new edge
+                # within seconds (2 -> 1 Mbit/s step at 78a1e7f, debug log: from 637 kbit/s by 5 % per 2 s to 766 sent
+                # 16 s after the step, a 200 ms queue; the 1 s windows' age p95 at 106-130 ms already from 655 kbit/s
+                # sent, the repairs' tails on a fuller link). A link that stepped down seldom steps back up within
+                # seconds: until the hold ends nothing over what the link delivered while full (the drain's last
+                # congested report; a decrease's received rate covers a window from before the step, 762-893 kbit/s
+                # where 650-700 run clean, debug logs), or over what the decrease set when that is less
+                hold = min(self._drained_kbps, self._hold_kbps) if self._drained_kbps > 0 else self._hold_kbps
+                self._budget = max(min(self._budget, hold), cfg.min_kbps)
             # near the rate that last congested (the back-off over), growth by ``probe_increase``; so from what
             # the link delivered while full, too, where that is less: a link that stepped down carries
             # less than ``decrease`` x the rate that congested it (2 -> 1 Mbit/s step at 859821a, debug log: 1302
@@ -356,6 +372,8 @@ class LinkAdapter:
                     # at once (1 Mbit/s + 2 %, debug log at 4d035e4 plus the floor rule: sent 728 -> 794 kbit/s
                     # within a second under a budget of 1112, a 450 ms queue)
                     ceiling = min(ceiling, cfg.probe_headroom * max(sent_kbps, received, cfg.min_kbps))
+                if hold > 0:
+                    ceiling = min(ceiling, hold)
                 self._budget = min(base * (cfg.probe_increase if probing else cfg.increase), max(ceiling, base))
         else:
             state = "steady"
@@ -432,35 +450,11 @@ class LinkAdapter:
 
 
 def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
-    """The adapter's tuning for H.264 (see the module docstring): delivery by bytes, a queue only when the
-    delay's p95 stands 500 ms over its minimum (clear under 250 ms: on 2 Mbit/s with 2 % loss and a loaded
-    2-core robot the repair tails alone read 100-190 ms at 100-250 kbit/s, where no queue can stand), and an
-    access unit that never arrived while a queue stands (its p95 at 250 ms or more) is congestion
-    (``lost_congested`` 1; a probe past the start that congests goes back towards the start, and the next decrease
-    waits for a report window of its own): on a lossy link a reliable writer repairs every lost packet unless a
-    queue delays the repair past its history (:data:`~axis_ptz_ros2.nodes.common.VIDEO_QOS`). A loss with a
-    shorter queue is the link's random loss repaired too late, not congestion: it holds the budget for that
-    report (no growth) and never cuts it. With a history of four pictures (133 ms at 30 fps, shorter than the
-    100-190 ms a repair took) the current-Axis persona at 1080p30 over 2 Mbit/s + 2 % lost 11-22 access units in
-    30 s at queues of 62-190 ms, and each cut the budget: 429 -> 105 kbit/s in 19 s, its pictures flat grey
-    (debug log at d82297c; at 15 fps, 267 ms of history, none lost). Weak-link bench at 1111e73, 2 Mbit/s + 2 %:
-    no access unit lost in 30 s at a fixed 1000 kbit/s; climbing on delay alone, the budget reached 1300-1400
-    kbit/s, lost 45 access units in 21 losses (each costing the pictures to the next IDR) and fell to 280-500
-    kbit/s before climbing again. After a congestion it waits 10 s (then 20, 40 s) before it tries the rate that
-    congested again, and from 0.8 x that rate creeps up by 5 % per report window: weak-link bench, the link
-    dropping from 2 to 1 Mbit/s (at 56bfe2d, debug log): the budget fell to 580 kbit/s 0.7 s after the step and the
-    queue was gone 3 s after it, but with a 5 s wait and x1.2 per report the budget went 683 -> 1350 kbit/s in
-    1.5 s, congested again at ~770 kbit/s sent, and did so every ~10 s. And the same step at a2bf677: the report
-    34 ms after the decrease read "sent 894 kbit/s" (the sender's 2 s window) against the 856 that congested, so
-    that rate was forgotten and the budget went 594 -> 1350 kbit/s in 2.5 s while the queue stood at 214-240 ms
-    (under the 250 that reads clear): a queue for 10 s, congested again at +13 s. Hence no growth within
-    ``decrease_hold_s`` of a decrease, and the rate forgotten only once received.
-
-    The median delay over its minimum above 80 ms is congestion too (``median_high_s``): a queue that builds slowly
-    (received just under sent) sat between the p95 thresholds, judged steady, for seconds: the same step at 3f52446
-    took 15.1 s in one run of three, the frame age creeping from 30 to 300 ms over 6 s until a cut. The repairs of
-    random loss delay only the pictures behind each repaired one: at e5828d4 on 2 Mbit/s + 2 % the median stood at
-    most 23 ms over its minimum in 73 reports (debug log) while the p95 read up to 343 ms."""
+    """The adapter's tuning for H.264 (see the module docstring and the fields' comments): delivery by bytes,
+    a queue only past wide p95 thresholds (the repairs' tails of random loss are no queue), an access unit lost
+    behind a queue as congestion, careful probing back towards a rate that congested, the median and the floor for a
+    queue the p95 does not see. What each setting cost without it (the debug logs it was found in) is in
+    docs/weak-link.md ("Why the H.264 adapter is tuned as it is")."""
     return AdapterConfig(
         delay_high_s=0.5,
         delay_low_s=0.25,
@@ -475,4 +469,8 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
         floor_high_s=0.015,
         probe_headroom=1.1,
         step_down_hold_s=20.0,
+        drain_floor_s=0.1,
+        # the floor covers the report's last second: at 0.9 s that second is (all but) after the decrease; reports come
+        # every 0.5 s with some jitter (the one 0.98 s after a decrease waited another 0.5 s at 1.0, debug log)
+        drain_recheck_s=0.9,
     )
