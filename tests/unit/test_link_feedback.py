@@ -621,7 +621,8 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
     kbit/s where ~600 run clean), so the queue does not drain; a second later every picture still waits in it (the
     floor 370 ms over its minimum): decrease again at once, not after ``decrease_hold_s`` (2 -> 1 Mbit/s step,
     debug log at 42a68a5: 774 kbit/s set at +0.8 s, the floor 190-370 ms until the next decrease at +3.5 s, the
-    queue gone only at +5 s). A floor under ``drain_floor_s``, or none reported, waits for the hold."""
+    queue gone only at +5 s). Once per step down; a floor under ``drain_floor_s``, or none reported, or a congestion
+    that is no step down waits for the hold."""
     from axis_ptz_ros2.streaming.feedback import h264_adapter_config
 
     cfg = h264_adapter_config()
@@ -647,9 +648,21 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
         a.report(31.0 + 1e-6, queued(500.0, floor, reported), 25, 960.0, 0.0, 1000)
         return a
 
-    assert stepped(0.37).budget_kbps == pytest.approx(0.8 * 500.0)
+    a = stepped(0.37)
+    assert a.budget_kbps == pytest.approx(0.8 * 500.0)
+    # once per step down: a floor that stays up (a sender slow to follow, a robot's CPU stalling) waits for the hold
+    a.report(32.0 + 1e-6, queued(300.0, 0.37), 25, 600.0, 0.0, 1000)
+    assert a.budget_kbps == pytest.approx(0.8 * 500.0)
     assert stepped(0.05).budget_kbps == pytest.approx(0.8 * 967.0)
     assert stepped(0.37, reported=False).budget_kbps == pytest.approx(0.8 * 967.0)
+    # a congestion that is no step down (a ramp, no steady stream before it): no early decrease
+    ramp = LinkAdapter(cfg)
+    for k in range(8):
+        ramp.report(10.0 + 0.5 * k, _report(fps=25.0, kbps=400.0 + 50 * k, queue=0.04, frames=50), 25, 400.0 + 50 * k)
+    assert ramp.report(14.0, queued(600.0, 0.001), 25, 760.0).state == "congested"
+    first = ramp.budget_kbps
+    ramp.report(15.0 + 1e-6, queued(400.0, 0.37), 25, 700.0)
+    assert ramp.budget_kbps == first
 
 
 def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congested():

@@ -44,12 +44,12 @@ only the few behind it. Growing back near a rate that congested, where the link'
 delay of the report's last second, ``floor_high_s``) sees a standing queue a second before the median does, and
 the budget leads what the encoder sends by at most ``probe_headroom``.
 When the link itself steps down under a steady stream, for ``step_down_hold_s`` the budget stands at most at what that
-decrease set and what the link delivered while full; a floor still over ``drain_floor_s`` ``drain_recheck_s`` after a
-decrease (the queue not draining) decreases again at once.
+decrease set and what the link delivered while full; a floor still over ``drain_floor_s`` ``drain_recheck_s`` after
+that decrease (the queue not draining) decreases again at once, once.
 After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
 covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
-it again, not when the sender's lagging window still reads it (:func:`h264_adapter_config` says what each rule
-cost without it).
+it again, not when the sender's lagging window still reads it (docs/weak-link.md says what each rule cost without
+it).
 """
 
 from __future__ import annotations
@@ -128,8 +128,8 @@ class AdapterConfig:
     # what that decrease set and at what the link delivered while full for this long (0: no hold; decreases go on): a
     # link that just stepped down is probed again only then
     step_down_hold_s: float = 0.0
-    # a floor still over this ``drain_recheck_s`` after a decrease (no clear report between): decrease again before
-    # ``decrease_hold_s`` (0: not judged)
+    # after the link stepped down (``step_down_hold_s``), a floor still over this ``drain_recheck_s`` after the decrease
+    # (no clear report between): decrease again before ``decrease_hold_s``, once (0: not judged)
     drain_floor_s: float = 0.0
     drain_recheck_s: float = 1.0
 
@@ -194,6 +194,7 @@ class LinkAdapter:
         self._clear_since_decrease = True  # a clear report since the last decrease (else a decrease is the same drain)
         self._hold_until = -1e18  # the link stepped down: nothing over ``_hold_kbps`` and the drained rate until then
         self._hold_kbps = 0.0
+        self._rechecked = False  # the one early decrease of a step down (``drain_floor_s``) was made
         self.state = "off"
 
     @property
@@ -265,14 +266,21 @@ class LinkAdapter:
             state = "congested"
             self._drained_kbps = received  # the link full: what it delivers is its capacity now
             since = now - self._last_decrease
-            # a queue that still stands a while after a decrease, every picture waiting in it: that decrease was not
-            # under what the link carries now (its received rate's window began before the link stepped down)
+            # the link stepped down, and a queue still stands a while after the decrease, every picture waiting in it:
+            # that decrease was not under what the link carries now (its received rate's window began before the
+            # step). Once per step down: a sender that follows its budget slowly (a camera's own encoder) or a robot
+            # whose CPU stalls keeps the floor up too, and repeated early decreases took the budget to its floor
+            # (batch at e528466: the current-Axis persona passed through, 1540 -> 100 kbit/s on 2 Mbit/s)
             stuck = (
                 cfg.drain_floor_s > 0
+                and now < self._hold_until
+                and not self._rechecked
                 and not self._clear_since_decrease
                 and since >= cfg.drain_recheck_s
                 and floor > cfg.drain_floor_s
             )
+            if stuck:
+                self._rechecked = True
             if since >= cfg.decrease_hold_s or stuck:
                 current = self._budget if self._budget > 0 else max(sent_kbps, received)
                 # the link delivered ``received``: stay a margin under it; if almost nothing arrives (the sender
@@ -301,6 +309,7 @@ class LinkAdapter:
                 self._budget = max(new, cfg.min_kbps)
                 if steady and cfg.step_down_hold_s > 0:
                     self._hold_until, self._hold_kbps = now + cfg.step_down_hold_s, self._budget
+                    self._rechecked = False
                 # remember the rate that congested; a new try soon after that congests again backs off longer.
                 # A decrease with no clear report since the last one is the same congestion draining: the rate that
                 # congested stays the highest of it (the drain's own lower rates are no limit of the link, and the
