@@ -25,6 +25,15 @@ def _report(
     return FeedbackReport(who, frames, fps, kbps, 100.0 + queue, 100.0, gap_s=0.01, delay_p50_s=p50)
 
 
+def _steady(a: LinkAdapter, kbps: float, now: float, until: float, step_up_kbps: float = 0.0) -> float:
+    """H.264 clear reports every 0.5 s from ``now`` to ``until``, ``kbps`` sent and received (a steady stream, the
+    start at 1000 kbit/s); returns the time after the last one."""
+    while now < until:
+        a.report(now, _report(fps=25.0, kbps=kbps, queue=0.04, frames=50), 25, kbps, step_up_kbps, 1000)
+        now += 0.5
+    return now
+
+
 # -- ReceiveMeter ---------------------------------------------------------------------------------------------
 def test_receive_meter_rates_and_offset_free_queue_delay():
     m = ReceiveMeter("op", window_s=1.0, base_window_s=10.0)
@@ -552,10 +561,7 @@ def test_h264_a_steady_stream_whose_link_drops_is_cut_by_what_arrives_not_back_t
     from axis_ptz_ros2.streaming.feedback import h264_adapter_config
 
     a = LinkAdapter(h264_adapter_config())
-    now = 10.0
-    while now < 30.0:  # 20 s of clear reports at ~1260 kbit/s sent: the budget climbs past the start
-        a.report(now, _report(fps=25.0, kbps=1260.0, queue=0.04, frames=50), 25, 1260.0, 0.0, 1000)
-        now += 0.5
+    now = _steady(a, 1260.0, 10.0, 30.0)  # 20 s of clear reports at ~1260 kbit/s sent: the budget climbs past the start
     assert a.budget_kbps > 1500.0
     swamped = _report(fps=16.0, kbps=796.0, queue=0.6, frames=32)
     assert a.report(now, swamped, 25, 1257.0, 0.0, 1000).state == "congested"
@@ -572,10 +578,7 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
     cfg = h264_adapter_config()
     assert cfg.step_down_hold_s > 0
     a = LinkAdapter(cfg)
-    now = 10.0
-    while now < 30.0:  # 20 s clear at ~1260 kbit/s sent
-        a.report(now, _report(fps=25.0, kbps=1260.0, queue=0.04, frames=50), 25, 1260.0, 0.0, 1000)
-        now += 0.5
+    now = _steady(a, 1260.0, 10.0, 30.0)  # 20 s clear at ~1260 kbit/s sent
     assert a.report(now, _report(fps=16.0, kbps=796.0, queue=0.6, frames=32), 25, 1257.0, 0.0, 1000).state == (
         "congested"
     )
@@ -637,10 +640,7 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
 
     def stepped(floor: float, reported: bool = True) -> LinkAdapter:
         a = LinkAdapter(cfg)
-        now = 10.0
-        while now < 30.0:
-            a.report(now, _report(fps=25.0, kbps=1280.0, queue=0.04, frames=50), 25, 1280.0, 0.0, 1000)
-            now += 0.5
+        _steady(a, 1280.0, 10.0, 30.0)
         assert a.report(30.0, queued(967.0, 0.001), 25, 1280.0, 0.0, 1000).state == "congested"
         assert a.budget_kbps == pytest.approx(0.8 * 967.0)
         assert a.report(30.5, queued(665.0, floor, reported), 25, 1130.0, 0.0, 1000).state == "congested"
@@ -795,10 +795,7 @@ def test_h264_the_decreases_of_one_drain_keep_the_rate_that_congested_first():
     from axis_ptz_ros2.streaming.feedback import h264_adapter_config
 
     a = LinkAdapter(dataclasses.replace(h264_adapter_config(), step_down_hold_s=0.0))
-    now = 10.0
-    while now < 30.0:
-        a.report(now, _report(fps=25.0, kbps=1263.0, queue=0.04, frames=50), 25, 1263.0, 1667.0, 1000)
-        now += 0.5
+    now = _steady(a, 1263.0, 10.0, 30.0, 1667.0)
     for sent, received in ((1263.0, 792.0), (1145.0, 449.0), (778.0, 396.0), (662.0, 604.0)):
         swamped = _report(fps=16.0, kbps=received, queue=0.48, frames=32, median=0.3)
         assert a.report(now, swamped, 25, sent, 1667.0, 1000).state == "congested"
@@ -852,10 +849,7 @@ def test_h264_a_floor_raised_while_probing_near_a_rate_that_congested_is_congest
 
     def stepped_down() -> tuple[LinkAdapter, float]:
         a = LinkAdapter(cfg)
-        now = 10.0
-        while now < 20.0:  # steady at 1280 kbit/s
-            a.report(now, _report(fps=25.0, kbps=1280.0, queue=0.04, frames=50), 25, 1280.0, 1667.0, 1000)
-            now += 0.5
+        now = _steady(a, 1280.0, 10.0, 20.0, 1667.0)  # steady at 1280 kbit/s
         swamped = _report(fps=16.0, kbps=600.0, queue=0.48, frames=32, median=0.3)
         assert a.report(now, swamped, 25, 1280.0, 1667.0, 1000).state == "congested"
         now += 3.0
