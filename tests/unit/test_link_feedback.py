@@ -34,6 +34,25 @@ def _steady(a: LinkAdapter, kbps: float, now: float, until: float, step_up_kbps:
     return now
 
 
+def _following(a: LinkAdapter, now: float, until: float) -> float:
+    """H.264 clear reports every 0.5 s from ``now`` to ``until`` from an encoder that sends 97 % of its budget;
+    returns the time after the last one."""
+    while now < until:
+        sent = 0.97 * a.budget_kbps
+        a.report(now, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000)
+        now += 0.5
+    return now
+
+
+def _ramp(a: LinkAdapter, now: float) -> float:
+    """Clear H.264 reports ramping up under the start (400, 450, ... 750 kbit/s sent, no steady stream); returns the
+    time after the last one."""
+    for k in range(8):
+        a.report(now, _report(fps=25.0, kbps=400.0 + 50 * k, queue=0.04, frames=50), 25, 400.0 + 50 * k, 0.0, 1000)
+        now += 0.5
+    return now
+
+
 # -- ReceiveMeter ---------------------------------------------------------------------------------------------
 def test_receive_meter_rates_and_offset_free_queue_delay():
     m = ReceiveMeter("op", window_s=1.0, base_window_s=10.0)
@@ -597,24 +616,14 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
         now += 0.5
     held = a.budget_kbps
     assert held == pytest.approx(560.0)  # held at what the link delivered full, not over it
-    for _ in range(6):  # the hold over: it probes again
-        sent = 0.97 * a.budget_kbps
-        a.report(now, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000)
-        now += 0.5
+    _following(a, now, now + 3.0)  # the hold over: it probes again
     assert a.budget_kbps > held
     # a probe that congests (a ramp, not a steady stream): no hold, the careful growth starts after decrease_hold_s
     b = LinkAdapter(cfg)
-    t = 10.0
-    for k in range(8):  # ramping up under the start: 400, 450, ... kbit/s sent
-        b.report(t, _report(fps=25.0, kbps=400.0 + 50 * k, queue=0.04, frames=50), 25, 400.0 + 50 * k, 0.0, 1000)
-        t += 0.5
+    t = _ramp(b, 10.0)
     assert b.report(t, _report(fps=16.0, kbps=500.0, queue=0.6, frames=32), 25, 760.0, 0.0, 1000).state == ("congested")
     after, congested = b.budget_kbps, t
-    t += 0.5
-    while t < congested + cfg.probe_backoff_s + 3.0:  # past the back-off, well within what a hold would be
-        sent = 0.97 * b.budget_kbps
-        b.report(t, _report(fps=25.0, kbps=sent, queue=0.04, frames=50), 25, sent, 0.0, 1000)
-        t += 0.5
+    _following(b, t + 0.5, congested + cfg.probe_backoff_s + 3.0)  # past the back-off, well within a hold
     assert cfg.probe_backoff_s + 3.0 < cfg.step_down_hold_s
     assert b.budget_kbps > after
 
@@ -657,11 +666,10 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
     assert stepped(0.37, reported=False).budget_kbps == pytest.approx(0.8 * 967.0)
     # a congestion that is no step down (a ramp, no steady stream before it): no early decrease
     ramp = LinkAdapter(cfg)
-    for k in range(8):
-        ramp.report(10.0 + 0.5 * k, _report(fps=25.0, kbps=400.0 + 50 * k, queue=0.04, frames=50), 25, 400.0 + 50 * k)
-    assert ramp.report(14.0, queued(600.0, 0.001), 25, 760.0).state == "congested"
+    t = _ramp(ramp, 10.0)
+    assert ramp.report(t, queued(600.0, 0.001), 25, 760.0, 0.0, 1000).state == "congested"
     first = ramp.budget_kbps
-    ramp.report(15.0 + 1e-6, queued(400.0, 0.37), 25, 700.0)
+    ramp.report(t + 1.0 + 1e-6, queued(400.0, 0.37), 25, 700.0, 0.0, 1000)
     assert ramp.budget_kbps == first
 
 

@@ -209,7 +209,7 @@ class LinkAdapter:
         self._last_report = -1e18
         self._good.clear()
         self._lost.forget()
-        self._hold_until, self._hold_kbps = -1e18, 0.0
+        self._hold_until, self._hold_kbps, self._rechecked = -1e18, 0.0, False
         self.state = "off"
 
     def heard(self, now: float) -> None:

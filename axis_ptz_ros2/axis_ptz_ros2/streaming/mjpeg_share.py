@@ -99,17 +99,21 @@ class MjpegShare:
             old = self._ladder.current
             self._ladder = self._new_ladder()
             if self.active:
-                now = self._clock()
-                self._ladder.fit_from(old, self.meter.rate(now).bytes_per_frame, now)
-                self.meter.reset()
+                self._fit_locked(old, self.meter.rate(self._clock()).bytes_per_frame)
 
     def start(self, ref: VideoParams, ref_bytes_per_frame: float) -> VideoParams:
         """The stream is about to open: its first level, predicted from the compression-0 stream (``ref`` at
         ``ref_bytes_per_frame``, 0 = not measured: the bottom of the ladder)."""
         with self._lock:
-            self._ladder.set_budget(self._share(), self._clock())
-            self.meter.reset()
-            return self._ladder.fit_from(ref, ref_bytes_per_frame, self._clock())
+            return self._fit_locked(ref, ref_bytes_per_frame)
+
+    def _fit_locked(self, ref: VideoParams, ref_bytes_per_frame: float) -> VideoParams:
+        """The ladder's first level predicted from ``ref`` at ``ref_bytes_per_frame``; this stream's meter starts
+        again (call with the lock held)."""
+        now = self._clock()
+        self._ladder.set_budget(self._share(), now)
+        self.meter.reset()
+        return self._ladder.fit_from(ref, ref_bytes_per_frame, now)
 
     def on_frame(self, now: float) -> VideoParams | None:
         """A picture of the second stream arrived (its reader thread): at most every :data:`SHARE_PERIOD_S`,
