@@ -8,7 +8,8 @@ import math
 import pytest
 
 from axis_ptz_ros2.streaming import AXIS214_PAL_RESOLUTIONS, BandwidthController, BudgetConfig
-from axis_ptz_ros2.streaming.feedback import AdapterConfig, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.adapter_config import AdapterConfig
+from axis_ptz_ros2.streaming.feedback import FeedbackReport, LinkAdapter
 from axis_ptz_ros2.streaming.receive_meter import ReceiveMeter
 from axis_ptz_ros2.vapix import Resolution, VideoParams
 
@@ -440,7 +441,7 @@ def test_reports_heard_but_not_judged_are_no_silence():
 
 # -- H.264: judged by bytes, a lossy link's repair tails are no queue ---------------------------------------------
 def test_h264_adapter_takes_repair_tails_for_no_congestion_but_a_byte_shortfall_for_one():
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     jpeg, h264 = LinkAdapter(AdapterConfig()), LinkAdapter(h264_adapter_config())
     # every access unit arrives (30 of 30 /s, all the bytes), but the pictures behind each repaired loss come
@@ -466,7 +467,7 @@ def test_h264_adapter_takes_access_units_lost_behind_a_queue_for_congestion_and_
     250 ms or more, under the 500 ms that is congestion by itself) means the last step up was too far. Its growth
     is judged, not the count: a consumer that joined with losses behind it, or whose count restarted, is no
     congestion."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def rep(lost: int, kbps: float = 1000.0, who: str = "op", queue: float = 0.05) -> FeedbackReport:
         r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50, who=who)
@@ -499,7 +500,7 @@ def test_h264_adapter_takes_random_loss_without_a_queue_for_no_congestion():
     access unit is lost with no queue standing (p95 under 250 ms: 62-190 ms in the current-Axis persona's debug
     log at d82297c, where each such loss cut the budget and 11-22 of them took it from 429 to 105 kbit/s in 19 s).
     Such a report neither cuts the budget nor grows it; the clear reports between them grow it as usual."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def rep(lost: int, kbps: float, queue: float) -> FeedbackReport:
         r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
@@ -532,7 +533,7 @@ def test_h264_probe_past_the_start_that_congests_returns_to_the_start_not_to_wha
     """Above ``h264_bitrate_kbps`` the budget probes; when a probe congests, what the consumer received meanwhile
     (whole access units of a swamped link) reads far below the link's capacity. The budget goes back to the start
     (the rate that runs without feedback); below the start, the received rate decides as before."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     a = LinkAdapter(h264_adapter_config())
     now, sent = 10.0, 1000.0
@@ -559,7 +560,7 @@ def test_h264_a_budget_grown_past_the_start_while_less_was_sent_is_cut_by_what_a
     is sent stays under it. When the link then congests, that was no probe past the start: going "back towards the
     start" would be a budget above what was sent (1 Mbit/s link at e5828d4: budget 1165, 773 kbit/s sent, 553
     received, back to 932 kbit/s and the queue stood 2.5 s more)."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     a = LinkAdapter(h264_adapter_config())
     now = 10.0
@@ -577,7 +578,7 @@ def test_h264_a_steady_stream_whose_link_drops_is_cut_by_what_arrives_not_back_t
     then the link drops to 1 Mbit/s. That is not a probe congesting: the rate had been carried for seconds, and the
     start (1000 kbit/s) is more than the link now carries with its overhead and repairs. The received rate
     decides at once (2 -> 1 Mbit/s step at 3b0f6ed: back to the start, the queue stood 2.5 s more)."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     a = LinkAdapter(h264_adapter_config())
     now = _steady(a, 1260.0, 10.0, 30.0)  # 20 s of clear reports at ~1260 kbit/s sent: the budget climbs past the start
@@ -592,7 +593,7 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
     not grow for ``step_down_hold_s`` however clear the reports (a probe would reach the new edge within seconds),
     and stands at most at what the link delivered while full (the drain); after the hold it grows again. A
     congestion that was a probe (no steady stream before it) sets no hold."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     cfg = h264_adapter_config()
     assert cfg.step_down_hold_s > 0
@@ -635,7 +636,7 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
     debug log at 42a68a5: 774 kbit/s set at +0.8 s, the floor 190-370 ms until the next decrease at +3.5 s, the
     queue gone only at +5 s). Once per step down; a floor under ``drain_floor_s``, or none reported, or a congestion
     that is no step down waits for the hold."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     cfg = h264_adapter_config()
     assert cfg.drain_floor_s == pytest.approx(0.1)
@@ -678,7 +679,7 @@ def test_h264_after_a_congestion_waits_then_creeps_towards_the_rate_that_congest
     0.8 x the rate that congested for the back-off (10 s), then grows by 5 % per report window only, not x1.2 per
     report (which took it from 683 to 1350 kbit/s in 1.5 s and congested the link again every ~10 s); once what
     is sent reaches the rate that congested (the link carries it again) the usual growth is back."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def rep(kbps: float, lost: int = 0, queue: float = 0.05) -> FeedbackReport:
         r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
@@ -735,7 +736,7 @@ def test_h264_reports_that_still_hold_the_congestion_neither_grow_the_budget_nor
     the rate that congested (894 kbit/s sent against 856) a report after the decrease, and the queue is still
     214-240 ms (under the 250 ms that reads "clear"). That report must not grow the budget, nor count as the link
     carrying the rate that congested: only what arrives says so."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def rep(kbps: float, lost: int = 0, queue: float = 0.05) -> FeedbackReport:
         r = _report(fps=25.0, kbps=kbps, queue=queue, frames=50)
@@ -766,7 +767,7 @@ def test_h264_a_queue_between_the_p95_thresholds_is_congestion_by_its_median():
     behind it (weak-link bench at e5828d4, 2 Mbit/s + 2 %: median over its minimum at most 23 ms in 73 reports
     while the p95 read up to 343 ms), so the median over ``median_high_s`` (80 ms) is congestion; a consumer
     that does not report its median (0) is judged by the p95 alone, as before."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def adapter() -> LinkAdapter:
         a = LinkAdapter(h264_adapter_config())
@@ -800,7 +801,7 @@ def test_h264_the_decreases_of_one_drain_keep_the_rate_that_congested_first():
     link delivered while full (the drain's last congested report) the growth is careful: a link that stepped down
     carries less than 0.8 x the rate that congested it (at 859821a: x1.2 per report to 1042, congested again).
     (The hold after a step down, its own test, is off here: this is the drain's bookkeeping.)"""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     a = LinkAdapter(dataclasses.replace(h264_adapter_config(), step_down_hold_s=0.0))
     now = _steady(a, 1263.0, 10.0, 30.0, 1667.0)
@@ -838,7 +839,7 @@ def test_h264_a_floor_raised_while_probing_near_a_rate_that_congested_is_congest
     floor over ``floor_high_s`` (15 ms) there is congestion: the budget to 0.8 x what was received. On a ramp with no
     congestion behind it the larger frames' own transmission raises the floor without a queue (15 ms at 1208
     kbit/s, 6 s after 727): not judged. A consumer that does not report its floor (0) is not judged by it."""
-    from axis_ptz_ros2.streaming.feedback import h264_adapter_config
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
     def floor_report(kbps: float, floor: float, reported: bool = True) -> FeedbackReport:
         return FeedbackReport(

@@ -35,8 +35,9 @@ from collections.abc import Callable, Collection
 from dataclasses import replace
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
+from axis_ptz_ros2.streaming.adapter_config import AdapterConfig, h264_adapter_config
 from axis_ptz_ros2.streaming.budget import AXIS214_PAL_RESOLUTIONS, BandwidthController
-from axis_ptz_ros2.streaming.feedback import AdapterConfig, Decision, FeedbackReport, LinkAdapter, h264_adapter_config
+from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport, LinkAdapter
 from axis_ptz_ros2.streaming.h264_policy import (
     H264_BUDGET_FRACTION,
     H264_FIELDS,
