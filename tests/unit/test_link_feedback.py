@@ -585,7 +585,8 @@ def test_h264_a_steady_stream_whose_link_drops_is_cut_by_what_arrives_not_back_t
     assert a.budget_kbps > 1500.0
     swamped = _report(fps=16.0, kbps=796.0, queue=0.6, frames=32)
     assert a.report(now, swamped, 25, 1257.0, 0.0, 1000).state == "congested"
-    assert a.budget_kbps == pytest.approx(0.8 * 796.0)  # not the 1000 kbit/s start
+    # not the 1000 kbit/s start: what arrived decides (halved here: the queue found drains, its own test)
+    assert a.budget_kbps == pytest.approx(0.5 * 796.0)
 
 
 def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
@@ -595,7 +596,8 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
     congestion that was a probe (no steady stream before it) sets no hold."""
     from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
-    cfg = h264_adapter_config()
+    # (the deeper first decrease that drains the queue, ``drain_s``, has its own test)
+    cfg = dataclasses.replace(h264_adapter_config(), drain_s=0.0)
     assert cfg.step_down_hold_s > 0
     a = LinkAdapter(cfg)
     now = _steady(a, 1260.0, 10.0, 30.0)  # 20 s clear at ~1260 kbit/s sent
@@ -629,6 +631,48 @@ def test_h264_after_the_link_stepped_down_the_budget_holds_then_probes():
     assert b.budget_kbps > after
 
 
+def test_h264_the_first_decrease_after_a_step_down_drains_the_queue_it_finds():
+    """The link steps down under a steady stream (2 -> 1 Mbit/s): when the congestion is seen a queue of 0.3-0.45 s
+    stands, and 0.8 x what arrived (a rate measured over a window begun before the step) is about what the link
+    carries: the queue did not drain, no picture arrived for a second and the second decrease waited (step bench,
+    debug log at a98c7ad: 728 kbit/s set at +0.8 s with a 450 ms queue, the frame age back under 100 ms at +3.7 s).
+    So that decrease goes under what arrived by the queue spread over ``drain_s`` (at least ``drain_min_share`` of
+    it, at most ``decrease``), and the budget grows back to the hold's level (0.8 x) once the link reads clear. A
+    congestion that is no step down (a ramp) decreases by ``decrease`` as before."""
+    from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
+
+    cfg = h264_adapter_config()
+    assert cfg.drain_s == pytest.approx(0.6)
+    assert cfg.drain_min_share == pytest.approx(0.5)
+
+    def stepped(queue: float) -> LinkAdapter:
+        a = LinkAdapter(cfg)
+        _steady(a, 1280.0, 10.0, 30.0)
+        swamped = _report(fps=18.0, kbps=900.0, queue=queue, frames=36, median=0.1)
+        assert a.report(30.0, swamped, 25, 1280.0, 0.0, 1000).state == "congested"
+        return a
+
+    assert stepped(0.45).budget_kbps == pytest.approx(0.5 * 900.0)  # 1 - 0.45/0.6 under the least share: halved
+    assert stepped(0.18).budget_kbps == pytest.approx((1.0 - 0.18 / 0.6) * 900.0)  # 0.7 x
+    assert stepped(0.09).budget_kbps == pytest.approx(0.8 * 900.0)  # a short queue: no deeper than ``decrease``
+    # the queue drained, the link clear: the budget grows back to the hold's level, 0.8 x what arrived, not past it
+    a = stepped(0.45)
+    _following(a, 30.5, 40.0)
+    assert a.budget_kbps == pytest.approx(0.8 * 900.0)
+    # no deeper decrease when the congestion is no step down (a ramp, no steady stream before it): as without the rule
+    budgets = []
+    for c in (cfg, dataclasses.replace(cfg, drain_s=0.0)):
+        ramp = LinkAdapter(c)
+        t = _ramp(ramp, 10.0)
+        queued = _report(fps=18.0, kbps=600.0, queue=0.45, frames=36, median=0.1)
+        assert ramp.report(t, queued, 25, 760.0, 0.0, 1000).state == "congested"
+        budgets.append(ramp.budget_kbps)
+    assert budgets[0] == budgets[1] > 0.5 * 600.0
+    # a setting that cannot converge is refused
+    with pytest.raises(ValueError, match="drain_min_share"):
+        dataclasses.replace(cfg, drain_min_share=0.9)
+
+
 def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again():
     """The link steps down: the first decrease answers a received rate whose window began before the step (967
     kbit/s where ~600 run clean), so the queue does not drain; a second later every picture still waits in it (the
@@ -638,7 +682,7 @@ def test_h264_a_queue_still_standing_a_second_after_a_decrease_decreases_again()
     that is no step down waits for the hold."""
     from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
 
-    cfg = h264_adapter_config()
+    cfg = dataclasses.replace(h264_adapter_config(), drain_s=0.0)  # (the deeper first decrease: its own test)
     assert cfg.drain_floor_s == pytest.approx(0.1)
     assert cfg.drain_recheck_s < cfg.decrease_hold_s
 
@@ -785,7 +829,8 @@ def test_h264_a_queue_between_the_p95_thresholds_is_congestion_by_its_median():
     creeping = _report(fps=25.0, kbps=780.0, queue=0.3, frames=50, median=0.12)
     d = a.report(15.5, creeping, 25, 800, 1667.0, 1000)
     assert (d.state, d.median_queue_s) == ("congested", pytest.approx(0.12))
-    assert a.budget_kbps == pytest.approx(0.8 * 780.0)
+    # under 0.8 x what arrived: a steady stream's link stepped down, the queue found drains (its own test)
+    assert a.budget_kbps == pytest.approx(0.5 * 780.0)
     unmeasured = _report(fps=25.0, kbps=780.0, queue=0.3, frames=50)  # the same queue, no median reported
     assert adapter().report(15.5, unmeasured, 25, 800, 1667.0, 1000).state == "steady"
     # MJPEG's adapter does not judge the median (its p95 threshold is 150 ms already)

@@ -64,6 +64,11 @@ class AdapterConfig:
     # (no clear report between): decrease again before ``decrease_hold_s``, once (0: not judged)
     drain_floor_s: float = 0.0
     drain_recheck_s: float = 1.0
+    # that first decrease after a step down goes further, to (1 - the queue's p95 / ``drain_s``) x what arrived (at
+    # least ``drain_min_share``, at most ``decrease``): the queue standing then drains within about ``drain_s``
+    # (0: ``decrease`` x what arrived, as any congestion)
+    drain_s: float = 0.0
+    drain_min_share: float = 0.5
 
     def __post_init__(self) -> None:
         """Refuse settings that would not converge."""
@@ -89,6 +94,8 @@ class AdapterConfig:
             raise ValueError("need floor_high_s >= 0 (0 = not judged), probe_headroom 0 or in (1, headroom]")
         if self.step_down_hold_s < 0 or self.drain_floor_s < 0 or self.drain_recheck_s <= 0:
             raise ValueError("need step_down_hold_s >= 0, drain_floor_s >= 0 (0 = not judged), drain_recheck_s > 0")
+        if self.drain_s < 0 or not 0.0 < self.drain_min_share <= self.decrease:
+            raise ValueError("need drain_s >= 0 (0 = no deeper first decrease) and 0 < drain_min_share <= decrease")
         if self.min_kbps <= 0 or self.silence_s <= 0 or self.release_s < self.silence_s:
             raise ValueError("need min_kbps > 0 and release_s >= silence_s > 0")
 
@@ -117,4 +124,8 @@ def h264_adapter_config(release_s: float = 30.0) -> AdapterConfig:
         # the floor covers the report's last second: at 0.9 s that second is (all but) after the decrease; reports come
         # every 0.5 s with some jitter (the one 0.98 s after a decrease waited another 0.5 s at 1.0, debug log)
         drain_recheck_s=0.9,
+        # a queue of 0.3 s or more (what a 2 -> 1 Mbit/s step has built when it is seen) halves what arrived: the step
+        # bench's frame age was back under 100 ms 3.7 s after the step without it, 2.4-3.1 s with 1.0, 1.4-2.6 s with
+        # 0.6 (docs/weak-link.md, "The drain after the link steps down")
+        drain_s=0.6,
     )

@@ -44,8 +44,10 @@ only the few behind it. Growing back near a rate that congested, where the link'
 delay of the report's last second, ``floor_high_s``) sees a standing queue a second before the median does, and
 the budget leads what the encoder sends by at most ``probe_headroom``.
 When the link itself steps down under a steady stream, for ``step_down_hold_s`` the budget stands at most at what that
-decrease set and what the link delivered while full; a floor still over ``drain_floor_s`` ``drain_recheck_s`` after
-that decrease (the queue not draining) decreases again at once, once.
+decrease set and what the link delivered while full; that decrease itself goes under what arrived by the queue it
+finds spread over ``drain_s`` (so the queue drains; the budget grows back to the hold's level once the link reads
+clear), and a floor still over ``drain_floor_s`` ``drain_recheck_s`` after it (the queue not draining) decreases again
+at once, once.
 After a congestion its probing is careful: nothing grows for ``decrease_hold_s`` (a report in that time still
 covers the congestion just answered), and the rate that congested is forgotten only when a consumer *receives*
 it again, not when the sender's lagging window still reads it (docs/weak-link.md says what each rule cost without
@@ -229,6 +231,12 @@ class LinkAdapter:
                 if steady and cfg.step_down_hold_s > 0:
                     self._hold_until, self._hold_kbps = now + cfg.step_down_hold_s, self._budget
                     self._rechecked = False
+                    if cfg.drain_s > 0:
+                        # the queue that stood up while the link stepped down drains within ``drain_s``: the
+                        # budget goes under what arrived by the queue's bits spread over that time (the hold's level
+                        # stays: the budget grows back to it once the link reads clear)
+                        share = min(cfg.decrease, max(cfg.drain_min_share, 1.0 - queue / cfg.drain_s))
+                        self._budget = max(min(self._budget, share * min(received, current)), cfg.min_kbps)
                 # remember the rate that congested; a new try soon after that congests again backs off longer.
                 # A decrease with no clear report since the last one is the same congestion draining: the rate that
                 # congested stays the highest of it (the drain's own lower rates are no limit of the link, and the
