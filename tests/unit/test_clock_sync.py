@@ -194,6 +194,24 @@ def test_a_new_session_and_a_host_clock_step_back_never_send_stamps_backwards() 
     _check_increasing(first + second + host_step)
 
 
+@pytest.mark.parametrize("step_s", [-10.0, -3600.0, 10.0])
+def test_a_host_clock_step_that_is_noticed_moves_the_stamps_with_it(step_s: float) -> None:
+    """The robot's clock steps (chrony finding its server after a boot in the field) and the step is noticed
+    (:class:`~axis_ptz_ros2.streaming.wall_clock.WallClockSteps`): the stamps follow the host clock at once, as every
+    other stamp on the host does. Without that, a step back froze them at the last stamp + 1 ns for as long as the
+    step (a 10 s step: 250 frames within 250 ns of each other); a step forward stamped from the old line for 2 s."""
+    clock = StreamClock()
+    before = play(clock, frames(20, seed=5))
+    clock.host_clock_stepped(int(step_s * NS))
+    step = int(step_s * NS)
+    after = [(f, clock.stamp(f.rtp, f.arrival_ns + step, f.camera_ns)) for f in list(frames(40, seed=5))[600:]]
+    _check_increasing(before)
+    _check_increasing(after)
+    assert max(abs(s - f.expected_ns - step) for f, s in after) < 50_000_000  # capture time on the new clock
+    assert clock.clamped == 0
+    assert clock.envelope.steps == 0  # the line moved: no restart
+
+
 def test_rtp_wrap_around_is_unwrapped() -> None:
     clock = StreamClock()
     t0 = HOST_T0

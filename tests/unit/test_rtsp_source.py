@@ -22,6 +22,7 @@ from axis_ptz_ros2.streaming.rtsp_source import (
     media_request,
     needs_reconnect,
 )
+from axis_ptz_ros2.streaming.wall_clock import WallClockSteps
 from axis_ptz_ros2.vapix.errors import CameraTimeout, CameraUnreachable
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 from axis_ptz_ros2.vapix.rtsp import MediaStreamRequest, RtspStatusError
@@ -271,3 +272,47 @@ def test_a_camera_whose_rtsp_offers_no_h264_is_transcoded_not_asked_again() -> N
     assert src.supported is False
     assert len(connects) == 1
     assert any("JPEG/90000" in e and "transcoding" in e for e in events), events
+
+
+def test_a_step_of_this_hosts_clock_moves_the_stamps_with_it_and_is_logged() -> None:
+    """The robot's clock steps back 10 s mid-stream (chrony finding its server): the frames after it are stamped on
+    the new clock at once (their capture time, as every other stamp on the host), not frozen at the last stamp +
+    1 ns until the clock catches up with it, and the step is logged."""
+    units = _stream(60)
+    offset = [0]  # this host's wall clock against the true time: steps by -10 s after the 30th access unit
+
+    class Stepping(Session):
+        def read(self, timeout_s: float | None = None) -> RtpAccessUnit:
+            au = super().read(timeout_s)
+            if self.sent == 31:
+                offset[0] = -10 * 1_000_000_000
+            return RtpAccessUnit(au.data, au.keyframe, self.sent * 6000, arrival_ns=time.time_ns() + offset[0])
+
+    out: list[EncodedFrame] = []
+    events: list[str] = []
+    stage = H264Stage(lambda: H264Settings(), out.append)
+    stage.set_active(True)
+    session = Stepping(units, CameraTimeout("stall"), 0)
+    src = RtspH264Source(
+        lambda _req, _t: session,
+        lambda: MediaStreamRequest(resolution="64x48", fps=15),
+        stage,
+        supports_h264=lambda: True,
+        on_supported=lambda _ok: None,
+        on_event=events.append,
+        config=_timing(read_timeout_s=0.5, stall_timeout_s=0.1),
+    )
+    src.host_clock = WallClockSteps(wall_ns=lambda: time.time_ns() + offset[0])
+    src.start()
+    try:
+        src.set_active(True)
+        wait_until(lambda: len(out) >= 60, timeout=10, what="the session's 60 access units")
+    finally:
+        src.stop()
+    jumps = [b.stamp_ns - a.stamp_ns for a, b in zip(out, out[1:], strict=False)]
+    back = [j for j in jumps if j < 0]
+    assert len(back) == 1  # once, at the step
+    assert abs(back[0] + 10 * 1_000_000_000) < 200_000_000  # by the step (less the frame interval)
+    assert all(j > 5_000_000 for j in jumps if j > 0)  # the frames' own pacing on either side, never 1 ns apart
+    assert src.stamps.clamped == 0
+    assert any("clock stepped by -10.0" in e for e in events)

@@ -24,7 +24,9 @@ moves; stamping with the arrival time adds the queueing delay of each frame. :cl
   the encoder's latency, taken off every stamp: with reports, a stamp is the capture time (+ the network's least
   delay); without, the capture time + the camera's least latency.
 * Stamps are host time (the clock the arrival times are on: :func:`time.time_ns`), strictly increasing per
-  stream (a stamp is never at or below the previous one, across sessions of the same stream too).
+  stream (a stamp is never at or below the previous one, across sessions of the same stream too), except when the
+  host clock itself steps (:meth:`StreamClock.host_clock_stepped`): then they move with it, backwards too, as every
+  other stamp on the host does.
 * The camera's wall-clock offset (``host − camera``, from the sender-report time of each frame) is kept for
   diagnostics: :attr:`StreamClock.camera_offset_ns`; it includes the fixed latency (tens of ms), so it is the
   offset to well within 0.1 s. :meth:`StreamClock.take_offset_warning` is True once when it is beyond
@@ -82,6 +84,18 @@ class LowerEnvelope:
         self._at_ref: int | None = None  # offset at _ref_ns (None: no sample yet)
         self._high_since: int | None = None  # arrival of the first of the samples over the line in a row
         self._high_min: _Point | None = None
+
+    def shift(self, delta_ns: int) -> None:
+        """The host clock stepped by ``delta_ns``: every sample's arrival, so the line, moves with it (no restart)."""
+        self._closed = [_Point(p.camera_ns, p.offset_ns + delta_ns) for p in self._closed]
+        if self._open is not None:
+            self._open = _Point(self._open.camera_ns, self._open.offset_ns + delta_ns)
+        if self._at_ref is not None:
+            self._at_ref += delta_ns
+        if self._high_since is not None:
+            self._high_since += delta_ns
+        if self._high_min is not None:
+            self._high_min = _Point(self._high_min.camera_ns, self._high_min.offset_ns + delta_ns)
 
     @property
     def ready(self) -> bool:
@@ -222,6 +236,17 @@ class StreamClock:
             return False
         self._warned = True
         return True
+
+    def host_clock_stepped(self, delta_ns: int) -> None:
+        """The host's wall clock stepped by ``delta_ns`` (:class:`~.wall_clock.WallClockSteps`): the stamps follow
+        it at once, as every other stamp on this host does, backwards too (never frozen at the last stamp until the
+        clock catches up with it), and the line moves with it: no restart, no stamps from a stale line."""
+        self.envelope.shift(delta_ns)
+        self._reports = collections.deque(((rtp, t + delta_ns) for rtp, t in self._reports), maxlen=64)
+        if self._last_stamp is not None:
+            self._last_stamp += delta_ns
+        if self.camera_offset_ns is not None:
+            self.camera_offset_ns += delta_ns
 
     def sender_report(self, rtp_timestamp: int, arrival_ns: int) -> None:
         """An RTCP sender report of this session (its RTP time) arrived at ``arrival_ns`` (host clock)."""
