@@ -83,6 +83,23 @@ def test_receive_meter_sees_a_growing_queue_and_a_gap():
     assert math.isinf(ReceiveMeter("x").report(1.0).gap_s)
 
 
+def test_receive_meter_follows_a_step_of_its_own_clock():
+    """The consumer's wall clock (the arrivals') steps by +0.5 s (NTP on the operator's laptop): every delay after it
+    is 0.5 s longer against a smallest delay from before it, which read as a 0.5 s queue for the base window (10 s)
+    and made the stream node cut the video. ``clock_stepped`` moves the kept arrivals with the clock: no queue."""
+    for step in (0.5, -0.5):
+        m = ReceiveMeter("op", window_s=2.0)
+        for i in range(150):  # 25 frames/s for 6 s, 40 ms transit, the sender's clock unmoved
+            m.add(1000.0 + i / 25.0, 1000.0 + i / 25.0 - 0.04, 4000)
+        m.clock_stepped(step)
+        for i in range(150, 175):  # one more second, the arrivals on the stepped clock
+            m.add(1000.0 + i / 25.0 + step, 1000.0 + i / 25.0 - 0.04, 4000)
+        r = m.report(1000.0 + 174 / 25.0 + step)
+        assert r.frames == 50
+        assert r.delay_p95_s - r.delay_min_s == pytest.approx(0.0, abs=1e-9)
+        assert r.delay_floor_s - r.delay_min_s == pytest.approx(0.0, abs=1e-9)
+
+
 def _repaired_losses() -> FeedbackReport:
     """2 s at 25 fps in which every 10th frame and the two behind it waited 150 ms more for a repair."""
     m = ReceiveMeter("op", window_s=2.0)

@@ -228,6 +228,26 @@ def test_a_report_whose_window_holds_a_switch_waits():
     assert ctl.feedback(judged(queue_s=0.4), lambda _c: True) is not None
 
 
+def test_reports_that_straddle_a_step_of_this_hosts_clock_are_not_judged():
+    """This host's wall clock steps (chrony): the frames' stamps jump with it, so the consumers' delays do, against a
+    smallest delay from before the step (their 10 s base window): a step back by 0.4 s reads as a 0.4 s queue. Such
+    reports are not judged until the base window and the report's own have passed (the link is alive: no silence);
+    then they are again."""
+    ctl, meter, clock, _seen = make(fps=30, compression=0, resolution="704x576", max_bitrate_kbps=5000)
+    clock.t = feed(meter, clock.t, 2.0, 30, 10_000)
+    ctl.host_clock_stepped()
+    for _ in range(22):  # 11 s of reports twice a second
+        clock.t += 0.5
+        feed(meter, clock.t - 0.5, 0.5, 30, 10_000)
+        assert ctl.feedback(judged(kbps=1500.0, queue_s=0.4), lambda _c: True) is None
+    assert ctl.state().link_budget_kbps == 0.0
+    clock.t += 0.6  # base window 10 s + the report's 1 s + settle 0.5 s after the step
+    feed(meter, clock.t - 0.6, 0.6, 30, 10_000)
+    j = ctl.feedback(judged(kbps=1500.0, queue_s=0.4), lambda _c: True)
+    assert j is not None
+    assert j.decision.state == "congested"
+
+
 def test_adaptation_off_ignores_feedback():
     ctl, meter, clock, _seen = make(adapt_to_link=False)
     clock.t = feed(meter, clock.t, 2.0, 30, 10_000)

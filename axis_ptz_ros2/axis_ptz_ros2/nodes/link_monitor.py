@@ -51,6 +51,7 @@ from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.receive_meter import ReceiveMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver, PtsGaps
+from axis_ptz_ros2.streaming.wall_clock import WallClockSteps, in_old_basis
 
 #: s: reports of a loss that just began at most this often (besides the periodic ones)
 URGENT_MIN_INTERVAL_S = 0.1
@@ -104,6 +105,8 @@ class FeedbackPublisher:
         self.lost = 0  # access units that never arrived, a running count (H.264: set by the node)
         self._last_urgent = -1e18
         self.reports = 0
+        self.wall = time.time  #: the arrivals' clock (this host's wall clock, as the stream node's stamps) ...
+        self.host_clock = WallClockSteps()  #: ... and its steps, which the kept arrivals follow
 
     @property
     def topic(self) -> str:
@@ -122,7 +125,7 @@ class FeedbackPublisher:
     def watch(self) -> None:
         """The node subscribed to the video: report from now on (idempotent)."""
         if self._since is None:
-            self._since = time.time()
+            self._since = self.wall()
             self._first_rx = None
 
     def stop(self) -> None:
@@ -132,7 +135,11 @@ class FeedbackPublisher:
 
     def add(self, msg: CompressedImage, nbytes: int | None = None, rx: float | None = None) -> None:
         """One image received now, or at ``rx`` (wall clock, s: its arrival, before any decoding) (any thread)."""
-        rx = time.time() if rx is None else rx
+        step = self._clock_step()
+        if rx is None:
+            rx = self.wall()
+        elif step and in_old_basis(int(rx * 1e9), self.host_clock.wall_at_look_ns, int(step * 1e9)):
+            rx += step  # read before the step: on the new clock
         self.watch()
         if self._first_rx is None:
             self._first_rx = rx
@@ -145,17 +152,32 @@ class FeedbackPublisher:
         """``count`` frames received now could not be shown (H.264: lost before them, corrupt, or waiting for
         an IDR); ``urgent``: report now (a loss that just began), at most every :data:`URGENT_MIN_INTERVAL_S`."""
         if count > 0:
-            now = time.time()
+            self._clock_step()
+            now = self.wall()
             self._errors.append((now, count))
             if urgent and now - self._last_urgent >= URGENT_MIN_INTERVAL_S:
                 self._last_urgent = now
                 self._report()
 
+    def _clock_step(self) -> float:
+        """Look for a step of this host's wall clock (NTP, chrony); on one, every arrival kept moves with it (a step
+        is no delay on the link: before, +0.5 s read as a 0.5 s queue for 10 s, and the stream node cut the video).
+        Returns the step (s), 0 for none."""
+        step = self.host_clock.check() / 1e9
+        if step:
+            self._meter.clock_stepped(step)
+            self._errors = deque((t + step, n) for t, n in self._errors)
+            self._since = None if self._since is None else self._since + step
+            self._first_rx = None if self._first_rx is None else self._first_rx + step
+            self._last_urgent += step
+        return step
+
     def _report(self) -> None:
+        self._clock_step()
         since = self._since
         if since is None:
             return
-        now = time.time()
+        now = self.wall()
         first = self._first_rx
         if first is not None and now - first < self._meter.window_s:
             # frames arrive, but for less than a window: its rates would read as a narrow link (weak-link bench:
@@ -241,7 +263,7 @@ class LinkMonitorNode(Node):
         counts as decode errors (the stream node answers with an IDR). Counting only the pictures shown made a
         single loss look like a narrow link — every access unit up to the next IDR is unusable — and the
         adapter stepped the bitrate down to its floor on a 2 Mbit/s link (weak-link bench, 488faa0)."""
-        rx = time.time()  # the arrival: the decoding's time is no delay on the link
+        rx = self.feedback.wall()  # the arrival: the decoding's time is no delay on the link
         data = bytes(msg.data)
         if self.receiver is None:
             self._gaps.see(int(msg.pts))

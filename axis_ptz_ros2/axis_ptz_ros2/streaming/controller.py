@@ -45,19 +45,14 @@ from axis_ptz_ros2.streaming.h264_policy import (
     h264_target_kbps,
     h264_vbv_kbit,
 )
-from axis_ptz_ros2.streaming.meter import BitrateMeter, Rate
+from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.mjpeg_share import MjpegShare, split_kbps
+from axis_ptz_ros2.streaming.report_screen import ReportScreen
 from axis_ptz_ros2.streaming.still import ExtraBytes, StillWindow
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
 
-#: s: a consumer's report is judged only once its window starts this long after a switch of settings
-FEEDBACK_SETTLE_S = 0.5
-#: s: ... except when a step up has streamed this long and the consumer has received nothing for as long (it
-#: swamps the link: waiting for a clean window would lose every frame for window + settle, 2.5 s, on each failed
-#: step up)
-SWAMPED_AFTER_STEP_UP_S = 1.0
 #: s: the budget is re-judged at most this often on the frame path
 BUDGET_PERIOD_S = 0.25
 #: the largest share of the budget a still on demand may take from the live stream while it counts (on_still)
@@ -116,7 +111,7 @@ class VideoController:
         )
         self._current = self._budget.current
         self._source = "startup"
-        self._stepped_up = False  # the budget's last switch was to better settings
+        self._screen = ReportScreen()  # which consumer reports are judged
         self._budget_check = -1e18
         self._decision: Decision | None = None
         self._announced_kbps = self._budget_kbps()  # the budget in force at the last announcement
@@ -262,7 +257,7 @@ class VideoController:
                     )
                 else:
                     self._budget.configure(requested=requested, budget_kbps=self._effective_budget(), now=now)
-                self._stepped_up = False  # the user's change, not a step the link must prove
+                self._screen.stepped_up = False  # the user's change, not a step the link must prove
                 self._current = self._budget.current
                 self._source = source
             moved = self._h264_budget_moved()  # (adaptation switched off: the link's budget is gone)
@@ -309,7 +304,7 @@ class VideoController:
             if choice is None:
                 return None
             step = BudgetStep(before, budget.level, choice, budget.budget_kbps, rate)
-            self._stepped_up = step.after < before
+            self._screen.stepped_up = step.after < before
             self._current = choice
             self._source = "bandwidth_budget"
         self._announce()
@@ -334,6 +329,12 @@ class VideoController:
         """An H.264 access unit of ``nbytes`` was sent (h264 mode: what consumers' reports are judged against)."""
         self._h264_meter.add(now, nbytes)
 
+    def host_clock_stepped(self) -> None:
+        """This host's wall clock stepped (:class:`~.wall_clock.WallClockSteps`): the frames' stamps jumped with it,
+        so the consumers' delays did, against a smallest delay from before the step: their reports are not judged
+        until that has left their windows (a step back read as a queue as long as the step, and cut the budget)."""
+        self._screen.clock_step_at = self._clock()
+
     def feedback(self, report: FeedbackReport, subscribed: Callable[[str], bool]) -> LinkJudgement | None:
         """A consumer's report (``subscribed(consumer)``: whether its image subscription has been discovered).
         Returns the judgement, or None when adaptation is off or the report says nothing about the link yet."""
@@ -342,7 +343,8 @@ class VideoController:
         now = self._clock()
         meter = self._h264_meter if self.h264 else self._meter
         sent = meter.rate(now)
-        judged = self._judgeable(report, now, sent, subscribed, meter)
+        still = self._still.covers if self.h264 else None
+        judged = self._screen.judgeable(report, now, sent, subscribed, meter.window_s, self._budget.changed_at, still)
         with self._lock:
             if judged is None:  # not evidence about the link, but the link is alive
                 self._link.heard(now)
@@ -436,33 +438,6 @@ class VideoController:
         if announce:
             self._source = "bandwidth_budget"
         return announce
-
-    def _judgeable(
-        self, r: FeedbackReport, now: float, sent: Rate, subscribed: Callable[[str], bool], meter: BitrateMeter
-    ) -> FeedbackReport | None:
-        """The report to judge, or None when it says nothing about the link yet."""
-        if r.frames == 0 and not subscribed(r.consumer):
-            # "nothing received" from a consumer whose subscription has not been discovered here: the writer
-            # is not sending to it yet (discovery over a lossy link can take long), which says nothing of the link
-            return None
-        # the meter restarts with each connection: its span is how long the new settings have been streaming
-        if (
-            self._stepped_up
-            and sent.frames >= 2
-            and sent.span_s >= SWAMPED_AFTER_STEP_UP_S
-            and r.gap_s >= SWAMPED_AFTER_STEP_UP_S
-        ):
-            # a step up that stopped the video: judge it now as "nothing arrives" (the window's frames are
-            # mostly the old settings')
-            return FeedbackReport(r.consumer, 0, 0.0, 0.0, 0.0, r.delay_min_s, r.gap_s, r.window_s)
-        changed = self._budget.changed_at
-        if changed is not None and now - changed < r.window_s + FEEDBACK_SETTLE_S:
-            return None  # the report's window still holds the switch (the reconnect's gap, the old settings)
-        if self.h264 and self._still.covers(now, r.window_s + FEEDBACK_SETTLE_S):
-            return None  # the report's window holds a still crossing the link: its queue is ours
-        if r.frames == 0 and sent.span_s < 0.75 * meter.window_s:
-            return None  # nothing received, but the stream has only just (re)started: not a swamped link
-        return r
 
     def _announce(self) -> None:
         """Tell the listener; serialised, so the last announcement describes the latest state."""

@@ -58,6 +58,7 @@ from axis_ptz_ros2.streaming.status import (
     wave_line,
 )
 from axis_ptz_ros2.streaming.video_types import VideoSettings
+from axis_ptz_ros2.streaming.wall_clock import WallClockSteps
 from axis_ptz_ros2.vapix import VapixClient
 from axis_ptz_ros2.vapix.models import Resolution
 
@@ -163,6 +164,7 @@ class VideoPipeline:
         )
         self.starts = StartPoints(self.stage)
         self.wave = LongWave()  # whether the intra-refresh wave may be h264_reported_wave
+        self.host_clock = WallClockSteps()  # the frames' stamps are on this host's wall clock: its steps
 
     # -- decisions down (any thread) ---------------------------------------------------------------------------
     def check(self, settings: VideoSettings, names: Collection[str]) -> str | None:
@@ -193,6 +195,7 @@ class VideoPipeline:
             self.wave.report(report.consumer, decode_errors, time.monotonic())
         if self.video.h264 and about_mjpeg:
             return None
+        self._watch_host_clock()
         judgement = self.video.feedback(report, subscribed)
         if judgement is not None and judgement.decision.state == "congested":
             self.wave.congested(time.monotonic())
@@ -214,8 +217,20 @@ class VideoPipeline:
     def tick(self) -> None:
         """1 Hz: the reader's watchdog, the link adapter's hold and release, the passthrough size's holds."""
         self.reader.check_watchdog()
+        self._watch_host_clock()
         self.video.tick()
         self._decide()
+
+    def _watch_host_clock(self) -> None:
+        """A step of this host's wall clock (NTP, chrony) moved the stamps: the link's reports wait it out."""
+        step = self.host_clock.check()
+        if step:
+            self.video.host_clock_stepped()
+            text = (
+                f"this host's clock stepped by {step / 1e9:+.3f} s: the stamps follow it; the link's reports are not "
+                "judged until their delays are all on the new clock"
+            )
+            self._log(LogLine("warn", text, "clock"))
 
     def _on_decision(self) -> None:
         """The controller's announcement (any thread, serialised): the readers follow (the MJPEG share's too: a new

@@ -11,6 +11,10 @@ from collections import deque
 
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 
+#: s: the reference window of the smallest delay (clock offset + the link's fixed delay) a consumer reports; after a
+#: step of either host's clock its reports mix the two clocks for this long (the stream node does not judge them)
+BASE_WINDOW_S = 10.0
+
 
 class ReceiveMeter:
     """The consumer's side: what arrives, and how late (thread-safe).
@@ -21,7 +25,7 @@ class ReceiveMeter:
     ``base_window_s`` seconds as the reference.
     """
 
-    def __init__(self, consumer: str, window_s: float = 2.0, base_window_s: float = 10.0) -> None:
+    def __init__(self, consumer: str, window_s: float = 2.0, base_window_s: float = BASE_WINDOW_S) -> None:
         """``window_s`` > 0, ``base_window_s`` >= ``window_s``."""
         if window_s <= 0 or base_window_s < window_s:
             raise ValueError("need 0 < window_s <= base_window_s")
@@ -38,6 +42,13 @@ class ReceiveMeter:
             cutoff = rx_s - self.base_window_s
             while self._frames and self._frames[0][0] < cutoff:
                 self._frames.popleft()
+
+    def clock_stepped(self, step_s: float) -> None:
+        """This host's wall clock (the arrivals' clock) stepped by ``step_s``: every arrival kept moves with it, and
+        so its delay (the sender's stamps did not move), as if the new clock had always been in force: a step is no
+        queue (before, a step of +0.5 s read as a 0.5 s queue for the whole base window)."""
+        with self._lock:
+            self._frames = deque((rx + step_s, delay + step_s, n) for rx, delay, n in self._frames)
 
     def report(self, now_s: float) -> FeedbackReport:
         """The last ``window_s`` seconds as a :class:`FeedbackReport`."""
