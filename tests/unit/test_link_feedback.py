@@ -685,6 +685,13 @@ def test_h264_the_first_decrease_after_a_step_down_drains_the_queue_it_finds():
         assert ramp.report(t, queued, 25, 760.0, 0.0, 1000).state == "congested"
         budgets.append(ramp.budget_kbps)
     assert budgets[0] == budgets[1] > 0.5 * 600.0
+    # a cut link (nothing arrives, the gap as long as the cut): no drain from a rate of 0, halved as any swamp
+    cut = LinkAdapter(cfg)
+    _steady(cut, 1280.0, 10.0, 30.0)
+    before = cut.budget_kbps
+    nothing = FeedbackReport("op", 0, 0.0, 0.0, 0.0, 100.0, gap_s=10.0, window_s=2.0)
+    assert cut.report(30.0, nothing, 25, 1280.0, 0.0, 1000).state == "congested"
+    assert cut.budget_kbps == pytest.approx(0.5 * before)
     # a setting that cannot converge is refused
     with pytest.raises(ValueError, match="drain_min_share"):
         dataclasses.replace(cfg, drain_min_share=0.9)

@@ -231,10 +231,12 @@ class LinkAdapter:
                 if steady and cfg.step_down_hold_s > 0:
                     self._hold_until, self._hold_kbps = now + cfg.step_down_hold_s, self._budget
                     self._rechecked = False
-                    if cfg.drain_s > 0:
+                    if cfg.drain_s > 0 and delivered:
                         # the queue that stood up while the link stepped down drains within ``drain_s``: the
                         # budget goes under what arrived by the queue's bits spread over that time (the hold's level
-                        # stays: the budget grows back to it once the link reads clear)
+                        # stays: the budget grows back to it once the link reads clear). Not when (almost) nothing
+                        # arrived: a cut link's reports read a queue as long as the cut and a rate of 0, which took the
+                        # budget to its floor (batch at 2e23232: the first picture 1.78 s after a heal, 0.91 before)
                         share = min(cfg.decrease, max(cfg.drain_min_share, 1.0 - queue / cfg.drain_s))
                         self._budget = max(min(self._budget, share * min(received, current)), cfg.min_kbps)
                 # remember the rate that congested; a new try soon after that congests again backs off longer.
