@@ -36,3 +36,17 @@ def test_a_time_read_before_the_step_is_told_from_one_read_after_it() -> None:
     for step in (-10 * S, 10 * S, -3600 * S):
         assert in_old_basis(now - step - 30_000_000, now, step)  # read 30 ms before the look, on the old clock
         assert not in_old_basis(now - 30_000_000, now, step)  # read 30 ms before the look, on the new clock
+
+
+def test_check_read_puts_a_time_read_before_the_step_on_the_new_clock() -> None:
+    wall, mono = [1_780_000_000 * S], [5 * S]
+    w = WallClockSteps(wall_ns=lambda: wall[0], mono_ns=lambda: mono[0])
+    assert w.check_read(wall[0] - 30_000_000) == (0, wall[0] - 30_000_000)  # no step: as read
+    before = wall[0] + 10_000_000  # read 10 ms on, before the step
+    mono[0] += 40_000_000
+    wall[0] += 40_000_000 - 10 * S  # stepped back 10 s
+    assert w.check_read(before) == (-10 * S, before - 10 * S)
+    after = wall[0] - 5_000_000  # read 5 ms before the next look, after the step
+    mono[0] += 40_000_000
+    wall[0] += 40_000_000 + 10 * S  # and forward again
+    assert w.check_read(after) == (10 * S, after + 10 * S)

@@ -51,7 +51,7 @@ from axis_ptz_ros2.nodes.live_params import LiveParams
 from axis_ptz_ros2.nodes.runner import run_nodes
 from axis_ptz_ros2.streaming.receive_meter import ReceiveMeter
 from axis_ptz_ros2.streaming.receiver import AccessUnitReceiver, PtsGaps
-from axis_ptz_ros2.streaming.wall_clock import WallClockSteps, in_old_basis
+from axis_ptz_ros2.streaming.wall_clock import WallClockSteps
 
 #: s: reports of a loss that just began at most this often (besides the periodic ones)
 URGENT_MIN_INTERVAL_S = 0.1
@@ -135,11 +135,13 @@ class FeedbackPublisher:
 
     def add(self, msg: CompressedImage, nbytes: int | None = None, rx: float | None = None) -> None:
         """One image received now, or at ``rx`` (wall clock, s: its arrival, before any decoding) (any thread)."""
-        step = self._clock_step()
         if rx is None:
+            self._clock_step(self.host_clock.check())
             rx = self.wall()
-        elif step and in_old_basis(int(rx * 1e9), self.host_clock.wall_at_look_ns, int(step * 1e9)):
-            rx += step  # read before the step: on the new clock
+        else:  # read before this call (before the decoding), perhaps before a step: on the clock as it is now
+            step, moved = self.host_clock.check_read(round(rx * 1e9))
+            if self._clock_step(step):
+                rx = moved / 1e9
         self.watch()
         if self._first_rx is None:
             self._first_rx = rx
@@ -152,18 +154,18 @@ class FeedbackPublisher:
         """``count`` frames received now could not be shown (H.264: lost before them, corrupt, or waiting for
         an IDR); ``urgent``: report now (a loss that just began), at most every :data:`URGENT_MIN_INTERVAL_S`."""
         if count > 0:
-            self._clock_step()
+            self._clock_step(self.host_clock.check())
             now = self.wall()
             self._errors.append((now, count))
             if urgent and now - self._last_urgent >= URGENT_MIN_INTERVAL_S:
                 self._last_urgent = now
                 self._report()
 
-    def _clock_step(self) -> float:
-        """Look for a step of this host's wall clock (NTP, chrony); on one, every arrival kept moves with it (a step
-        is no delay on the link: before, +0.5 s read as a 0.5 s queue for 10 s, and the stream node cut the video).
-        Returns the step (s), 0 for none."""
-        step = self.host_clock.check() / 1e9
+    def _clock_step(self, step_ns: int) -> float:
+        """This host's wall clock (NTP, chrony) stepped by ``step_ns`` (0: it did not, as :attr:`host_clock` found):
+        every arrival kept moves with it (a step is no delay on the link: before, +0.5 s read as a 0.5 s queue for
+        10 s, and the stream node cut the video). Returns the step (s), 0 for none."""
+        step = step_ns / 1e9
         if step:
             self._meter.clock_stepped(step)
             self._errors = deque((t + step, n) for t, n in self._errors)
@@ -173,7 +175,7 @@ class FeedbackPublisher:
         return step
 
     def _report(self) -> None:
-        self._clock_step()
+        self._clock_step(self.host_clock.check())
         since = self._since
         if since is None:
             return

@@ -242,7 +242,7 @@ class StreamClock:
         it at once, as every other stamp on this host does, backwards too (never frozen at the last stamp until the
         clock catches up with it), and the line moves with it: no restart, no stamps from a stale line."""
         self.envelope.shift(delta_ns)
-        self._reports = collections.deque(((rtp, t + delta_ns) for rtp, t in self._reports), maxlen=64)
+        self._reports = collections.deque(((rtp, t + delta_ns) for rtp, t in self._reports), self._reports.maxlen)
         if self._last_stamp is not None:
             self._last_stamp += delta_ns
         if self.camera_offset_ns is not None:

@@ -44,7 +44,7 @@ from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming.clock_sync import StreamClock
 from axis_ptz_ros2.streaming.meter import Backoff
 from axis_ptz_ros2.streaming.reader import ReaderConfig
-from axis_ptz_ros2.streaming.wall_clock import WallClockSteps, in_old_basis
+from axis_ptz_ros2.streaming.wall_clock import WallClockSteps
 from axis_ptz_ros2.streaming.worker import Worker
 from axis_ptz_ros2.vapix.camera_config import CameraConfig
 from axis_ptz_ros2.vapix.client import VapixClient
@@ -357,17 +357,16 @@ class RtspH264Source:
 
     def _stamp(self, au: RtpAccessUnit) -> int:
         """Host time of ``au`` (its RTP time through :class:`StreamClock`), the camera's offset in the stats."""
-        step = self.host_clock.check()
+        read = au.arrival_ns if au.arrival_ns is not None else time.time_ns()
+        step, arrival = self.host_clock.check_read(read)  # (read in the receive thread, perhaps before a step)
+        report_arrival = au.report_arrival_ns
         if step:
             # the host's clock stepped (NTP, chrony): the stamps move with it, as every other stamp on this host
             self.stamps.host_clock_stepped(step)
             if self._on_event is not None:
                 self._on_event(f"this host's clock stepped by {step / 1e9:+.3f} s: the H.264 stamps follow it")
-        arrival = au.arrival_ns if au.arrival_ns is not None else time.time_ns()
-        report_arrival = au.report_arrival_ns
-        if step and in_old_basis(arrival, self.host_clock.wall_at_look_ns, step):
-            arrival += step  # read before the step (the receive thread): on the new clock
-            report_arrival = None if report_arrival is None else report_arrival + step
+            if report_arrival is not None:
+                report_arrival += arrival - read  # read with the access unit: on the same clock
         if au.report_rtp is not None and report_arrival is not None:
             self.stamps.sender_report(au.report_rtp, report_arrival)
         stamp = self.stamps.stamp(au.rtp_timestamp, arrival, au.capture_ns)

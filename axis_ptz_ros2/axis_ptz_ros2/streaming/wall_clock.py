@@ -40,14 +40,26 @@ class WallClockSteps:
     def check(self) -> int:
         """How far (ns) the wall clock stepped since the last look (0: no step; a slew is followed, not reported)."""
         with self._lock:
-            wall = self._wall_ns()
-            offset = wall - self._mono_ns()
-            self.wall_at_look_ns = wall
-            last, self._offset = self._offset, offset
-            if last is None or abs(offset - last) <= self._threshold_ns:
-                return 0
-            self.steps += 1
-            return offset - last
+            return self._look()
+
+    def check_read(self, read_ns: int) -> tuple[int, int]:
+        """:meth:`check`, and ``read_ns`` (a wall-clock time read a moment before, in another thread perhaps) on the
+        clock as it is now: moved by the step when it was read before it (:func:`in_old_basis`)."""
+        with self._lock:
+            step = self._look()
+            if step and in_old_basis(read_ns, self.wall_at_look_ns, step):
+                read_ns += step
+            return step, read_ns
+
+    def _look(self) -> int:
+        wall = self._wall_ns()
+        offset = wall - self._mono_ns()
+        self.wall_at_look_ns = wall
+        last, self._offset = self._offset, offset
+        if last is None or abs(offset - last) <= self._threshold_ns:
+            return 0
+        self.steps += 1
+        return offset - last
 
 
 def in_old_basis(time_ns: int, now_ns: int, step_ns: int) -> bool:
