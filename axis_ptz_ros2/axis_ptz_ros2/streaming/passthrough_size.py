@@ -22,6 +22,9 @@ Why 0.03 bit per pixel per picture:
   (0.011) 11 / 8, 800x450 (0.028) 10 / 9, 1920x1080 4 / 0; 700 kbit/s: 1920x1080 (0.011) 12 / 12, 1024x576 (0.040)
   10 / 10. So in this scene a size reads down to about 0.01-0.02 and breaks down under 0.01; 0.03 gives up one or
   two rows against the best size at 300-700 kbit/s here, and keeps the worst picture (8 rows, not 4, at 150).
+* Panning moves the edge up (``--pan-deg-s 9``, at 67e8d0c): at 0.011 bit/px 1080p reads 12 / 12 still but 7 / 0
+  while the head sweeps 9°/s across the chart; sizes hold from about 0.016 up; at 700 kbit/s this rule's 1024x576
+  reads 10 / 10 (docs/weak-link.md).
 * The simulator's scene is static, with the sensor noise of its camera model only: a real scene moves, a PTZ pans,
   a real sensor's noise and the camera's own encoder (unknown to us; Axis's Zipstream and its rate control differ
   from x264) all take bits a static scene does not. 0.03 leaves 1.5× over the measured edge and stays under half the
