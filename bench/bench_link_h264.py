@@ -64,7 +64,9 @@ robot side already running; for H.264 without feedback the viewer is started ``-
 For a study of one run: ``BENCH_LINK_LOG_LEVEL=debug`` (the stream node's log, with the link adapter's decision on
 every report, in ``artifacts/bench_link_h264/<session>-axis_camera.log``), ``BENCH_LINK_ROBOT_ARGS`` (more
 ``-p name:=value`` for the stream node), ``BENCH_LINK_DUMP=DIR`` (every shown picture's record -- ``rx``, ``cap`` the
-camera's send, ``bytes`` -- the stills, and the link's events of each session in ``DIR/<session>.jsonl``).
+camera's send, ``bytes`` -- the stills, the access units that arrived but could not be shown (``lost``, with ``pts``),
+the gaps in pts (``gap``, ``n`` access units that never arrived), and the link's events of each session in
+``DIR/<session>.jsonl``).
 
 Needs root (network namespaces); installs nftables if missing.
 """
@@ -291,7 +293,7 @@ def run_session(s: Session, seconds: float, starts: int, logs: Path, profile: st
     if dump:  # for a study of one run (the module docstring)
         with open(Path(dump) / f"{s.name}.jsonl", "w", encoding="utf-8") as f:
             f.write(json.dumps({"t": "events", "t0": s.t0, **s.events}) + "\n")
-            f.writelines(json.dumps(r) + "\n" for r in [*s.pics, *s.stills])
+            f.writelines(json.dumps(r) + "\n" for r in [*s.pics, *s.stills, *s.lost, *s.gaps])
     return s
 
 
