@@ -12,14 +12,9 @@ import pytest
 from axis_ptz_ros2.media.h264_settings import H264Settings
 from axis_ptz_ros2.streaming import BitrateMeter, ReaderConfig, StreamReader
 from axis_ptz_ros2.streaming.adapter_config import h264_adapter_config
-from axis_ptz_ros2.streaming.controller import (
-    AUTO_PLACEHOLDER,
-    BUDGET_ANNOUNCE_SLACK,
-    VIDEO_FIELDS,
-    VideoController,
-    requested_changes,
-)
+from axis_ptz_ros2.streaming.controller import BUDGET_ANNOUNCE_SLACK, VideoController
 from axis_ptz_ros2.streaming.feedback import Decision, FeedbackReport, LinkAdapter
+from axis_ptz_ros2.streaming.video_request import AUTO_PLACEHOLDER, VIDEO_FIELDS, requested_changes
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix.mjpeg import MjpegStats
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams

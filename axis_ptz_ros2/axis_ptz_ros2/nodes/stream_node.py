@@ -71,12 +71,12 @@ from axis_ptz_ros2.nodes.stream_camera_info import CameraInfoOutput
 from axis_ptz_ros2.nodes.stream_params import PARAMS
 from axis_ptz_ros2.nodes.stream_still import StillOutput
 from axis_ptz_ros2.streaming import ReaderConfig
-from axis_ptz_ros2.streaming.controller import requested_changes
 from axis_ptz_ros2.streaming.discovery import camera_model_path
 from axis_ptz_ros2.streaming.feedback import FeedbackReport
 from axis_ptz_ros2.streaming.h264 import FFMPEG_ENCODING
 from axis_ptz_ros2.streaming.pipeline import Outlet, VideoPipeline
 from axis_ptz_ros2.streaming.status import LogLine, diagnostic_status
+from axis_ptz_ros2.streaming.video_request import requested_changes
 from axis_ptz_ros2.streaming.video_types import VideoSettings
 from axis_ptz_ros2.vapix import VapixClient
 

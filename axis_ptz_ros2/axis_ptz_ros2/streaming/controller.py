@@ -11,7 +11,8 @@ what is in effect, or of what is advertised with it, is announced through ``on_c
 
 Policy that lives here:
 
-* resolution ``""`` = the largest size the camera lists (704x576 while it cannot list them);
+* resolution ``""`` = the largest size the camera lists (704x576 while it cannot list them; the request itself is
+  built by :mod:`.video_request`);
 * requests are validated against the camera's own list once known (never an assumed one);
 * the budget in force is the tighter of the hand-set ``max_bitrate_kbps`` and the link adapter's, in either codec
   (what :meth:`VideoController.state` advertises);
@@ -49,6 +50,7 @@ from axis_ptz_ros2.streaming.meter import BitrateMeter
 from axis_ptz_ros2.streaming.mjpeg_share import MjpegShare, split_kbps
 from axis_ptz_ros2.streaming.report_screen import ReportScreen
 from axis_ptz_ros2.streaming.still import ExtraBytes, StillWindow
+from axis_ptz_ros2.streaming.video_request import LINK_FIELDS, VIDEO_FIELDS, camera_request, share_request
 from axis_ptz_ros2.streaming.video_types import BudgetStep, LinkJudgement, VideoSettings, VideoState
 from axis_ptz_ros2.vapix.errors import InvalidArgument
 from axis_ptz_ros2.vapix.models import Resolution, VideoParams
@@ -59,17 +61,6 @@ BUDGET_PERIOD_S = 0.25
 STILL_SHARE = 0.5
 #: h264 mode: a change of the budget in force smaller than this fraction of the one last announced is not announced
 BUDGET_ANNOUNCE_SLACK = 0.1
-#: resolution "" while the camera cannot list its sizes (discovery retries)
-AUTO_PLACEHOLDER = Resolution(704, 576)
-#: the fields of :class:`VideoSettings` that make up the request and the budget (not the link adaptation)
-VIDEO_FIELDS = frozenset(
-    {"fps", "resolution", "compression", "max_bitrate_kbps", "budget_max_compression", "budget_min_fps", "codec"}
-)
-LINK_FIELDS = frozenset({"adapt_to_link", "link_release"})
-
-
-def _largest(resolutions: Collection[Resolution]) -> Resolution:
-    return max(resolutions, key=lambda r: (r.width * r.height, r.width))
 
 
 class VideoController:
@@ -392,20 +383,13 @@ class VideoController:
         return self._resolutions if self._resolutions else AXIS214_PAL_RESOLUTIONS
 
     def _request(self, settings: VideoSettings) -> VideoParams:
-        """The request (not validated); resolution '' = the largest the camera lists (the placeholder until
-        it is known). Raises InvalidArgument for a resolution that cannot be parsed."""
-        text = str(settings.resolution)
-        if text.strip():
-            res = Resolution.parse(text)
-        else:
-            res = _largest(self._resolutions) if self._resolutions else AUTO_PLACEHOLDER
+        """The request for ``settings`` (:func:`~.video_request.camera_request`; not validated)."""
         h264 = settings.codec == "h264" and self._h264_possible
-        compression = 0 if h264 else int(settings.compression)  # the encoder's best input
-        return VideoParams(res, int(settings.fps), compression, camera=self._camera)
+        return camera_request(settings, self._resolutions, h264, self._camera)
 
     def _share_request(self, settings: VideoSettings) -> VideoParams:
-        """The MJPEG stream's request in h264 mode: the size and rate asked for, at the compression asked for."""
-        return replace(self._request(settings), compression=int(settings.compression))
+        """The MJPEG stream's request in h264 mode (:func:`~.video_request.share_request`)."""
+        return share_request(settings, self._resolutions, self._camera)
 
     def _effective_budget(self) -> float:
         """The budget for the MJPEG ladder (0 = none; in h264 mode the encoder takes it); call with the lock held."""
@@ -451,25 +435,6 @@ class VideoController:
 
 def _adapter_config(settings: VideoSettings, h264: bool) -> AdapterConfig:
     """The link adapter's tuning for the codec in effect (H.264 is judged by bytes, with a lossy link's repair
-    delays allowed for: :func:`~.feedback.h264_adapter_config`)."""
+    delays allowed for: :func:`~.adapter_config.h264_adapter_config`)."""
     release = float(settings.link_release)
     return h264_adapter_config(release) if h264 else AdapterConfig(release_s=release)
-
-
-def requested_changes(
-    fps: int, resolution: str, compression: int, h264_bitrate_kbps: int = 0, h264_max_bitrate_kbps: int = 0
-) -> dict[str, int | str]:
-    """The live parameters a ``video/set_params`` request changes: ``fps`` 0, ``resolution`` '',
-    ``compression`` -1 and the H.264 bitrates 0 leave theirs as they are."""
-    changes: dict[str, int | str] = {}
-    if fps != 0:
-        changes["fps"] = int(fps)
-    if resolution:
-        changes["resolution"] = str(resolution)
-    if compression != -1:
-        changes["compression"] = int(compression)
-    if h264_bitrate_kbps != 0:
-        changes["h264_bitrate_kbps"] = int(h264_bitrate_kbps)
-    if h264_max_bitrate_kbps != 0:
-        changes["h264_max_bitrate_kbps"] = int(h264_max_bitrate_kbps)
-    return changes
