@@ -6,6 +6,7 @@ session's PSNR against references rendered from each picture's pose, the printed
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -290,21 +291,54 @@ def event_figures(s: Session) -> dict[str, Any]:
     return out
 
 
+#: a scripted session run more than once (``--repeat``): its figures' median over the runs, and the worst of these
+EVENT_MEDIAN = ("recovery_s", "first_after_heal_s", "last_late_s", "late_pictures", "tail_fps", "tail_age_p95")
+EVENT_WORST = ("stale_after_heal", "during_cut")
+
+
+def combine_runs(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """One scripted session's runs as one: the median of :data:`EVENT_MEDIAN` over the runs, the largest of
+    :data:`EVENT_WORST` (a stale picture in any run counts), and ``runs`` the runs themselves."""
+    out = dict(runs[0])
+    for key in EVENT_MEDIAN:
+        if key in out:
+            out[key] = statistics.median(r[key] for r in runs)
+    for key in EVENT_WORST:
+        if key in out:
+            out[key] = max(r[key] for r in runs)
+    out["runs"] = runs
+    return out
+
+
 def report_events(ev: list[dict[str, Any]]) -> bool:
-    """Print the scripted sessions' figures and their README rows; True if they meet their targets."""
+    """Print the scripted sessions' figures (each run's, then with more than one run of a session their median) and
+    their README rows (one per session: the median of its runs, each run's figure beside it); True if they meet
+    their targets."""
     from report import row
 
     ok = True
+    by_name: dict[str, list[dict[str, Any]]] = {}
     for e in ev:
+        by_name.setdefault(e["name"], []).append(e)
+    for runs in by_name.values():
+        e = combine_runs(runs)
         for key, line, what, target, passes in EVENTS:
             if key not in e:
                 continue
             good = bool(passes(e))
-            print(
-                f"{e['name']}: {line(e)}; last 10 s {e['tail_fps']:.1f} fps, age p95 {e['tail_age_p95']:.0f} ms   "
-                f"target {target}"
-            )
-            row(what, EVENT_FIGURE[key](e), target, good)
+            for k, r in enumerate(runs, 1):
+                run = f" (run {k} of {len(runs)})" if len(runs) > 1 else ""
+                print(
+                    f"{r['name']}{run}: {line(r)}; last 10 s {r['tail_fps']:.1f} fps, age p95 "
+                    f"{r['tail_age_p95']:.0f} ms" + ("" if run else f"   target {target}")
+                )
+            figure = EVENT_FIGURE[key](e)
+            if len(runs) > 1:
+                each = ", ".join(f"{r[key]:.2f}" for r in runs)
+                print(f"{e['name']}: median of {len(runs)} runs: {figure} (runs: {each} s)   target {target}")
+                figure = f"median of {len(runs)} runs {figure} (runs {each} s)"
+                what = what.replace(": ", ", median of the runs: ", 1)
+            row(what, figure, target, good)
             ok &= good
     return ok
 

@@ -37,3 +37,23 @@ def test_the_step_figure_counts_the_late_burst_not_a_single_late_picture() -> No
     two = {125: 140.0, 130: 150.0}  # two in one second: that window's p95 is over
     # the last window holding both ends a window after the first of them
     assert age_recovery_s(pictures(two), 0, pics[-1]["rx"]) == pytest.approx(125 / 25 + RECOVERY_WINDOW_S, abs=0.15)
+
+
+def test_a_scripted_session_run_three_times_is_judged_on_its_median_and_its_worst_stale_picture() -> None:
+    from link_h264_results import combine_runs
+
+    runs = [
+        {"name": "h264-step", "recovery_s": r, "tail_fps": 25.0, "tail_age_p95": a, "late_pictures": 3}
+        for r, a in ((5.0, 60.0), (2.4, 40.0), (2.8, 50.0))
+    ]
+    e = combine_runs(runs)
+    assert e["recovery_s"] == 2.8  # the median, not the first run's 5.0 or the best
+    assert e["tail_age_p95"] == 50.0
+    assert e["runs"] == runs
+    cuts = [
+        {"name": "h264-cut", "first_after_heal_s": f, "stale_after_heal": n, "during_cut": 0, "tail_fps": 25.0}
+        for f, n in ((0.5, 0), (0.6, 2), (0.7, 0))
+    ]
+    c = combine_runs(cuts)
+    assert c["first_after_heal_s"] == 0.6
+    assert c["stale_after_heal"] == 2  # a stale picture in any run counts
