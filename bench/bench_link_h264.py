@@ -506,8 +506,10 @@ def main() -> int:
         if "still_asked" in r:
             print_stills(r)
     if a.plot:
-        first_runs = [s for k, s in enumerate(scripted) if s.name not in {x.name for x in scripted[:k]}]  # one each
-        plot(sessions + first_runs, seconds, Path(a.plot), LINK_KBIT)
+        first_runs: dict[str, Session] = {}  # one line per scripted session: its first run
+        for s in scripted:
+            first_runs.setdefault(s.name, s)
+        plot(sessions + list(first_runs.values()), seconds, Path(a.plot), LINK_KBIT)
         print(f"\nplot: {os.path.relpath(a.plot, ROOT)}")
     ok = readme_rows({r["name"]: r for r in results}, LINK_KBIT)
     ok &= report_events(events)

@@ -40,6 +40,8 @@ from axis_ptz_ros2.media.decoder import H264Decoder  # noqa: E402
 from axis_ptz_ros2.media.encoder import H264Encoder  # noqa: E402
 from axis_ptz_ros2.media.h264_settings import H264Settings  # noqa: E402
 from axis_ptz_ros2.sim.camera import SimulatedCamera  # noqa: E402
+from axis_ptz_ros2.streaming.passthrough_size import bits_per_pixel  # noqa: E402
+from axis_ptz_ros2.vapix.models import Resolution  # noqa: E402
 
 SIZES = ((1920, 1080), (1280, 720), (1024, 576), (800, 450), (640, 360), (480, 270))
 CHART = "acuity_35m"
@@ -114,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
                 if pic is not None and k % 5 == 0:
                     rows.append(acuity.score(pic.image, H).rows_read)
             rate = bits * fps / max(1, pictures - fps) / 1e3
-            bpp = kbps * 1000 / (w * h * fps)
+            bpp = bits_per_pixel(kbps, Resolution(w, h), fps)
             med, worst = int(np.median(rows)), min(rows)
             print(
                 f"{kbps:5d} kbit/s {w:4d}x{h:<4d}: {rate:5.0f} kbit/s reached, {bpp:.3f} bit/px, rows read "
@@ -187,7 +189,7 @@ def panning(  # noqa: PLR0913 - the set-up main() made
                     ref.append(own)
                     rows.append(acuity.score(pic.image, H).rows_read)
             rate = bits * fps / max(1, pictures - fps) / 1e3
-            bpp = kbps * 1000 / (w * h * fps)
+            bpp = bits_per_pixel(kbps, Resolution(w, h), fps)
             if not rows:
                 print(f"{kbps:5d} kbit/s {w:4d}x{h:<4d}: the chart was in view in no picture read")
                 continue
