@@ -542,3 +542,26 @@ def test_video_params_carry_the_cameras_resolution_list(ros: RosHarness, camera:
     assert last.source == "startup", "learning the list changes no value, so the cause stays"
     # the 214 persona lists 4CIF,2CIFEXP,2CIF,CIF,QCIF (PAL): four distinct sizes, smallest first
     assert list(last.available_resolutions) == ["176x144", "352x288", "704x288", "704x576"]
+
+
+def test_parameter_services_are_served_and_can_be_left_out(ros, camera):
+    """The node starts its parameter services itself, after its video publishers (their discovery data then
+    crosses a lossy link first: docs/weak-link.md); ``start_parameter_services=False`` leaves them out as for any
+    rclpy node."""
+    node = make_stream_node(ros, camera)
+    quiet = StreamNode(
+        "axis_stream_quiet",
+        context=ros.context,
+        start_parameter_services=False,
+        parameter_overrides=[Parameter("port", value=camera.port)],
+    )
+    ros.add(quiet)
+    probe = ros.probe()
+    services = lambda n: {name for name, _ in probe.get_service_names_and_types_by_node(n, "/")}  # noqa: E731
+    ros.wait_for(lambda: "/axis_stream/get_parameters" in services("axis_stream"), timeout=10)
+    client = probe.create_client(GetParameters, "/axis_stream/get_parameters")
+    assert client.wait_for_service(timeout_sec=5)
+    got = ros.call(client, GetParameters.Request(names=["fps"]))
+    assert got.values[0].integer_value == node.live_params.params["fps"]
+    ros.wait_for(lambda: "/video/set_params" in services("axis_stream_quiet"), timeout=10)  # its own
+    assert not any("parameter" in s for s in services("axis_stream_quiet")), services("axis_stream_quiet")

@@ -44,6 +44,7 @@ from foxglove_msgs.msg import CompressedVideo
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.parameter_service import ParameterService
 from rclpy.publisher import Publisher
 from sensor_msgs.msg import CompressedImage
 
@@ -85,11 +86,17 @@ __all__ = ["PARAMS", "StreamNode", "main"]
 
 class StreamNode(Node):
     """``axis_stream``: the video pipeline's frames on ``image_raw/compressed`` + ``camera_info`` and the H.264
-    topics, live video parameters, diagnostics."""
+    topics, live video parameters, diagnostics.
+
+    Its video publishers are made before its parameter services (rclpy would start those first): a participant sends
+    a newcomer its endpoints' discovery data in the order they were made, one reliable stream, and a packet lost on a
+    lossy link holds up everything after it until Fast DDS's discovery heartbeat a second later. First, a viewer
+    learns of the video sooner (two-host bench, 2 Mbit/s + 2 %: see docs/weak-link.md, "First picture")."""
 
     def __init__(self, name: str = "axis_stream", **kwargs: Any) -> None:
         """``kwargs`` go to :class:`rclpy.node.Node` (``context=``, ``parameter_overrides=``, ``namespace=``)."""
-        super().__init__(name, **kwargs)
+        services = bool(kwargs.pop("start_parameter_services", True))
+        super().__init__(name, start_parameter_services=False, **kwargs)  # started after the video publishers
         # validated as a whole before a set, applied after it (the pipeline exists by then: no set during __init__)
         self._live = LiveParams(self, PARAMS, validate=self._validate_params, on_change=self._apply_params)
         p = self._live.params
@@ -115,6 +122,8 @@ class StreamNode(Node):
         self._ffmpeg_wanted = self._foxglove_wanted = False
         self._params_pub = publisher(self, VideoParamsMsg, "video/params", LATCHED_QOS)
         self._diag_pub = publisher(self, DiagnosticArray, "/diagnostics", 10)
+        if services:  # after the video publishers: see the class docstring
+            self._parameter_service = ParameterService(self)
 
         self._pipeline = VideoPipeline(  # raises ValueError (start-up error) if the request is invalid
             self._client,
