@@ -7,7 +7,7 @@ from collections.abc import Callable
 import pytest
 
 from axis_ptz_ros2.media.h264_settings import H264Settings
-from axis_ptz_ros2.streaming.h264 import H264Stage
+from axis_ptz_ros2.streaming.h264 import NEW_SUBSCRIBER_IDR_AGAIN_S, H264Stage
 from axis_ptz_ros2.streaming.start_points import START_IDR_REPEATS_S, StartPoints
 
 pytestmark = pytest.mark.unit
@@ -65,10 +65,10 @@ def start_point_times(seconds: float, tick: float = 0.04) -> list[float]:
 
 
 def test_a_plain_viewer_gets_its_start_points_and_no_more() -> None:
-    """A viewer that never reports gets the stage's IDRs (at once, 0.4 s later) and one at each of
-    :data:`START_IDR_REPEATS_S`, and none after the last (a plain viewer does not cost IDRs for good)."""
+    """A viewer that never reports gets the stage's IDRs (at once, ``NEW_SUBSCRIBER_IDR_AGAIN_S`` later) and one
+    at each of :data:`START_IDR_REPEATS_S`, and none after the last (a plain viewer does not cost IDRs for good)."""
     sent = start_point_times(START_IDR_REPEATS_S[-1] + 3.0)
-    expected = [0.0, 0.4, *START_IDR_REPEATS_S]
+    expected = [0.0, NEW_SUBSCRIBER_IDR_AGAIN_S, *START_IDR_REPEATS_S]
     assert len(sent) == len(expected), sent
     assert all(abs(a - b) <= 0.05 for a, b in zip(sent, expected, strict=True)), sent
 
