@@ -41,13 +41,17 @@ def test_a_viewer_the_graph_names_late_is_learnt_at_the_next_count() -> None:
     assert len(asked) == 3
 
 
+def on_a_fake_clock() -> tuple[list[float], H264Stage, StartPoints]:
+    """([now], stage, start points), both reading ``now[0]`` as their clock."""
+    now = [0.0]
+    stage = H264Stage(H264Settings, lambda _f: None, clock=lambda: now[0])
+    return now, stage, StartPoints(stage, clock=lambda: now[0])
+
+
 def start_point_times(seconds: float, tick: float = 0.04) -> list[float]:
     """When a plain viewer (one that never reports) is sent IDRs after it appeared at 0, by the stage and the start
     points together, with an access unit every ``tick`` s (the RTSP path's ``idr_wanted`` / ``idr_sent``)."""
-    now = [0.0]
-    clock = lambda: now[0]  # noqa: E731
-    stage = H264Stage(H264Settings, lambda _f: None, clock=clock)
-    starts = StartPoints(stage, clock=clock)
+    now, stage, starts = on_a_fake_clock()
     stage.set_active(True)
     stage.idr_sent()  # the stream's own first IDR, long before the viewer
     now[0] = 10.0
@@ -75,10 +79,7 @@ def test_a_plain_viewer_gets_its_start_points_and_no_more() -> None:
 
 def test_start_points_stop_once_the_viewer_reports_pictures() -> None:
     """A viewer that reports pictures without errors on ``video/feedback`` has had its start point: no more IDRs."""
-    now = [0.0]
-    clock = lambda: now[0]  # noqa: E731
-    stage = H264Stage(H264Settings, lambda _f: None, clock=clock)
-    starts = StartPoints(stage, clock=clock)
+    now, _stage, starts = on_a_fake_clock()
     starts.count(1, lambda: frozenset({MONITOR}))
     now[0] = START_IDR_REPEATS_S[0] + 0.05
     assert starts.repeat_due(now[0])  # the first repeat: not yet reported
