@@ -53,10 +53,11 @@ it starts (panning: of each picture's pose, afterwards; ``bench/link_h264_roles.
 The camera's own compression-0 JPEG against the first two is printed as the ceiling.
 
 First picture: from the viewer process's start (and from its node being up) to its first shown picture, with the
-robot side already running; for H.264 without feedback the viewer is started ``--starts`` times (worst reported).
+robot side already running; for H.264 without feedback the viewer is started ``--starts`` times (the worst, how
+many took over 2 s, and the median reported: a handful of starts does not show a tail of a few per cent).
 
     .venv/bin/python bench/bench_link_h264.py [--seconds 40] [--plot bench/results/link_h264.png]
-        [--sessions mjpeg,h264,h264-nofb,mjpeg-nofb] [--starts 5] [--repeat 1]
+        [--sessions mjpeg,h264,h264-nofb,mjpeg-nofb] [--starts 25] [--repeat 1]
 
 ``--repeat N``: each scripted session (``h264-step``, ``h264-cut``) is run N times, each on a fresh link, and judged
 on the median of its runs (every run's figure printed and kept in its README row). One run's figure scatters widely
@@ -367,8 +368,9 @@ def readme_rows(results: dict[str, dict[str, Any]], link_kbit: int) -> bool:
             bool(n["fps_full"] >= FPS_TARGET and n["psnr_soft_p50"] >= 36),
         )
         checked(
-            f"{link}, H.264: first picture after the viewer starts, worst of {n['starts']}",
-            f"{fmt(n['first_s'], '{:.1f}')} s",
+            f"{link}, H.264: first picture after the viewer starts, worst of {n['starts']}; starts over 2 s; median",
+            f"{fmt(n['first_s'], '{:.1f}')} s; {n['first_over_2']} of {n['starts']}; "
+            f"{fmt(n['first_median'], '{:.1f}')} s",
             "≤ 2 s",
             bool(n["first_s"] <= 2),
         )
@@ -436,7 +438,7 @@ def main() -> int:
         default="mjpeg,h264,h264-nofb,mjpeg-nofb",
         help="also h264-step, h264-cut (scripted link changes), h264-pan, q6075-h264, crowded, h264-still",
     )
-    ap.add_argument("--starts", type=int, default=5, help="viewer starts timed in the h264-nofb session")
+    ap.add_argument("--starts", type=int, default=25, help="viewer starts timed in the h264-nofb session")
     ap.add_argument(
         "--repeat",
         type=int,
