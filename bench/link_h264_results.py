@@ -159,13 +159,22 @@ def panning_psnr(s: Session, refdir: Path) -> None:
 # ---------------------------------------------------------------------------------------------------------
 # figures
 # ---------------------------------------------------------------------------------------------------------
+def worst_start(times: list[float]) -> float:
+    """The slowest of the viewer's starts (s; NaN: none shown); a start that showed nothing is the worst."""
+    return math.inf if any(math.isnan(x) for x in times) else max(times, default=math.nan)
+
+
+def listed_starts(times: list[float]) -> str:
+    return " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in times)
+
+
 def start_figures(first_s: list[float]) -> dict[str, Any]:
-    """The viewer's starts (s from its spawn to its first picture; NaN: none shown): the worst (a start that showed
-    nothing is the worst), how many missed 2 s (those that showed nothing count), the median of those shown."""
+    """The viewer's starts (s from its spawn to its first picture; NaN: none shown): the worst, how many missed 2 s
+    (those that showed nothing count), the median of those shown."""
     shown = [x for x in first_s if not math.isnan(x)]
     return {
-        "first_s": math.inf if len(shown) < len(first_s) else max(first_s, default=math.nan),
-        "first_all": " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in first_s),
+        "first_s": worst_start(first_s),
+        "first_all": listed_starts(first_s),
         "first_over_2": sum(1 for x in first_s if math.isnan(x) or x > 2.0),
         "first_median": statistics.median(shown) if shown else math.nan,
     }
@@ -204,10 +213,8 @@ def figures(s: Session, seconds: float) -> dict[str, Any]:  # noqa: PLR0915 - on
     out["gap_aus"] = sum(r["n"] for r in gaps)
     out["gap_events"] = len(gaps)
     out.update(start_figures(s.first_s))
-    out["first_node_max"] = (
-        math.inf if any(math.isnan(x) for x in s.first_node_s) else max(s.first_node_s, default=math.nan)
-    )
-    out["first_node_all"] = " ".join("—" if math.isnan(x) else f"{x:.1f}" for x in s.first_node_s)
+    out["first_node_max"] = worst_start(s.first_node_s)
+    out["first_node_all"] = listed_starts(s.first_node_s)
     out["first_detail"] = " ".join(s.first_detail) or "—"
     out["starts"] = len(s.first_s)
     out["pose_moved"] = s.pose_moved
